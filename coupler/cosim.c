@@ -1,0 +1,3 @@
+#include "coupler/coupler.h"
+
+int main(int argc, char **argv) { return cpl_main(argc, argv); }

@@ -1,0 +1,126 @@
+/* launch.c — starting participants and making sure none outlives the run
+ * (MUSCLE3-style supervision: the first failure stops everything, and the
+ * report names the participant and shows the end of its log). */
+#include "internal.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+int cpl_spawn(cpl_child *c, const char *name, const char *exec,
+              const char *endpoint, const char *log_path, proto_err *err) {
+  memset(c, 0, sizeof *c);
+  snprintf(c->name, sizeof c->name, "%s", name);
+  snprintf(c->exec, sizeof c->exec, "%s", exec);
+  snprintf(c->log_path, sizeof c->log_path, "%s", log_path);
+  int log = open(log_path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (log < 0)
+    return proto_fail(err, "%s: cannot create log %s: %s", name, log_path,
+                      strerror(errno));
+  pid_t parent = getpid();
+  pid_t pid = fork();
+  if (pid < 0) {
+    close(log);
+    return proto_fail(err, "%s: fork failed: %s", name, strerror(errno));
+  }
+  if (pid == 0) {
+    /* Die with the launcher, whatever kills it; leave Ctrl-C to the
+     * launcher, which stops everyone in order. */
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (getppid() != parent) _exit(1);
+    signal(SIGINT, SIG_IGN);
+    dup2(log, 1);
+    dup2(log, 2);
+    int devnull = open("/dev/null", O_RDONLY);
+    if (devnull >= 0) dup2(devnull, 0);
+    setenv("COSIM_LAUNCHED", "1", 1);
+    execl(exec, exec, "--endpoint", endpoint, "--name", name, (char *)NULL);
+    fprintf(stderr, "cannot execute %s: %s\n", exec, strerror(errno));
+    _exit(127);
+  }
+  close(log);
+  c->pid = pid;
+  c->running = 1;
+  return 0;
+}
+
+static void describe_status(int status, char *out, size_t cap) {
+  if (WIFEXITED(status))
+    snprintf(out, cap, "exited with status %d", WEXITSTATUS(status));
+  else if (WIFSIGNALED(status))
+    snprintf(out, cap, "was killed by signal %d (%s)", WTERMSIG(status),
+             strsignal(WTERMSIG(status)));
+  else
+    snprintf(out, cap, "stopped (status %d)", status);
+}
+
+int cpl_child_poll(cpl_child *c) {
+  if (!c->running) return 0;
+  int status;
+  pid_t r = waitpid(c->pid, &status, WNOHANG);
+  if (r == c->pid) {
+    c->running = 0;
+    c->status = status;
+    describe_status(status, c->how, sizeof c->how);
+    return 1;
+  }
+  return 0;
+}
+
+void cpl_child_tail(const cpl_child *c, char *out, size_t cap, int lines) {
+  out[0] = 0;
+  FILE *f = fopen(c->log_path, "rb");
+  if (!f) return;
+  fseek(f, 0, SEEK_END);
+  long size = ftell(f);
+  long from = size > (long)cap - 1 ? size - (long)cap + 1 : 0;
+  fseek(f, from, SEEK_SET);
+  size_t n = fread(out, 1, cap - 1, f);
+  fclose(f);
+  out[n] = 0;
+  while (n && out[n - 1] == '\n') out[--n] = 0;
+  /* keep the last `lines` lines */
+  int seen = 0;
+  for (size_t i = n; i > 0; i--) {
+    if (out[i - 1] == '\n' && ++seen == lines) {
+      memmove(out, out + i, n - i + 1);
+      return;
+    }
+  }
+}
+
+static void sleep_ms(int ms) {
+  struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+  nanosleep(&ts, NULL);
+}
+
+/* Waits until every child has exited or `seconds` passed. */
+static int wait_all(cpl_child *cs, int n, double seconds) {
+  double until = proto_now() + seconds;
+  while (1) {
+    int alive = 0;
+    for (int i = 0; i < n; i++) {
+      cpl_child_poll(&cs[i]);
+      alive += cs[i].running;
+    }
+    if (!alive || proto_now() > until) return alive;
+    sleep_ms(10);
+  }
+}
+
+void cpl_stop_all(cpl_child *cs, int n, double grace_s) {
+  if (wait_all(cs, n, grace_s) == 0) return;
+  for (int i = 0; i < n; i++)
+    if (cs[i].running) kill(cs[i].pid, SIGTERM);
+  if (wait_all(cs, n, 2.0) == 0) return;
+  for (int i = 0; i < n; i++)
+    if (cs[i].running) kill(cs[i].pid, SIGKILL);
+  wait_all(cs, n, 5.0);
+}

@@ -1,0 +1,421 @@
+/* run.c — one coupled run: private run directory, sockets, bus, starting the
+ * participants, handshake, the loop (loop.c), and a teardown that leaves no
+ * process behind whatever happened. */
+#include "run.h"
+
+#include <errno.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zmq.h>
+
+volatile int cpl_interrupted = 0;
+
+static void on_signal(int sig) { cpl_interrupted = sig; }
+
+static const char *role_name(cpl_role r) {
+  return r == CPL_ROLE_DEM ? "dem" : r == CPL_ROLE_FEM ? "fem" : "block";
+}
+
+static int peer_of(const cpl_runner *r, const char *identity) {
+  for (int i = 0; i < r->n; i++)
+    if (strcmp(r->peers[i].proc->name, identity) == 0) return i;
+  return -1;
+}
+
+/* A child exited unexpectedly: say who, how, and what its log says. */
+static int report_exit(cpl_runner *r, int c) {
+  char tail[700];
+  cpl_child_tail(&r->children[c], tail, sizeof tail, 8);
+  for (int i = 0; i < r->n; i++)
+    if (strcmp(r->peers[i].proc->name, r->children[c].name) == 0) {
+      r->failed_peer = i;
+      r->peers[i].stopped = 1;
+    }
+  return proto_fail(&r->err, "participant '%s' (%s, pid %d) %s; its log %s "
+                    "ends with:\n%s", r->children[c].name, r->children[c].exec,
+                    (int)r->children[c].pid, r->children[c].how,
+                    r->children[c].log_path, tail[0] ? tail : "(empty)");
+}
+
+static int check_children(cpl_runner *r) {
+  for (int c = 0; c < r->nchildren; c++)
+    if (cpl_child_poll(&r->children[c])) return report_exit(r, c);
+  return 0;
+}
+
+int cpl_send(cpl_runner *r, int peer, const proto_msg *m) {
+  if (proto_send_to(r->router, r->peers[peer].proc->name, m, &r->err) == 0)
+    return 0;
+  r->failed_peer = peer;
+  return -1;
+}
+
+static int handle_error_reply(cpl_runner *r, int from, const proto_msg *m) {
+  const cJSON *msg = cJSON_GetObjectItemCaseSensitive(m->header, "message");
+  r->failed_peer = from;
+  r->peers[from].stopped = 1;
+  return proto_fail(&r->err, "participant '%s' (%s) reported an error: %s",
+                    r->peers[from].proc->name, r->peers[from].proc->exec,
+                    cJSON_IsString(msg) ? msg->valuestring : "(no message)");
+}
+
+int cpl_receive(cpl_runner *r, int expect, double timeout_s, proto_msg *m,
+                int *from) {
+  double until = proto_now() + timeout_s;
+  while (1) {
+    if (cpl_interrupted)
+      return proto_fail(&r->err, "interrupted by signal %d", cpl_interrupted);
+    if (check_children(r) < 0) return -1;
+    double left = until - proto_now();
+    if (left <= 0) {
+      if (expect >= 0) r->failed_peer = expect;
+      return proto_fail(&r->err, "%s%s%s did not answer within %g s "
+                        "(coupling.%s)", expect >= 0 ? "participant '" : "",
+                        expect >= 0 ? r->peers[expect].proc->name : "a participant",
+                        expect >= 0 ? "'" : "", timeout_s,
+                        r->opts->attach ? "handshake_timeout" : "step_timeout");
+    }
+    int p = proto_poll_in(r->router, left > 0.1 ? 100 : (int)(left * 1e3) + 1);
+    if (p <= 0) continue;
+    char identity[PROTO_NAME_LEN] = {0};
+    int rc = proto_recv(r->router, m, identity, &r->err);
+    int sender = peer_of(r, identity);
+    if (sender < 0) {
+      /* Not one of ours (a stray or misnamed process): refuse it loudly. */
+      return proto_fail(&r->err, "a process calling itself '%s' connected, "
+                        "but the scene has no such participant", identity);
+    }
+    if (rc < 0) {
+      r->failed_peer = sender;
+      return proto_wrap(&r->err, "from participant '%s'", identity);
+    }
+    if (strcmp(m->type, "error") == 0) return handle_error_reply(r, sender, m);
+    if (expect >= 0 && sender != expect) {
+      r->failed_peer = sender;
+      return proto_fail(&r->err, "participant '%s' sent '%s' out of turn",
+                        identity, m->type);
+    }
+    *from = sender;
+    return 0;
+  }
+}
+
+/* ---------------------------------------------------------------- setup */
+
+static int setup_sockets(cpl_runner *r) {
+  cpl_scene *s = r->scene;
+  r->ctx = zmq_ctx_new();
+  r->router = zmq_socket(r->ctx, ZMQ_ROUTER);
+  int on = 1, linger = 0;
+  zmq_setsockopt(r->router, ZMQ_ROUTER_MANDATORY, &on, sizeof on);
+  zmq_setsockopt(r->router, ZMQ_LINGER, &linger, sizeof linger);
+  if (r->opts->attach) {
+    snprintf(r->ctl_endpoint, sizeof r->ctl_endpoint, "%s", s->attach_endpoint);
+    /* the bus listens on the next port of the same host */
+    const char *colon = strrchr(s->attach_endpoint, ':');
+    int port = colon ? atoi(colon + 1) : 0;
+    if (!colon || port <= 0 || strncmp(s->attach_endpoint, "tcp://", 6))
+      return proto_fail(&r->err, "coupling.attach_endpoint: expected "
+                        "tcp://HOST:PORT, got '%s'", s->attach_endpoint);
+    snprintf(r->bus_inner, sizeof r->bus_inner, "%.*s:%d",
+             (int)(colon - s->attach_endpoint), s->attach_endpoint, port + 1);
+  } else {
+    snprintf(r->run_dir, sizeof r->run_dir, "/tmp/cosim-%s-XXXXXX", s->name);
+    if (!mkdtemp(r->run_dir)) /* mode 0700: a private run directory */
+      return proto_fail(&r->err, "cannot create a run directory: %s",
+                        strerror(errno));
+    snprintf(r->ctl_endpoint, sizeof r->ctl_endpoint, "ipc://%s/control",
+             r->run_dir);
+    snprintf(r->bus_inner, sizeof r->bus_inner, "ipc://%s/bus", r->run_dir);
+  }
+  if (zmq_bind(r->router, r->ctl_endpoint) != 0)
+    return proto_fail(&r->err, "cannot bind %s: %s", r->ctl_endpoint,
+                      zmq_strerror(errno));
+  if (s->bus_monitor[0]) {
+    r->bus = cpl_bus_start(r->ctx, r->bus_inner, s->bus_monitor,
+                           (int)s->bus_hwm, &r->err);
+    if (!r->bus) return -1;
+  } else {
+    r->bus_inner[0] = 0;
+  }
+  return 0;
+}
+
+static int start_children(cpl_runner *r) {
+  char logs[CPL_PATH_LEN + 8];
+  snprintf(logs, sizeof logs, "%s/logs", r->scene->output_dir);
+  mkdir(logs, 0755);
+  for (int i = 0; i < r->n; i++) {
+    cpl_process *p = r->peers[i].proc;
+    if (cpl_resolve_exec(p, &r->err) < 0) return -1;
+    char log[2 * CPL_PATH_LEN];
+    snprintf(log, sizeof log, "%s/%s.log", logs, p->name);
+    if (cpl_spawn(&r->children[r->nchildren], p->name, p->resolved,
+                  r->ctl_endpoint, log, &r->err) < 0)
+      return -1;
+    r->nchildren++;
+  }
+  return 0;
+}
+
+static int wait_hellos(cpl_runner *r) {
+  if (r->opts->attach) {
+    fprintf(stderr, "cosim: waiting %g s for participants; start each with\n",
+            r->scene->handshake_timeout);
+    for (int i = 0; i < r->n; i++)
+      fprintf(stderr, "  %s --endpoint %s --name %s\n", r->peers[i].proc->exec,
+              r->ctl_endpoint, r->peers[i].proc->name);
+  }
+  int missing = r->n;
+  double until = proto_now() + r->scene->handshake_timeout;
+  proto_msg m = {0};
+  while (missing > 0) {
+    int from = -1;
+    double left = until - proto_now();
+    if (cpl_receive(r, -1, left > 0 ? left : 0, &m, &from) < 0) {
+      if (strstr(r->err.msg, "did not answer")) {
+        char names[256] = {0};
+        for (int i = 0; i < r->n; i++)
+          if (!r->peers[i].connected) {
+            strncat(names, " ", sizeof names - strlen(names) - 1);
+            strncat(names, r->peers[i].proc->name, sizeof names - strlen(names) - 1);
+            if (r->failed_peer < 0) r->failed_peer = i;
+          }
+        proto_fail(&r->err, "no handshake within %g s (coupling."
+                   "handshake_timeout) from:%s", r->scene->handshake_timeout,
+                   names);
+      }
+      proto_msg_free(&m);
+      return -1;
+    }
+    cpl_peer *p = &r->peers[from];
+    const cJSON *role = cJSON_GetObjectItemCaseSensitive(m.header, "role");
+    int ok = strcmp(m.type, "hello") == 0 && !p->connected &&
+             cJSON_IsString(role) &&
+             strcmp(role->valuestring, role_name(p->proc->role)) == 0;
+    if (!ok) {
+      r->failed_peer = from;
+      proto_fail(&r->err, "participant '%s': expected a hello with role '%s', "
+                 "got '%s'%s%s", p->proc->name, role_name(p->proc->role),
+                 m.type, cJSON_IsString(role) ? " with role " : "",
+                 cJSON_IsString(role) ? role->valuestring : "");
+      proto_msg_free(&m);
+      return -1;
+    }
+    p->connected = 1;
+    missing--;
+  }
+  proto_msg_free(&m);
+  return 0;
+}
+
+static void fill_run_header(cpl_runner *r, proto_msg *w, const cpl_process *p) {
+  cpl_scene *s = r->scene;
+  cJSON *h = proto_msg_header(w);
+  cJSON_AddItemToObject(h, "config", cJSON_Duplicate(p->section, 1));
+  cJSON *run = cJSON_AddObjectToObject(h, "run");
+  cJSON_AddStringToObject(run, "name", s->name);
+  cJSON_AddNumberToObject(run, "dt", s->dt);
+  cJSON_AddNumberToObject(run, "t_end", s->t_end);
+  cJSON_AddNumberToObject(run, "n_steps", (double)s->n_steps);
+  cJSON_AddNumberToObject(run, "output_every", (double)s->output_every);
+  cJSON_AddStringToObject(run, "output_dir", s->output_dir);
+  cJSON_AddStringToObject(run, "bus", r->bus_inner);
+  cJSON_AddNumberToObject(run, "deadline_s", s->step_timeout);
+  /* a participant waits for others' steps too: be generous before giving up */
+  cJSON_AddNumberToObject(run, "idle_timeout_s",
+                          s->step_timeout * (r->n + 1) + s->handshake_timeout);
+}
+
+/* Keeps the FEM's surface for the coupling (world = rim frame at t = 0). */
+static int take_surface(cpl_runner *r, const proto_msg *ready) {
+  proto_err *err = &r->err;
+  const proto_array *x0 = proto_msg_get(ready, "surface_x0", PROTO_F8, 2,
+                                        (int64_t[]){-1, 3}, err);
+  const proto_array *tri = x0 ? proto_msg_get(ready, "surface_tri", PROTO_I4, 2,
+                                              (int64_t[]){-1, 3}, err)
+                              : NULL;
+  if (!tri) return -1;
+  cpl_surface *s = &r->surf;
+  s->n_nodes = x0->shape[0];
+  s->n_tris = tri->shape[0];
+  size_t nb = (size_t)s->n_nodes * 3 * sizeof(double);
+  s->x0 = malloc(nb);
+  s->x = malloc(nb);
+  s->v = calloc(1, nb);
+  s->force = calloc(1, nb);
+  s->tri = malloc(tri->nbytes + 1);
+  if (!s->x0 || !s->x || !s->v || !s->force || !s->tri)
+    return proto_fail(err, "out of memory for the surface");
+  memcpy(s->x0, x0->data, nb);
+  memcpy(s->tri, tri->data, tri->nbytes);
+  const int32_t *t = s->tri;
+  for (int64_t i = 0; i < 3 * s->n_tris; i++)
+    if (t[i] < 0 || t[i] >= s->n_nodes)
+      return proto_fail(err, "participant '%s': surface_tri refers to node %d "
+                        "of %lld", r->peers[r->fem].proc->name, t[i],
+                        (long long)s->n_nodes);
+  /* world positions at t = 0 */
+  for (int64_t i = 0; i < s->n_nodes; i++)
+    for (int a = 0; a < 3; a++) {
+      double acc = r->rim.c[a];
+      for (int b = 0; b < 3; b++) acc += r->rim.R[3 * a + b] * s->x0[3 * i + b];
+      s->x[3 * i + a] = acc;
+    }
+  return 0;
+}
+
+static int welcome_one(cpl_runner *r, int i) {
+  cpl_peer *p = &r->peers[i];
+  proto_msg w = {0};
+  proto_msg_reset(&w, p->proc->name, "welcome", 0, 0);
+  fill_run_header(r, &w, p->proc);
+  if (p->proc->role == CPL_ROLE_DEM && r->surf.n_nodes > 0) {
+    proto_msg_add_f8(&w, "surface_x0", r->surf.n_nodes, 3, r->surf.x);
+    proto_msg_add_i4(&w, "surface_tri", r->surf.n_tris, 3, r->surf.tri);
+  }
+  int rc = cpl_send(r, i, &w);
+  proto_msg_free(&w);
+  int from;
+  if (rc == 0)
+    rc = cpl_receive(r, i, r->scene->handshake_timeout + r->scene->step_timeout,
+                     &p->reply, &from);
+  if (rc == 0 && strcmp(p->reply.type, "ready") != 0) {
+    r->failed_peer = i;
+    rc = proto_fail(&r->err, "participant '%s': expected 'ready', got '%s'",
+                    p->proc->name, p->reply.type);
+  }
+  if (rc == 0 && p->proc->role == CPL_ROLE_FEM) rc = take_surface(r, &p->reply);
+  if (rc == 0) rc = cpl_output_participant(r->out, p->proc->name, &p->reply, &r->err);
+  if (rc < 0 && r->failed_peer < 0) r->failed_peer = i;
+  return rc;
+}
+
+/* FEM first (its surface goes to the DEM), then DEM, then the block. */
+static int welcome_all(cpl_runner *r) {
+  const int order[] = {r->fem, r->dem, r->block};
+  for (int k = 0; k < 3; k++)
+    if (order[k] >= 0 && welcome_one(r, order[k]) < 0) return -1;
+  return 0;
+}
+
+/* --------------------------------------------------------------- teardown */
+
+static void say_stop(cpl_runner *r) {
+  proto_msg m = {0}, reply = {0};
+  for (int i = 0; i < r->n; i++) {
+    if (r->peers[i].stopped || !r->peers[i].connected) continue;
+    proto_msg_reset(&m, r->peers[i].proc->name, "stop", 0, 0);
+    proto_err ignore;
+    if (proto_send_to(r->router, r->peers[i].proc->name, &m, &ignore) == 0) {
+      /* wait briefly for the bye; the process table is the final judge */
+      double until = proto_now() + 2.0;
+      while (proto_now() < until && proto_poll_in(r->router, 100) > 0) {
+        char id[PROTO_NAME_LEN];
+        if (proto_recv(r->router, &reply, id, &ignore) == 0 &&
+            strcmp(id, r->peers[i].proc->name) == 0)
+          break;
+      }
+    }
+    r->peers[i].stopped = 1;
+  }
+  proto_msg_free(&m);
+  proto_msg_free(&reply);
+}
+
+static void teardown(cpl_runner *r, int ok) {
+  if (ok) say_stop(r);
+  cpl_stop_all(r->children, r->nchildren, ok ? 3.0 : 0.5);
+  for (int i = 0; i < r->n; i++) proto_msg_free(&r->peers[i].reply);
+  cpl_bus_stop(r->bus);
+  if (r->router) zmq_close(r->router);
+  if (r->ctx) zmq_ctx_term(r->ctx);
+  if (r->run_dir[0]) {
+    char path[CPL_PATH_LEN + 16];
+    snprintf(path, sizeof path, "%s/control", r->run_dir);
+    unlink(path);
+    snprintf(path, sizeof path, "%s/bus", r->run_dir);
+    unlink(path);
+    rmdir(r->run_dir);
+  }
+  free(r->surf.x0);
+  free(r->surf.x);
+  free(r->surf.v);
+  free(r->surf.force);
+  free(r->surf.tri);
+}
+
+static void install_signals(void) {
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, NULL);
+  sigaction(SIGTERM, &sa, NULL);
+  sigaction(SIGHUP, &sa, NULL);
+  signal(SIGPIPE, SIG_IGN);
+}
+
+int cpl_run(cpl_scene *s, const cpl_run_opts *opts) {
+  cpl_runner *r = calloc(1, sizeof *r);
+  if (!r) return 4;
+  r->scene = s;
+  r->opts = opts;
+  r->failed_peer = -1;
+  r->dem = r->fem = r->block = -1;
+  r->n = s->nprocs;
+  for (int i = 0; i < r->n; i++) {
+    r->peers[i].proc = &s->procs[i];
+    int *slot = s->procs[i].role == CPL_ROLE_DEM   ? &r->dem
+                : s->procs[i].role == CPL_ROLE_FEM ? &r->fem
+                                                   : &r->block;
+    *slot = i;
+  }
+  install_signals();
+  cpl_rim_init(&r->rim, &s->scenario);
+  r->wall_start = proto_now();
+  int rc = 0;
+  if (!opts->attach)
+    for (int i = 0; i < r->n && rc == 0; i++)
+      rc = cpl_resolve_exec(&s->procs[i], &r->err);
+  if (rc == 0) {
+    r->out = cpl_output_open(s, &r->err);
+    rc = r->out ? 0 : -1;
+  }
+  if (rc == 0) rc = setup_sockets(r);
+  if (rc == 0 && !opts->attach) rc = start_children(r);
+  if (rc == 0) rc = wait_hellos(r);
+  if (rc == 0) rc = welcome_all(r);
+  if (rc == 0) rc = cpl_step_loop(r);
+  int exit_code = 0;
+  if (rc < 0) {
+    exit_code = cpl_interrupted ? 130 : r->failed_peer >= 0 ? 3 : 1;
+    fprintf(stderr, "\ncosim: run '%s' failed: %s\n", s->name, r->err.msg);
+    if (r->failed_peer >= 0)
+      fprintf(stderr, "cosim: failed participant: %s\n",
+              r->peers[r->failed_peer].proc->name);
+  }
+  teardown(r, rc == 0);
+  char summary[2048] = {0};
+  if (r->out) cpl_output_summary(r->out, summary, sizeof summary);
+  if (r->out && cpl_output_close(r->out) < 0 && exit_code == 0) {
+    fprintf(stderr, "cosim: could not write %s/results.h5 completely\n",
+            s->output_dir);
+    exit_code = 4;
+  }
+  if (exit_code == 0) {
+    printf("cosim: run '%s' finished: %lld steps, t = %g s, %.2f s wall\n",
+           s->name, (long long)s->n_steps, (double)s->n_steps * s->dt,
+           proto_now() - r->wall_start);
+    printf("results: %s/results.h5 (logs in %s/logs)\n%s", s->output_dir,
+           s->output_dir, summary);
+  } else if (r->out || exit_code != 1) {
+    fprintf(stderr, "cosim: what was written so far is in %s/results.h5\n",
+            s->output_dir);
+  }
+  free(r);
+  return exit_code;
+}

@@ -1,0 +1,306 @@
+/* scene.c — the scene's core keys (DESIGN.md "Config"): name, time, output,
+ * bus, coupling, scenario, processes.<name>.exec. The inside of a process
+ * section belongs to that participant, which validates it itself
+ * (`<exec> --check-config`). */
+#include "coupler.h"
+
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+static const char *const role_names[] = {"dem", "fem", "block", NULL};
+
+static int read_time(proto_cfg *root, cpl_scene *s) {
+  proto_cfg c;
+  if (proto_cfg_child(root, "time", PROTO_REQUIRED, &c) != 0) return -1;
+  if (proto_cfg_num(&c, "dt", PROTO_REQUIRED, 1e-12, 1e3, &s->dt) < 0 ||
+      proto_cfg_num(&c, "end", PROTO_REQUIRED, 0, 1e9, &s->t_end) < 0)
+    return -1;
+  if (s->t_end < s->dt)
+    return proto_fail(c.err, "time.end: must be at least time.dt (%g), got %g",
+                      s->dt, s->t_end);
+  double n = floor(s->t_end / s->dt + 0.5);
+  if (n > 1e12) return proto_fail(c.err, "time: end/dt = %g steps is too many", n);
+  s->n_steps = (int64_t)n;
+  return proto_cfg_end(&c);
+}
+
+static int read_output(proto_cfg *root, cpl_scene *s) {
+  proto_cfg c;
+  snprintf(s->output_dir, sizeof s->output_dir, "runs/%s", s->name);
+  s->output_every = 100;
+  int rc = proto_cfg_child(root, "output", PROTO_OPTIONAL, &c);
+  if (rc < 0) return -1;
+  if (rc > 0) return 0;
+  if (proto_cfg_str(&c, "dir", PROTO_OPTIONAL, s->output_dir,
+                    sizeof s->output_dir) < 0 ||
+      proto_cfg_int(&c, "every", PROTO_OPTIONAL, 1, INT64_MAX,
+                    &s->output_every) < 0)
+    return -1;
+  return proto_cfg_end(&c);
+}
+
+static int read_bus(proto_cfg *root, cpl_scene *s) {
+  proto_cfg c;
+  s->bus_hwm = 1000;
+  int rc = proto_cfg_child(root, "bus", PROTO_OPTIONAL, &c);
+  if (rc != 0) return rc < 0 ? -1 : 0;
+  if (proto_cfg_str(&c, "monitor", PROTO_OPTIONAL, s->bus_monitor,
+                    sizeof s->bus_monitor) < 0 ||
+      proto_cfg_int(&c, "hwm", PROTO_OPTIONAL, 1, 1000000, &s->bus_hwm) < 0)
+    return -1;
+  const char *m = s->bus_monitor;
+  if (m[0] && strncmp(m, "tcp://", 6) && strncmp(m, "ipc://", 6))
+    return proto_fail(c.err, "bus.monitor: expected a tcp:// or ipc:// "
+                      "endpoint, got '%s'", m);
+  return proto_cfg_end(&c);
+}
+
+static int read_coupling(proto_cfg *root, cpl_scene *s) {
+  proto_cfg c;
+  static const char *const schemes[] = {"serial", NULL};
+  int scheme = 0;
+  s->handshake_timeout = 10;
+  s->step_timeout = 60;
+  snprintf(s->attach_endpoint, sizeof s->attach_endpoint, "tcp://127.0.0.1:5570");
+  int rc = proto_cfg_child(root, "coupling", PROTO_OPTIONAL, &c);
+  if (rc != 0) return rc < 0 ? -1 : 0;
+  if (proto_cfg_enum(&c, "scheme", PROTO_OPTIONAL, schemes, &scheme) < 0 ||
+      proto_cfg_num(&c, "handshake_timeout", PROTO_OPTIONAL, 0.1, 86400,
+                    &s->handshake_timeout) < 0 ||
+      proto_cfg_num(&c, "step_timeout", PROTO_OPTIONAL, 0.1, 86400,
+                    &s->step_timeout) < 0 ||
+      proto_cfg_str(&c, "attach_endpoint", PROTO_OPTIONAL, s->attach_endpoint,
+                    sizeof s->attach_endpoint) < 0)
+    return -1;
+  return proto_cfg_end(&c);
+}
+
+static int read_tire_travel(proto_cfg *c, cpl_scenario *sc) {
+  sc->radius = 0.272; /* 165/65 R13 outer radius (seed 000) */
+  sc->slip = 0.05;
+  if (proto_cfg_vec(c, "rim_center", PROTO_OPTIONAL, sc->rim_center, 3, 3,
+                    NULL) < 0 ||
+      proto_cfg_num(c, "sinkage_velocity", PROTO_REQUIRED, 0, 1e3,
+                    &sc->sinkage_velocity) < 0 ||
+      proto_cfg_num(c, "sinkage_force", PROTO_REQUIRED, 0, 1e9,
+                    &sc->sinkage_force) < 0 ||
+      proto_cfg_num_below(c, "slip", PROTO_OPTIONAL, -1, 1, &sc->slip) < 0 ||
+      proto_cfg_num(c, "omega", PROTO_REQUIRED, -1e4, 1e4, &sc->omega) < 0 ||
+      proto_cfg_num(c, "radius", PROTO_OPTIONAL, 1e-6, 1e3, &sc->radius) < 0)
+    return -1;
+  return 0;
+}
+
+static int read_indentation(proto_cfg *c, cpl_scenario *sc) {
+  static const char *const profiles[] = {"linear", "quadratic",
+                                         "load_hold_unload", "sinusoidal",
+                                         "force", NULL};
+  int p = 0;
+  if (proto_cfg_enum(c, "profile", PROTO_REQUIRED, profiles, &p) < 0) return -1;
+  sc->profile = (cpl_profile)p;
+  proto_need need_ramp = p == CPL_PROFILE_FORCE || p == CPL_PROFILE_SINUSOIDAL
+                             ? PROTO_OPTIONAL
+                             : PROTO_REQUIRED;
+  if (proto_cfg_num(c, "depth", need_ramp, -1, 1, &sc->depth) < 0 ||
+      proto_cfg_num(c, "ramp_time", need_ramp, 1e-12, 1e6, &sc->ramp_time) < 0 ||
+      proto_cfg_num(c, "hold_time", p == CPL_PROFILE_LOAD_HOLD_UNLOAD
+                                        ? PROTO_REQUIRED : PROTO_OPTIONAL,
+                    0, 1e6, &sc->hold_time) < 0 ||
+      proto_cfg_num(c, "amplitude", p == CPL_PROFILE_SINUSOIDAL
+                                        ? PROTO_REQUIRED : PROTO_OPTIONAL,
+                    0, 1, &sc->amplitude) < 0 ||
+      proto_cfg_num(c, "frequency", p == CPL_PROFILE_SINUSOIDAL
+                                        ? PROTO_REQUIRED : PROTO_OPTIONAL,
+                    0, 1e9, &sc->frequency) < 0 ||
+      proto_cfg_num(c, "road_mass", p == CPL_PROFILE_FORCE
+                                        ? PROTO_REQUIRED : PROTO_OPTIONAL,
+                    1e-9, 1e9, &sc->road_mass) < 0 ||
+      proto_cfg_num(c, "road_force", p == CPL_PROFILE_FORCE
+                                         ? PROTO_REQUIRED : PROTO_OPTIONAL,
+                    -1e9, 1e9, &sc->road_force) < 0)
+    return -1;
+  return 0;
+}
+
+static int read_scenario(proto_cfg *root, cpl_scene *s) {
+  static const char *const kinds[] = {"none", "tire_travel", "indentation",
+                                      NULL};
+  proto_cfg c;
+  cpl_scenario *sc = &s->scenario;
+  memset(sc, 0, sizeof *sc);
+  int rc = proto_cfg_child(root, "scenario", PROTO_OPTIONAL, &c);
+  if (rc != 0) return rc < 0 ? -1 : 0;
+  int kind = 0;
+  if (proto_cfg_enum(&c, "kind", PROTO_REQUIRED, kinds, &kind) < 0) return -1;
+  sc->kind = (cpl_scenario_kind)kind;
+  if (kind == CPL_SCN_TIRE_TRAVEL && read_tire_travel(&c, sc) < 0) return -1;
+  if (kind == CPL_SCN_INDENTATION && read_indentation(&c, sc) < 0) return -1;
+  return proto_cfg_end(&c);
+}
+
+static int read_processes(proto_cfg *root, cpl_scene *s) {
+  proto_cfg c;
+  if (proto_cfg_child(root, "processes", PROTO_REQUIRED, &c) != 0) return -1;
+  for (const cJSON *it = c.obj->child; it; it = it->next) {
+    int role = -1;
+    for (int r = 0; role_names[r]; r++)
+      if (strcmp(it->string, role_names[r]) == 0) role = r;
+    if (role < 0)
+      return proto_fail(c.err, "processes.%s: unknown process (expected one "
+                        "of: dem, fem, block)", it->string);
+    cpl_process *p = &s->procs[s->nprocs++];
+    snprintf(p->name, sizeof p->name, "%s", it->string);
+    p->role = (cpl_role)role;
+    proto_cfg sec;
+    if (proto_cfg_child(&c, it->string, PROTO_REQUIRED, &sec) != 0) return -1;
+    p->section = sec.obj;
+    const cJSON *exec = cJSON_GetObjectItemCaseSensitive(sec.obj, "exec");
+    if (!exec)
+      return proto_fail(c.err, "processes.%s.exec: required key is missing",
+                        p->name);
+    if (!cJSON_IsString(exec) || !exec->valuestring[0] ||
+        strlen(exec->valuestring) >= sizeof p->exec)
+      return proto_fail(c.err, "processes.%s.exec: expected the name or path "
+                        "of an executable", p->name);
+    snprintf(p->exec, sizeof p->exec, "%s", exec->valuestring);
+  }
+  if (s->nprocs == 0)
+    return proto_fail(c.err, "processes: the scene names no process");
+  return 0;
+}
+
+static int check_combination(cpl_scene *s, proto_err *err) {
+  int has[3] = {0};
+  for (int i = 0; i < s->nprocs; i++) has[s->procs[i].role] = 1;
+  if (s->scenario.kind == CPL_SCN_TIRE_TRAVEL && !(has[0] && has[1]))
+    return proto_fail(err, "scenario.kind: 'tire_travel' needs processes.dem "
+                      "and processes.fem");
+  if (s->scenario.kind == CPL_SCN_INDENTATION && !has[2])
+    return proto_fail(err, "scenario.kind: 'indentation' needs processes.block");
+  return 0;
+}
+
+int cpl_scene_load(cpl_scene *s, const char *path, int nset,
+                   char *const *sets, proto_err *err) {
+  memset(s, 0, sizeof *s);
+  snprintf(s->source, sizeof s->source, "%s", path);
+  s->root = proto_json_load(path, err);
+  if (!s->root) return -1;
+  for (int i = 0; i < nset; i++)
+    if (proto_json_set(s->root, sets[i], err) < 0) return -1;
+  proto_cfg root;
+  if (proto_cfg_open(&root, s->root, "", err) < 0) return -1;
+  if (proto_cfg_str(&root, "name", PROTO_REQUIRED, s->name, sizeof s->name) < 0)
+    return -1;
+  for (const char *p = s->name; *p; p++)
+    if (*p == '/' || *p == ' ')
+      return proto_fail(err, "name: '%s' must not contain '/' or spaces",
+                        s->name);
+  if (read_time(&root, s) < 0 || read_output(&root, s) < 0 ||
+      read_bus(&root, s) < 0 || read_coupling(&root, s) < 0 ||
+      read_scenario(&root, s) < 0 || read_processes(&root, s) < 0 ||
+      proto_cfg_end(&root) < 0 || check_combination(s, err) < 0)
+    return proto_wrap(err, "%s", path);
+  return 0;
+}
+
+void cpl_scene_free(cpl_scene *s) {
+  cJSON_Delete(s->root);
+  s->root = NULL;
+}
+
+/* ------------------------------------------------------------------ exec */
+
+static int executable(const char *path) {
+  struct stat st;
+  return stat(path, &st) == 0 && S_ISREG(st.st_mode) && access(path, X_OK) == 0;
+}
+
+int cpl_resolve_exec(cpl_process *p, proto_err *err) {
+  if (strchr(p->exec, '/')) {
+    if (!executable(p->exec))
+      return proto_fail(err, "processes.%s.exec: '%s' is not an executable "
+                        "file", p->name, p->exec);
+    if (!realpath(p->exec, p->resolved))
+      return proto_fail(err, "processes.%s.exec: %s", p->name, strerror(errno));
+    return 0;
+  }
+  char self[CPL_PATH_LEN] = {0}, cand[2 * CPL_PATH_LEN];
+  ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+  if (n > 0) {
+    char *slash = strrchr(self, '/');
+    if (slash) *slash = 0;
+    snprintf(cand, sizeof cand, "%s/%s", self, p->exec);
+    if (executable(cand)) {
+      snprintf(p->resolved, sizeof p->resolved, "%s", cand);
+      return 0;
+    }
+  }
+  const char *path = getenv("PATH");
+  while (path && *path) {
+    size_t len = strcspn(path, ":");
+    snprintf(cand, sizeof cand, "%.*s/%s", (int)len, path, p->exec);
+    if (len && executable(cand)) {
+      snprintf(p->resolved, sizeof p->resolved, "%s", cand);
+      return 0;
+    }
+    path += len + (path[len] == ':');
+  }
+  return proto_fail(err, "processes.%s.exec: '%s' not found (looked in %s "
+                    "and on PATH)", p->name, p->exec, self);
+}
+
+/* Runs `exec --check-config - --name NAME` with the section on stdin and
+ * returns its verdict; its stderr becomes the error message. */
+static int check_one(const cpl_process *p, proto_err *err) {
+  char *text = cJSON_PrintUnformatted(p->section);
+  int in[2], out[2];
+  if (!text || pipe(in) < 0 || pipe(out) < 0) {
+    free(text);
+    return proto_fail(err, "processes.%s: cannot start the check", p->name);
+  }
+  pid_t pid = fork();
+  if (pid == 0) {
+    dup2(in[0], 0);
+    dup2(out[1], 2);
+    dup2(out[1], 1);
+    close(in[1]);
+    close(out[0]);
+    execl(p->resolved, p->resolved, "--check-config", "-", "--name", p->name,
+          (char *)NULL);
+    _exit(127);
+  }
+  close(in[0]);
+  close(out[1]);
+  /* The section is small (kilobytes): one write fits in the pipe. */
+  ssize_t w = write(in[1], text, strlen(text));
+  (void)w;
+  close(in[1]);
+  free(text);
+  char buf[sizeof err->msg] = {0};
+  size_t len = 0;
+  ssize_t got;
+  while ((got = read(out[0], buf + len, sizeof buf - 1 - len)) > 0) len += (size_t)got;
+  close(out[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return 0;
+  while (len && (buf[len - 1] == '\n' || buf[len - 1] == ' ')) buf[--len] = 0;
+  return proto_fail(err, "%s", len ? buf : "check failed with no message");
+}
+
+int cpl_check_processes(cpl_scene *s, proto_err *err) {
+  for (int i = 0; i < s->nprocs; i++) {
+    if (cpl_resolve_exec(&s->procs[i], err) < 0 ||
+        check_one(&s->procs[i], err) < 0)
+      return proto_wrap(err, "%s", s->source);
+  }
+  return 0;
+}

@@ -1,0 +1,461 @@
+/* proto.c — errors and the multipart message format (PROTOCOL.md, "Framing"). */
+#include "proto.h"
+
+#include <errno.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <zmq.h>
+
+/* ------------------------------------------------------------------ errors */
+
+int proto_fail(proto_err *err, const char *fmt, ...) {
+  if (err) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err->msg, sizeof err->msg, fmt, ap);
+    va_end(ap);
+  }
+  return -1;
+}
+
+int proto_wrap(proto_err *err, const char *fmt, ...) {
+  if (!err) return -1;
+  char prefix[512], old[sizeof err->msg];
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(prefix, sizeof prefix, fmt, ap);
+  va_end(ap);
+  memcpy(old, err->msg, sizeof old);
+  snprintf(err->msg, sizeof err->msg, "%s: %s", prefix, old);
+  return -1;
+}
+
+double proto_now(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* ---------------------------------------------------------------- messages */
+
+static const char *const dtype_names[] = {"f8", "i4", "i8", "u1"};
+static const size_t dtype_sizes[] = {8, 4, 8, 1};
+
+/* Received frames, owned by the message; arrays point into them (or into
+ * `aligned` copies when a frame's data was not 8-byte aligned). */
+struct proto_msg_frames {
+  int n;
+  zmq_msg_t frame[PROTO_MAX_ARRAYS + 2];
+  void *aligned[PROTO_MAX_ARRAYS];
+};
+
+static void frames_free(struct proto_msg_frames *f) {
+  if (!f) return;
+  for (int i = 0; i < f->n; i++) zmq_msg_close(&f->frame[i]);
+  for (int i = 0; i < PROTO_MAX_ARRAYS; i++) free(f->aligned[i]);
+  free(f);
+}
+
+void proto_msg_free(proto_msg *m) {
+  cJSON_Delete(m->header);
+  m->header = NULL;
+  frames_free(m->frames_);
+  m->frames_ = NULL;
+  m->narrays = 0;
+}
+
+void proto_msg_reset(proto_msg *m, const char *topic, const char *type,
+                     int64_t step, double t) {
+  struct proto_msg_frames *keep = m->frames_;
+  cJSON *hdr = m->header;
+  /* A zero-initialised proto_msg is valid; a reused one frees its parts. */
+  frames_free(keep);
+  cJSON_Delete(hdr);
+  memset(m, 0, sizeof *m);
+  snprintf(m->topic, sizeof m->topic, "%s", topic ? topic : "");
+  snprintf(m->type, sizeof m->type, "%s", type ? type : "");
+  m->step = step;
+  m->t = t;
+}
+
+cJSON *proto_msg_header(proto_msg *m) {
+  if (!m->header) m->header = cJSON_CreateObject();
+  return m->header;
+}
+
+int proto_msg_add(proto_msg *m, const char *name, proto_dtype dtype, int ndim,
+                  const int64_t *shape, const void *data) {
+  if (m->narrays >= PROTO_MAX_ARRAYS || ndim < 1 || ndim > PROTO_MAX_NDIM ||
+      strlen(name) >= PROTO_NAME_LEN)
+    return -1;
+  proto_array *a = &m->arrays[m->narrays++];
+  memset(a, 0, sizeof *a);
+  snprintf(a->name, sizeof a->name, "%s", name);
+  a->dtype = dtype;
+  a->ndim = ndim;
+  size_t count = 1;
+  for (int i = 0; i < ndim; i++) {
+    a->shape[i] = shape[i];
+    count *= (size_t)shape[i];
+  }
+  a->nbytes = count * dtype_sizes[dtype];
+  a->data = data;
+  return 0;
+}
+
+static int add_2d(proto_msg *m, const char *name, proto_dtype dt, int64_t rows,
+                  int64_t cols, const void *data) {
+  int64_t shape[2] = {rows, cols};
+  return proto_msg_add(m, name, dt, cols > 0 ? 2 : 1, shape, data);
+}
+
+int proto_msg_add_f8(proto_msg *m, const char *name, int64_t rows, int64_t cols,
+                     const double *data) {
+  return add_2d(m, name, PROTO_F8, rows, cols, data);
+}
+
+int proto_msg_add_i4(proto_msg *m, const char *name, int64_t rows, int64_t cols,
+                     const int32_t *data) {
+  return add_2d(m, name, PROTO_I4, rows, cols, data);
+}
+
+const proto_array *proto_msg_find(const proto_msg *m, const char *name) {
+  for (int i = 0; i < m->narrays; i++)
+    if (strcmp(m->arrays[i].name, name) == 0) return &m->arrays[i];
+  return NULL;
+}
+
+static void shape_str(char *out, size_t cap, int ndim, const int64_t *shape) {
+  size_t len = (size_t)snprintf(out, cap, "[");
+  for (int i = 0; i < ndim && len < cap; i++) {
+    if (shape[i] < 0)
+      len += (size_t)snprintf(out + len, cap - len, "%s*", i ? "," : "");
+    else
+      len += (size_t)snprintf(out + len, cap - len, "%s%lld", i ? "," : "",
+                              (long long)shape[i]);
+  }
+  if (len < cap) snprintf(out + len, cap - len, "]");
+}
+
+const proto_array *proto_msg_get(const proto_msg *m, const char *name,
+                                 proto_dtype dtype, int ndim,
+                                 const int64_t *shape, proto_err *err) {
+  const proto_array *a = proto_msg_find(m, name);
+  char want[96], got[96];
+  shape_str(want, sizeof want, ndim, shape);
+  if (!a) {
+    proto_fail(err, "message '%s': missing array '%s' (%s %s)", m->type, name,
+               dtype_names[dtype], want);
+    return NULL;
+  }
+  shape_str(got, sizeof got, a->ndim, a->shape);
+  int ok = a->dtype == dtype && a->ndim == ndim;
+  for (int i = 0; ok && i < ndim; i++)
+    if (shape[i] >= 0 && a->shape[i] != shape[i]) ok = 0;
+  if (!ok) {
+    proto_fail(err, "message '%s': array '%s' is %s %s, expected %s %s",
+               m->type, name, dtype_names[a->dtype], got, dtype_names[dtype],
+               want);
+    return NULL;
+  }
+  return a;
+}
+
+const double *proto_msg_get_f8(const proto_msg *m, const char *name,
+                               int64_t rows, int64_t cols, proto_err *err) {
+  int64_t shape[2] = {rows, cols};
+  const proto_array *a =
+      proto_msg_get(m, name, PROTO_F8, cols == 0 ? 1 : 2, shape, err);
+  return a ? (const double *)a->data : NULL;
+}
+
+/* ------------------------------------------------------------------ encode */
+
+static char *header_json(const proto_msg *m) {
+  cJSON *h = m->header ? cJSON_Duplicate(m->header, 1) : cJSON_CreateObject();
+  /* Fixed fields overwrite any same-named extra field. */
+  cJSON_DeleteItemFromObject(h, "v");
+  cJSON_DeleteItemFromObject(h, "type");
+  cJSON_DeleteItemFromObject(h, "step");
+  cJSON_DeleteItemFromObject(h, "t");
+  cJSON_DeleteItemFromObject(h, "arrays");
+  cJSON_AddNumberToObject(h, "v", PROTO_VERSION);
+  cJSON_AddStringToObject(h, "type", m->type);
+  cJSON_AddNumberToObject(h, "step", (double)m->step);
+  cJSON_AddNumberToObject(h, "t", m->t);
+  cJSON *arrays = cJSON_AddArrayToObject(h, "arrays");
+  for (int i = 0; i < m->narrays; i++) {
+    const proto_array *a = &m->arrays[i];
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "name", a->name);
+    cJSON_AddStringToObject(o, "dtype", dtype_names[a->dtype]);
+    cJSON *shape = cJSON_AddArrayToObject(o, "shape");
+    for (int d = 0; d < a->ndim; d++)
+      cJSON_AddItemToArray(shape, cJSON_CreateNumber((double)a->shape[d]));
+    cJSON_AddItemToArray(arrays, o);
+  }
+  char *text = cJSON_PrintUnformatted(h);
+  cJSON_Delete(h);
+  return text;
+}
+
+static int send_frame(void *s, const void *data, size_t n, int more, int copy,
+                      int flags, proto_err *err) {
+  zmq_msg_t f;
+  int rc;
+  if (copy || n == 0) {
+    rc = zmq_msg_init_size(&f, n);
+    if (rc == 0 && n) memcpy(zmq_msg_data(&f), data, n);
+  } else {
+    /* Zero-copy: the lock-step protocol guarantees the buffer outlives the
+     * transfer (the peer answers only after it has the whole message). */
+    rc = zmq_msg_init_data(&f, (void *)data, n, NULL, NULL);
+  }
+  if (rc != 0) return proto_fail(err, "zmq_msg_init: %s", zmq_strerror(errno));
+  if (zmq_msg_send(&f, s, (more ? ZMQ_SNDMORE : 0) | flags) < 0) {
+    int e = errno;
+    zmq_msg_close(&f);
+    return proto_fail(err, "send failed: %s", zmq_strerror(e));
+  }
+  return 0;
+}
+
+static int send_msg(void *s, const proto_msg *m, int flags, int copy,
+                    proto_err *err) {
+  char *hdr = header_json(m);
+  if (!hdr) return proto_fail(err, "cannot encode header of '%s'", m->type);
+  int rc = send_frame(s, m->topic, strlen(m->topic), 1, 1, flags, err);
+  if (rc == 0)
+    rc = send_frame(s, hdr, strlen(hdr), m->narrays > 0, 1, flags, err);
+  free(hdr);
+  for (int i = 0; rc == 0 && i < m->narrays; i++)
+    rc = send_frame(s, m->arrays[i].data, m->arrays[i].nbytes,
+                    i + 1 < m->narrays, copy, flags, err);
+  return rc;
+}
+
+int proto_send(void *socket, const proto_msg *m, int flags, proto_err *err) {
+  return send_msg(socket, m, flags, 0, err);
+}
+
+int proto_send_to(void *router, const char *identity, const proto_msg *m,
+                  proto_err *err) {
+  if (send_frame(router, identity, strlen(identity), 1, 1, 0, err) < 0)
+    return proto_wrap(err, "to '%s'", identity);
+  if (send_msg(router, m, 0, 0, err) < 0)
+    return proto_wrap(err, "to '%s'", identity);
+  return 0;
+}
+
+int proto_publish(void *pub, const proto_msg *m) {
+  /* Copies: queued bus messages may outlive the caller's buffers. PUB drops
+   * at the high-water mark instead of blocking. */
+  return send_msg(pub, m, ZMQ_DONTWAIT, 1, NULL);
+}
+
+/* ------------------------------------------------------------------ decode */
+
+static int parse_dtype(const char *s) {
+  for (int i = 0; i < 4; i++)
+    if (strcmp(s, dtype_names[i]) == 0) return i;
+  return -1;
+}
+
+static int decode_array_spec(proto_array *a, const cJSON *spec, int idx,
+                             size_t frame_bytes, proto_err *err) {
+  const cJSON *name = cJSON_GetObjectItemCaseSensitive(spec, "name");
+  const cJSON *dtype = cJSON_GetObjectItemCaseSensitive(spec, "dtype");
+  const cJSON *shape = cJSON_GetObjectItemCaseSensitive(spec, "shape");
+  if (!cJSON_IsString(name) || strlen(name->valuestring) == 0 ||
+      strlen(name->valuestring) >= PROTO_NAME_LEN)
+    return proto_fail(err, "arrays[%d].name: expected a string of 1..%d chars",
+                      idx, PROTO_NAME_LEN - 1);
+  int dt = cJSON_IsString(dtype) ? parse_dtype(dtype->valuestring) : -1;
+  if (dt < 0)
+    return proto_fail(err, "arrays[%d].dtype: expected one of f8, i4, i8, u1",
+                      idx);
+  int ndim = cJSON_IsArray(shape) ? cJSON_GetArraySize(shape) : -1;
+  if (ndim < 1 || ndim > PROTO_MAX_NDIM)
+    return proto_fail(err, "arrays[%d].shape: expected 1..%d dimensions", idx,
+                      PROTO_MAX_NDIM);
+  memset(a, 0, sizeof *a);
+  snprintf(a->name, sizeof a->name, "%s", name->valuestring);
+  a->dtype = (proto_dtype)dt;
+  a->ndim = ndim;
+  double count = 1;
+  for (int d = 0; d < ndim; d++) {
+    const cJSON *e = cJSON_GetArrayItem(shape, d);
+    if (!cJSON_IsNumber(e) || e->valuedouble < 0 ||
+        e->valuedouble != (double)(int64_t)e->valuedouble ||
+        e->valuedouble > 1e12)
+      return proto_fail(err, "arrays[%d].shape[%d]: expected a count >= 0", idx,
+                        d);
+    a->shape[d] = (int64_t)e->valuedouble;
+    count *= e->valuedouble;
+  }
+  double bytes = count * (double)dtype_sizes[dt];
+  if (bytes > (double)PROTO_MAX_FRAME_BYTES)
+    return proto_fail(err, "array '%s': %.0f bytes exceeds the limit of %zu",
+                      a->name, bytes, PROTO_MAX_FRAME_BYTES);
+  a->nbytes = (size_t)bytes;
+  if (a->nbytes != frame_bytes)
+    return proto_fail(err,
+                      "array '%s' (%s, shape product %.0f) needs %zu bytes, "
+                      "frame has %zu",
+                      a->name, dtype_names[dt], count, a->nbytes, frame_bytes);
+  return 0;
+}
+
+static int decode_header(proto_msg *m, const char *text, size_t len,
+                         const cJSON **specs, proto_err *err) {
+  cJSON *h = cJSON_ParseWithLength(text, len);
+  if (!h || !cJSON_IsObject(h)) {
+    cJSON_Delete(h);
+    return proto_fail(err, "header is not a JSON object");
+  }
+  m->header = h;
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(h, "v");
+  const cJSON *type = cJSON_GetObjectItemCaseSensitive(h, "type");
+  const cJSON *step = cJSON_GetObjectItemCaseSensitive(h, "step");
+  const cJSON *t = cJSON_GetObjectItemCaseSensitive(h, "t");
+  if (!cJSON_IsNumber(v))
+    return proto_fail(err, "header.v: expected the protocol version number");
+  if (v->valueint != PROTO_VERSION)
+    return proto_fail(err, "protocol version mismatch: peer speaks v%d, this "
+                      "build speaks v%d", v->valueint, PROTO_VERSION);
+  if (!cJSON_IsString(type) || strlen(type->valuestring) == 0 ||
+      strlen(type->valuestring) >= PROTO_NAME_LEN)
+    return proto_fail(err, "header.type: expected a non-empty string");
+  snprintf(m->type, sizeof m->type, "%s", type->valuestring);
+  if (step && !cJSON_IsNumber(step))
+    return proto_fail(err, "header.step: expected a number");
+  if (t && !cJSON_IsNumber(t))
+    return proto_fail(err, "header.t: expected a number");
+  m->step = step ? (int64_t)step->valuedouble : 0;
+  m->t = t ? t->valuedouble : 0.0;
+  *specs = cJSON_GetObjectItemCaseSensitive(h, "arrays");
+  if (*specs && !cJSON_IsArray(*specs))
+    return proto_fail(err, "header.arrays: expected a list");
+  return 0;
+}
+
+int proto_decode(proto_msg *m, int nframes, const void *const *frames,
+                 const size_t *sizes, proto_err *err) {
+  proto_msg_reset(m, "", "", 0, 0);
+  if (nframes < 2) return proto_fail(err, "message has %d frame(s), need at "
+                                     "least topic and header", nframes);
+  if (sizes[0] >= PROTO_NAME_LEN)
+    return proto_fail(err, "topic longer than %d bytes", PROTO_NAME_LEN - 1);
+  memcpy(m->topic, frames[0], sizes[0]);
+  m->topic[sizes[0]] = 0;
+  const cJSON *specs = NULL;
+  if (decode_header(m, frames[1], sizes[1], &specs, err) < 0) goto fail;
+  int n = specs ? cJSON_GetArraySize(specs) : 0;
+  if (n > PROTO_MAX_ARRAYS) {
+    proto_fail(err, "%d arrays, at most %d allowed", n, PROTO_MAX_ARRAYS);
+    goto fail;
+  }
+  if (n != nframes - 2) {
+    proto_fail(err, "header lists %d array(s) but %d array frame(s) arrived",
+               n, nframes - 2);
+    goto fail;
+  }
+  for (int i = 0; i < n; i++) {
+    proto_array *a = &m->arrays[i];
+    if (decode_array_spec(a, cJSON_GetArrayItem(specs, i), i, sizes[i + 2],
+                          err) < 0)
+      goto fail;
+    for (int j = 0; j < i; j++)
+      if (strcmp(m->arrays[j].name, a->name) == 0) {
+        proto_fail(err, "array '%s' appears twice", a->name);
+        goto fail;
+      }
+    a->data = frames[i + 2];
+    m->narrays = i + 1;
+  }
+  return 0;
+fail:
+  proto_wrap(err, "bad '%s' message (topic '%s')",
+             m->type[0] ? m->type : "?", m->topic);
+  cJSON_Delete(m->header);
+  m->header = NULL;
+  m->narrays = 0;
+  return -1;
+}
+
+/* Receives every remaining frame of the current message into f. */
+static int recv_frames(void *s, struct proto_msg_frames *f, proto_err *err) {
+  int more = 1, too_many = 0;
+  while (more) {
+    zmq_msg_t tmp, *dst = f->n < PROTO_MAX_ARRAYS + 2 ? &f->frame[f->n] : &tmp;
+    zmq_msg_init(dst);
+    if (zmq_msg_recv(dst, s, 0) < 0) {
+      int e = errno;
+      zmq_msg_close(dst);
+      return proto_fail(err, "receive failed: %s", zmq_strerror(e));
+    }
+    more = zmq_msg_more(dst);
+    if (dst == &tmp) {
+      zmq_msg_close(&tmp);
+      too_many = 1;
+    } else {
+      f->n++;
+    }
+  }
+  if (too_many)
+    return proto_fail(err, "message has more than %d frames",
+                      PROTO_MAX_ARRAYS + 2);
+  return 0;
+}
+
+int proto_recv(void *socket, proto_msg *m, char *identity, proto_err *err) {
+  proto_msg_reset(m, "", "", 0, 0);
+  struct proto_msg_frames *f = calloc(1, sizeof *f);
+  if (!f) return proto_fail(err, "out of memory");
+  int rc = recv_frames(socket, f, err);
+  int first = 0;
+  if (rc == 0 && identity) {
+    size_t n = zmq_msg_size(&f->frame[0]);
+    if (n >= PROTO_NAME_LEN) n = PROTO_NAME_LEN - 1;
+    memcpy(identity, zmq_msg_data(&f->frame[0]), n);
+    identity[n] = 0;
+    first = 1;
+  }
+  if (rc == 0) {
+    const void *data[PROTO_MAX_ARRAYS + 2];
+    size_t size[PROTO_MAX_ARRAYS + 2];
+    int nf = f->n - first;
+    for (int i = 0; i < nf; i++) {
+      zmq_msg_t *fr = &f->frame[i + first];
+      data[i] = zmq_msg_data(fr);
+      size[i] = zmq_msg_size(fr);
+      /* Small frames may sit unaligned inside zmq_msg_t: copy those. */
+      if (i >= 2 && ((uintptr_t)data[i] % 8) != 0 && size[i] > 0) {
+        f->aligned[i - 2] = malloc(size[i]);
+        if (!f->aligned[i - 2]) {
+          rc = proto_fail(err, "out of memory");
+          break;
+        }
+        memcpy(f->aligned[i - 2], data[i], size[i]);
+        data[i] = f->aligned[i - 2];
+      }
+    }
+    if (rc == 0) rc = proto_decode(m, nf, data, size, err);
+  }
+  if (rc < 0) {
+    frames_free(f);
+    return -1;
+  }
+  m->frames_ = f;
+  return 0;
+}
+
+int proto_poll_in(void *socket, int timeout_ms) {
+  zmq_pollitem_t item = {socket, 0, ZMQ_POLLIN, 0};
+  int rc = zmq_poll(&item, 1, timeout_ms);
+  if (rc < 0) return -1;
+  return rc > 0 ? 1 : 0;
+}

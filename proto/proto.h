@@ -1,0 +1,290 @@
+/* proto.h — the one public header of cosim's base part (prefix proto_).
+ *
+ * What lives here, shared by every other part:
+ *   1. errors        proto_err: a message buffer every fallible call fills
+ *   2. messages      multipart [topic][JSON header][raw array]... (PROTOCOL.md)
+ *   3. participants  proto_participant_main(): the handshake/step loop a solver
+ *                    process plugs into with three callbacks
+ *   4. config        JSON loading with line/column errors and a key reader that
+ *                    names the key path in every error and rejects unknown keys
+ *   5. output        HDF5 time series / snapshots and the XDMF companion file
+ *
+ * Nothing here knows any physics. Units are SI unless a comment says otherwise.
+ */
+#ifndef COSIM_PROTO_H
+#define COSIM_PROTO_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <cjson/cJSON.h>
+
+#define PROTO_VERSION 1
+
+/* ------------------------------------------------------------------ errors */
+
+typedef struct proto_err {
+  char msg[1024];
+} proto_err;
+
+/* Formats into err->msg (if err is not NULL) and returns -1, so callers can
+ * `return proto_fail(err, "...")`. */
+int proto_fail(proto_err *err, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+/* Prefixes the existing message: "context: <old message>". Returns -1. */
+int proto_wrap(proto_err *err, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+
+/* ---------------------------------------------------------------- messages */
+
+typedef enum proto_dtype {
+  PROTO_F8 = 0, /* little-endian IEEE double, "f8" */
+  PROTO_I4 = 1, /* little-endian int32, "i4" */
+  PROTO_I8 = 2, /* little-endian int64, "i8" */
+  PROTO_U1 = 3  /* bytes, "u1" */
+} proto_dtype;
+
+#define PROTO_MAX_ARRAYS 32
+#define PROTO_MAX_NDIM 3
+#define PROTO_NAME_LEN 48
+
+typedef struct proto_array {
+  char name[PROTO_NAME_LEN];
+  proto_dtype dtype;
+  int ndim;
+  int64_t shape[PROTO_MAX_NDIM];
+  const void *data; /* send: caller's buffer; recv: inside the received frame
+                       (8-byte aligned; copied only if the frame was not) */
+  size_t nbytes;
+} proto_array;
+
+/* One message. `header` holds any header fields beyond the fixed ones
+ * (v, type, step, t, arrays); it is owned by the message. */
+typedef struct proto_msg {
+  char topic[PROTO_NAME_LEN];
+  char type[PROTO_NAME_LEN];
+  int64_t step;
+  double t;
+  cJSON *header; /* extra fields; may be NULL */
+  int narrays;
+  proto_array arrays[PROTO_MAX_ARRAYS];
+  struct proto_msg_frames *frames_; /* recv side: the frames the arrays point into */
+} proto_msg;
+
+/* Resets a message for building; frees what a previous recv or build owned. */
+void proto_msg_reset(proto_msg *m, const char *topic, const char *type,
+                     int64_t step, double t);
+void proto_msg_free(proto_msg *m);
+/* Adds an array that points at the caller's buffer (no copy). The buffer must
+ * stay valid and unchanged until the peer has answered (lock-step) — for the
+ * bus, proto_publish copies. shape has ndim entries. Returns -1 if full. */
+int proto_msg_add(proto_msg *m, const char *name, proto_dtype dtype, int ndim,
+                  const int64_t *shape, const void *data);
+/* Shorthands for the common cases. */
+int proto_msg_add_f8(proto_msg *m, const char *name, int64_t rows, int64_t cols,
+                     const double *data); /* cols == 0: 1-D [rows] */
+int proto_msg_add_i4(proto_msg *m, const char *name, int64_t rows, int64_t cols,
+                     const int32_t *data);
+/* Extra header fields (created on demand). */
+cJSON *proto_msg_header(proto_msg *m);
+
+/* Finds an array by name and checks it: dtype, ndim and each shape entry
+ * (an expected entry < 0 means "any"). Returns NULL and fills err with a
+ * message naming the message type, the array and what was expected. */
+const proto_array *proto_msg_get(const proto_msg *m, const char *name,
+                                 proto_dtype dtype, int ndim,
+                                 const int64_t *shape, proto_err *err);
+/* The same for f8 arrays: rows x cols (cols == 0: 1-D; -1: any). */
+const double *proto_msg_get_f8(const proto_msg *m, const char *name,
+                               int64_t rows, int64_t cols, proto_err *err);
+const proto_array *proto_msg_find(const proto_msg *m, const char *name);
+
+/* Sends [topic][header][arrays...] on a ZeroMQ socket (zero-copy for arrays).
+ * flags: 0 or ZMQ_DONTWAIT. For ROUTER sockets first send the identity
+ * frame with ZMQ_SNDMORE yourself (proto_send_to does that). */
+int proto_send(void *socket, const proto_msg *m, int flags, proto_err *err);
+int proto_send_to(void *router, const char *identity, const proto_msg *m,
+                  proto_err *err);
+/* Receives and validates one message: frame count, JSON header, version,
+ * dtype names, shapes against byte counts, limits. On any defect returns -1
+ * with a message and leaves the socket ready for the next message.
+ * `identity` (may be NULL) receives the ROUTER identity frame when the
+ * socket is a ROUTER (size PROTO_NAME_LEN). */
+int proto_recv(void *socket, proto_msg *m, char *identity, proto_err *err);
+/* Decodes already-received frames (used by proto_recv and by tests/fuzzers).
+ * frames[i]/sizes[i]: topic, header, arrays. The arrays are not copied:
+ * they must outlive m. */
+int proto_decode(proto_msg *m, int nframes, const void *const *frames,
+                 const size_t *sizes, proto_err *err);
+
+/* Largest array frame accepted (bytes); larger frames are rejected. */
+#define PROTO_MAX_FRAME_BYTES ((size_t)1 << 30)
+
+/* Waits up to timeout_ms for the socket to become readable.
+ * Returns 1 readable, 0 timeout, -1 interrupted (EINTR). */
+int proto_poll_in(void *socket, int timeout_ms);
+/* Monotonic wall clock in seconds. */
+double proto_now(void);
+
+/* Publishes a copy of the message on a bus socket (PUB), never blocking:
+ * a full queue drops the message (slow monitors never slow a run). */
+int proto_publish(void *pub, const proto_msg *m);
+
+/* ------------------------------------------------------------ participants
+ *
+ * A solver process is `int main(int c, char **v) { return
+ * proto_participant_main(c, v, &ops, &my_state); }`. The loop:
+ *   connect a DEALER (identity = --name) to --endpoint, send "hello",
+ *   receive "welcome" (carries this process's config section), call
+ *   configure(), reply "ready" (+ whatever init() adds, e.g. a surface mesh),
+ *   then answer each "step" with step(), until "stop" (reply "bye").
+ * Any callback error is sent back as an "error" message and the process
+ * exits non-zero. The process also exits when the coupler is silent for
+ * longer than the deadline given in "welcome", or its parent dies.
+ *
+ * Command line: NAME --endpoint EP --name NAME [--check-config FILE|-]
+ * --check-config validates a config section (JSON, "-" = stdin) and exits
+ * 0 or 1 with the message on stderr, without connecting anywhere. */
+
+typedef struct proto_peer proto_peer; /* the participant's sockets */
+
+typedef struct proto_run_info {
+  const char *name;       /* participant name (the processes.<name> key) */
+  const char *key_path;   /* "processes.<name>", for error messages */
+  const char *output_dir; /* run's output directory */
+  double dt;              /* coupling step, s */
+  double t_end;           /* end time, s */
+  int64_t n_steps;
+  int64_t output_every;   /* snapshot every this many steps */
+} proto_run_info;
+
+typedef struct proto_participant_ops {
+  const char *role; /* "dem", "fem", "block" (stubs use the role they stand in for) */
+  /* Parses and validates this process's config section into the solver's
+   * model. Errors name the key path (use proto_cfg_*). Called for
+   * --check-config too (then info->dt etc. may be 0). */
+  int (*configure)(void *user, const proto_run_info *info, const cJSON *section,
+                   proto_err *err);
+  /* Called after configure with the coupler's welcome message (which may
+   * carry arrays, e.g. the FEM surface for the DEM). Adds to `ready` what
+   * the coupler needs: header "series" = {"series": [column names], ...},
+   * and arrays (surface mesh ...). May be NULL. */
+  int (*init)(void *user, const proto_msg *welcome, proto_msg *ready,
+              proto_err *err);
+  /* One coupling step: read the request's arrays, advance, fill the reply.
+   * Arrays added to the reply must stay valid until the next call. */
+  int (*step)(void *user, proto_peer *peer, const proto_msg *request,
+              proto_msg *reply, proto_err *err);
+  /* Frees everything (always called once, also after errors). May be NULL. */
+  void (*finish)(void *user);
+} proto_participant_ops;
+
+int proto_participant_main(int argc, char **argv,
+                           const proto_participant_ops *ops, void *user);
+/* Publishes on the bus from inside step() (topic "<name>.<what>"). */
+int proto_peer_publish(proto_peer *peer, const proto_msg *m);
+
+/* ------------------------------------------------------------------ config */
+
+/* Parses JSON text; malformed input reports line and column:
+ * "scene.json:12:5: malformed JSON near '...'" . Returns NULL on error. */
+cJSON *proto_json_parse(const char *text, const char *source_name,
+                        proto_err *err);
+cJSON *proto_json_load(const char *path, proto_err *err);
+/* Applies "a.b[2].c=value" (value parsed as JSON if it parses, else as a
+ * string). Creates missing object keys. */
+int proto_json_set(cJSON *root, const char *assignment, proto_err *err);
+
+/* Key reader: wraps an object and its path; every getter marks the key as
+ * used, and proto_cfg_end() reports any key nobody asked for (typos).
+ * All getters return 0 on success (value stored) or -1 with err naming the
+ * path and what was expected. A missing optional key leaves *out as the
+ * default given. */
+typedef struct proto_cfg {
+  const cJSON *obj;
+  char path[256];
+  uint64_t used; /* bitmask over the object's first 64 keys */
+  proto_err *err;
+} proto_cfg;
+
+typedef enum { PROTO_OPTIONAL = 0, PROTO_REQUIRED = 1 } proto_need;
+
+/* Starts reading obj (must be an object) at path; fails if it is not. */
+int proto_cfg_open(proto_cfg *c, const cJSON *obj, const char *path,
+                   proto_err *err);
+/* Opens a child object: key missing and optional -> returns 1, c->obj NULL. */
+int proto_cfg_child(proto_cfg *parent, const char *key, proto_need need,
+                    proto_cfg *child);
+int proto_cfg_num(proto_cfg *c, const char *key, proto_need need, double lo,
+                  double hi, double *out); /* lo <= v <= hi */
+/* Like proto_cfg_num but the upper bound is exclusive: lo <= v < hi. */
+int proto_cfg_num_below(proto_cfg *c, const char *key, proto_need need,
+                        double lo, double hi, double *out);
+int proto_cfg_int(proto_cfg *c, const char *key, proto_need need, int64_t lo,
+                  int64_t hi, int64_t *out);
+int proto_cfg_bool(proto_cfg *c, const char *key, proto_need need, int *out);
+/* Copies a string (cap bytes incl. NUL). */
+int proto_cfg_str(proto_cfg *c, const char *key, proto_need need, char *out,
+                  size_t cap);
+/* A string that must be one of the NULL-terminated `choices`; *out = index. */
+int proto_cfg_enum(proto_cfg *c, const char *key, proto_need need,
+                   const char *const *choices, int *out);
+/* A numeric array of exactly n entries (n < 0: any length up to cap);
+ * *count gets the length (may be NULL). */
+int proto_cfg_vec(proto_cfg *c, const char *key, proto_need need, double *out,
+                  int n, int cap, int *count);
+/* The raw node for custom reading (arrays of objects...); marks it used.
+ * Returns NULL if missing (error only if required). */
+const cJSON *proto_cfg_raw(proto_cfg *c, const char *key, proto_need need);
+/* Path of an element, "parent.key[3]", for errors in custom readers. */
+void proto_cfg_subpath(const proto_cfg *c, const char *key, int index,
+                       char *out, size_t cap);
+/* Reports the first unknown key: "<path>.<key>: unknown key". */
+int proto_cfg_end(proto_cfg *c);
+
+/* ------------------------------------------------------------------ output
+ *
+ * One HDF5 file per run. Time series are 2-D f8 datasets (one row per
+ * step, chunked, growing), with the column names in the attribute
+ * "columns"; snapshots are groups "<group>/steps/<n>" of arrays. */
+
+typedef struct proto_h5 proto_h5;        /* the file */
+typedef struct proto_series proto_series; /* one growing 2-D dataset */
+
+proto_h5 *proto_h5_create(const char *path, proto_err *err);
+int proto_h5_close(proto_h5 *f); /* flushes; returns -1 if the flush failed */
+int proto_h5_flush(proto_h5 *f);
+/* Stores a string attribute (e.g. the config) on a group ("/" = root). */
+int proto_h5_attr_str(proto_h5 *f, const char *group, const char *name,
+                      const char *value, proto_err *err);
+/* "/dem/series" with the given columns; parent groups made as needed. */
+proto_series *proto_h5_series(proto_h5 *f, const char *path, int ncols,
+                              const char *const *columns, proto_err *err);
+int proto_series_append(proto_series *s, const double *row, proto_err *err);
+int64_t proto_series_rows(const proto_series *s);
+/* Writes an array (any dtype/shape of proto_array) as dataset
+ * "<group>/<a->name>"; groups made as needed. */
+int proto_h5_write_array(proto_h5 *f, const char *group, const proto_array *a,
+                         proto_err *err);
+
+/* XDMF companion: describes snapshot groups of the HDF5 file so ParaView can
+ * open them as a time series. Points (grains) or tetrahedra (a mesh). */
+typedef struct proto_xdmf proto_xdmf;
+typedef enum { PROTO_XDMF_POINTS, PROTO_XDMF_TET4, PROTO_XDMF_TET10,
+               PROTO_XDMF_TRI3 } proto_xdmf_topology;
+/* h5_name is the HDF5 file name as seen from the XDMF file (same folder). */
+proto_xdmf *proto_xdmf_open(const char *path, const char *h5_name,
+                            proto_err *err);
+/* One time step. geometry: "<group>/x" dataset path ([n,3]); cells: a
+ * dataset path of connectivity ([m,4]/[m,10]/[m,3], i4) or NULL for points;
+ * attrs: dataset paths with their names taken from the last path element,
+ * node-centred if their first dimension is n, else cell-centred. */
+int proto_xdmf_step(proto_xdmf *x, const char *grid_name, double t,
+                    proto_xdmf_topology topo, int64_t n_nodes,
+                    const char *geometry, int64_t n_cells, const char *cells,
+                    int n_attrs, const char *const *attrs,
+                    const int64_t *attr_cols /* 1 scalar, 3 vector, 6/9 tensor */,
+                    const int64_t *attr_rows);
+/* Rewrites the closing tags so the file is valid after every step. */
+int proto_xdmf_close(proto_xdmf *x);
+
+#endif

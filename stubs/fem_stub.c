@@ -1,0 +1,173 @@
+/* fem_stub — a rigid tread surface that speaks the fem role (PROTOCOL.md):
+ * the surface never deforms; it follows the rim frame, x = R X0 + c and
+ * v = v_rim + omega × (x - c). Its series records the force it receives, so
+ * a test can check what the other side sent.
+ * Config: {"exec": "fem_stub", "surface": {"plane": {"size": [lx, ly],
+ *          "n": [nx, ny], "z": z0}} | {"nodes": [[x,y,z]...],
+ *          "triangles": [[i,j,k]...]}} */
+#include <stdlib.h>
+#include <string.h>
+
+#include "proto/proto.h"
+
+typedef struct fem_stub {
+  int64_t n_nodes, n_tris;
+  double *x0, *x, *v;
+  int32_t *tri;
+  double series[5]; /* t, Fx, Fy, Fz, n_nodes */
+} fem_stub;
+
+static int plane(fem_stub *s, proto_cfg *c) {
+  double size[2] = {1, 1}, n[2] = {4, 4}, z = 0;
+  if (proto_cfg_vec(c, "size", PROTO_REQUIRED, size, 2, 2, NULL) < 0 ||
+      proto_cfg_vec(c, "n", PROTO_REQUIRED, n, 2, 2, NULL) < 0 ||
+      proto_cfg_num(c, "z", PROTO_OPTIONAL, -1e6, 1e6, &z) < 0 ||
+      proto_cfg_end(c) < 0)
+    return -1;
+  int nx = (int)n[0], ny = (int)n[1];
+  if (nx < 1 || ny < 1 || nx > 4096 || ny > 4096 || n[0] != nx || n[1] != ny)
+    return proto_fail(c->err, "%s.n: expected two integers in [1, 4096]", c->path);
+  if (size[0] <= 0 || size[1] <= 0)
+    return proto_fail(c->err, "%s.size: must be positive", c->path);
+  s->n_nodes = (int64_t)(nx + 1) * (ny + 1);
+  s->n_tris = 2 * (int64_t)nx * ny;
+  s->x0 = malloc(sizeof(double) * 3 * (size_t)s->n_nodes);
+  s->tri = malloc(sizeof(int32_t) * 3 * (size_t)s->n_tris);
+  if (!s->x0 || !s->tri) return proto_fail(c->err, "out of memory");
+  for (int j = 0; j <= ny; j++)
+    for (int i = 0; i <= nx; i++) {
+      double *p = &s->x0[3 * (j * (nx + 1) + i)];
+      p[0] = size[0] * ((double)i / nx - 0.5);
+      p[1] = size[1] * ((double)j / ny - 0.5);
+      p[2] = z;
+    }
+  int32_t *t = s->tri;
+  for (int j = 0; j < ny; j++)
+    for (int i = 0; i < nx; i++) {
+      int32_t a = j * (nx + 1) + i, b = a + 1, d = a + nx + 1, e = d + 1;
+      /* normals point down (-z): the tread's outer surface faces the soil */
+      int32_t tt[6] = {a, d, b, b, d, e};
+      memcpy(t, tt, sizeof tt);
+      t += 6;
+    }
+  return 0;
+}
+
+static int explicit_mesh(fem_stub *s, proto_cfg *c) {
+  const cJSON *nodes = proto_cfg_raw(c, "nodes", PROTO_REQUIRED);
+  const cJSON *tris = proto_cfg_raw(c, "triangles", PROTO_REQUIRED);
+  if (!nodes || !tris || proto_cfg_end(c) < 0) return -1;
+  char path[320];
+  s->n_nodes = cJSON_IsArray(nodes) ? cJSON_GetArraySize(nodes) : 0;
+  s->n_tris = cJSON_IsArray(tris) ? cJSON_GetArraySize(tris) : 0;
+  if (s->n_nodes < 3 || s->n_tris < 1)
+    return proto_fail(c->err, "%s: needs at least 3 nodes and 1 triangle", c->path);
+  s->x0 = malloc(sizeof(double) * 3 * (size_t)s->n_nodes);
+  s->tri = malloc(sizeof(int32_t) * 3 * (size_t)s->n_tris);
+  if (!s->x0 || !s->tri) return proto_fail(c->err, "out of memory");
+  for (int64_t i = 0; i < s->n_nodes; i++) {
+    const cJSON *p = cJSON_GetArrayItem(nodes, (int)i);
+    for (int a = 0; a < 3; a++) {
+      const cJSON *v = cJSON_IsArray(p) && cJSON_GetArraySize(p) == 3
+                           ? cJSON_GetArrayItem(p, a) : NULL;
+      if (!cJSON_IsNumber(v)) {
+        proto_cfg_subpath(c, "nodes", (int)i, path, sizeof path);
+        return proto_fail(c->err, "%s: expected [x, y, z]", path);
+      }
+      s->x0[3 * i + a] = v->valuedouble;
+    }
+  }
+  for (int64_t i = 0; i < s->n_tris; i++) {
+    const cJSON *p = cJSON_GetArrayItem(tris, (int)i);
+    for (int a = 0; a < 3; a++) {
+      const cJSON *v = cJSON_IsArray(p) && cJSON_GetArraySize(p) == 3
+                           ? cJSON_GetArrayItem(p, a) : NULL;
+      if (!cJSON_IsNumber(v) || v->valuedouble < 0 ||
+          v->valuedouble >= (double)s->n_nodes) {
+        proto_cfg_subpath(c, "triangles", (int)i, path, sizeof path);
+        return proto_fail(c->err, "%s: expected three node indices in [0, %lld)",
+                          path, (long long)s->n_nodes);
+      }
+      s->tri[3 * i + a] = (int32_t)v->valueint;
+    }
+  }
+  return 0;
+}
+
+static int configure(void *user, const proto_run_info *info,
+                     const cJSON *section, proto_err *err) {
+  fem_stub *s = user;
+  proto_cfg c, surf, sub;
+  char exec[256];
+  if (proto_cfg_open(&c, section, info->key_path, err) < 0 ||
+      proto_cfg_str(&c, "exec", PROTO_OPTIONAL, exec, sizeof exec) < 0 ||
+      proto_cfg_child(&c, "surface", PROTO_REQUIRED, &surf) != 0)
+    return -1;
+  int rc = proto_cfg_child(&surf, "plane", PROTO_OPTIONAL, &sub);
+  if (rc < 0) return -1;
+  if (rc == 0) rc = plane(s, &sub);
+  else rc = explicit_mesh(s, &surf);
+  if (rc < 0 || proto_cfg_end(&surf) < 0 || proto_cfg_end(&c) < 0) return -1;
+  s->x = calloc((size_t)s->n_nodes * 3, sizeof(double));
+  s->v = calloc((size_t)s->n_nodes * 3, sizeof(double));
+  return s->x && s->v ? 0 : proto_fail(err, "out of memory");
+}
+
+static int init(void *user, const proto_msg *welcome, proto_msg *ready,
+                proto_err *err) {
+  (void)welcome;
+  (void)err;
+  fem_stub *s = user;
+  proto_msg_add_f8(ready, "surface_x0", s->n_nodes, 3, s->x0);
+  proto_msg_add_i4(ready, "surface_tri", s->n_tris, 3, s->tri);
+  cJSON *series = cJSON_AddObjectToObject(proto_msg_header(ready), "series");
+  const char *cols[] = {"t", "force_x", "force_y", "force_z", "n_nodes"};
+  cJSON_AddItemToObject(series, "series", cJSON_CreateStringArray(cols, 5));
+  return 0;
+}
+
+static int step(void *user, proto_peer *peer, const proto_msg *req,
+                proto_msg *reply, proto_err *err) {
+  (void)peer;
+  fem_stub *s = user;
+  const double *f = proto_msg_get_f8(req, "nodal_force", s->n_nodes, 3, err);
+  const double *R = f ? proto_msg_get_f8(req, "rim_R", 3, 3, err) : NULL;
+  const double *c = R ? proto_msg_get_f8(req, "rim_c", 3, 0, err) : NULL;
+  const double *w = c ? proto_msg_get_f8(req, "rim_omega", 3, 0, err) : NULL;
+  const double *vr = w ? proto_msg_get_f8(req, "rim_v", 3, 0, err) : NULL;
+  if (!vr) return -1;
+  double F[3] = {0, 0, 0};
+  for (int64_t i = 0; i < s->n_nodes; i++) {
+    const double *X = &s->x0[3 * i];
+    double *x = &s->x[3 * i], *v = &s->v[3 * i], r[3];
+    for (int a = 0; a < 3; a++) {
+      r[a] = R[3 * a] * X[0] + R[3 * a + 1] * X[1] + R[3 * a + 2] * X[2];
+      x[a] = c[a] + r[a];
+      F[a] += f[3 * i + a];
+    }
+    v[0] = vr[0] + w[1] * r[2] - w[2] * r[1];
+    v[1] = vr[1] + w[2] * r[0] - w[0] * r[2];
+    v[2] = vr[2] + w[0] * r[1] - w[1] * r[0];
+  }
+  double row[5] = {reply->t, F[0], F[1], F[2], (double)s->n_nodes};
+  memcpy(s->series, row, sizeof row);
+  proto_msg_add_f8(reply, "x", s->n_nodes, 3, s->x);
+  proto_msg_add_f8(reply, "v", s->n_nodes, 3, s->v);
+  proto_msg_add_f8(reply, "series", 5, 0, s->series);
+  return 0;
+}
+
+static void finish(void *user) {
+  fem_stub *s = user;
+  free(s->x0);
+  free(s->x);
+  free(s->v);
+  free(s->tri);
+  memset(s, 0, sizeof *s);
+}
+
+int main(int argc, char **argv) {
+  fem_stub s = {0};
+  proto_participant_ops ops = {"fem", configure, init, step, finish};
+  return proto_participant_main(argc, argv, &ops, &s);
+}

@@ -1,0 +1,105 @@
+"""The monitor bus: a SUB attached during a run receives the expected topics,
+with arrays equal to what results.h5 holds; a second monitor that never
+reads does not slow the run."""
+import json
+import os
+import subprocess
+import tempfile
+import threading
+import time
+
+import numpy as np
+import zmq
+
+from common import COSIM, check, done, h5, no_orphans, scene, write
+
+
+def tyre_scene(name, n, end, every):
+    s = scene(name, {
+        "fem": {"exec": "fem_stub", "surface": {"plane": {"size": [0.2, 0.16], "n": [n, n], "z": -0.27}}},
+        "dem": {"exec": "dem_stub", "force_per_node": [-0.1, 0.0, 1.0], "ramp_time": 0.1}},
+        scenario={"kind": "tire_travel", "rim_center": [0, 0, 0.3], "sinkage_velocity": 0.1,
+                  "sinkage_force": 20, "slip": 0.05, "omega": 1.8, "radius": 0.272})
+    s["time"] = {"dt": 1e-3, "end": end}
+    s["output"]["every"] = every
+    ep = "ipc://" + os.path.join(tempfile.mkdtemp(prefix="cosim-bus-"), "monitor")
+    s["bus"] = {"monitor": ep, "hwm": 100000}
+    return s, ep
+
+
+def collect(ep, stop, got):
+    sub = zmq.Context.instance().socket(zmq.SUB)
+    sub.setsockopt(zmq.RCVHWM, 0)
+    sub.setsockopt(zmq.SUBSCRIBE, b"")
+    sub.connect(ep)
+    while not stop.is_set():
+        if sub.poll(100):
+            frames = sub.recv_multipart()
+            hdr = json.loads(frames[1])
+            arrays = {a["name"]: np.frombuffer(fr, dtype="<" + a["dtype"]).reshape(a["shape"])
+                      for a, fr in zip(hdr["arrays"], frames[2:])}
+            got.append((frames[0].decode(), hdr, arrays))
+    sub.close()
+
+
+def timed_run(s, sleeper_ep=None):
+    lazy = None
+    if sleeper_ep:  # subscribes to everything and never reads
+        lazy = zmq.Context.instance().socket(zmq.SUB)
+        lazy.setsockopt(zmq.RCVHWM, 10)
+        lazy.setsockopt(zmq.SUBSCRIBE, b"")
+        lazy.connect(sleeper_ep)
+    t0 = time.time()
+    p = subprocess.run([COSIM, "run", write(s)], capture_output=True, text=True, timeout=300)
+    took = time.time() - t0
+    if lazy:
+        lazy.close(linger=0)
+    check(p.returncode == 0, f"run ok ({p.stderr[-300:]})")
+    return took
+
+
+# 1. an attached monitor sees the series and snapshots of the HDF5 file (a
+# queue deep enough for the whole run: with the default hwm a reader slower
+# than the run loses messages, by design)
+s, ep = tyre_scene("monitor", 4, 5.0, 100)
+got, stop = [], threading.Event()
+th = threading.Thread(target=collect, args=(ep, stop, got))
+th.start()
+time.sleep(0.3)
+p = subprocess.run([COSIM, "run", write(s)], capture_output=True, text=True, timeout=120)
+time.sleep(0.3)
+stop.set()
+th.join()
+check(p.returncode == 0, f"run ok ({p.stderr[-300:]})")
+no_orphans(s, "monitor run")
+topics = {t for t, _, _ in got}
+for want in ("dem.series", "fem.series", "dem.snapshot", "coupler.progress"):
+    check(want in topics, f"bus carries {want} (got {sorted(topics)})")
+f = h5(s)
+dem = f["/dem/series"][:]
+series = [(h["step"], a["series"]) for t, h, a in got if t == "dem.series"]
+# A subscriber that joins while the run is going misses what was published
+# before its subscription reached the proxy (ZeroMQ's late joiner); from then
+# on it must miss nothing (the queue is deep enough here).
+steps = [st for st, _ in series]
+check(len(steps) > 0 and steps == list(range(steps[0], len(dem) + 1)),
+      f"monitor got every dem.series message from its first one (step "
+      f"{steps[0] if steps else None}) to the last ({len(steps)} messages)")
+check(len(steps) >= 0.25 * len(dem), f"monitor joined early enough ({len(steps)} of {len(dem)})")
+mismatch = sum(not np.array_equal(row, dem[step - 1]) for step, row in series)
+check(mismatch == 0, f"every dem.series row equals results.h5 ({mismatch} differ)")
+snaps = [(h["step"], a) for t, h, a in got if t == "dem.snapshot"]
+want = [k for k in range(100, len(dem) + 1, 100) if k >= steps[0]]
+check([st for st, _ in snaps] == want, f"snapshots on the bus: {[st for st, _ in snaps]}")
+bad = sum(not np.array_equal(a["snap.x"], f[f"/dem/steps/{step}/x"][:]) for step, a in snaps)
+check(bad == 0, f"every snapshot equals results.h5 ({bad} differ)")
+
+# 2. a monitor that never reads must not slow the run (big snapshots, every step)
+s1, ep1 = tyre_scene("nomon", 150, 0.3, 1)
+base = min(timed_run(s1) for _ in range(2))
+s2, ep2 = tyre_scene("lazymon", 150, 0.3, 1)
+slow = min(timed_run(s2, ep2) for _ in range(2))
+ratio = slow / base
+print(f"run with a non-reading monitor / without: {slow:.2f} s / {base:.2f} s = {ratio:.2f}")
+check(ratio < 2.0, f"a monitor that never reads slows the run by {ratio:.2f}x (bound 2x)")
+done()

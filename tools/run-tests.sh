@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Builds cosim (installing what is missing) and runs the whole test suite:
+# once in a Release build, then once more built with AddressSanitizer and
+# UndefinedBehaviorSanitizer (skip that pass with COSIM_NO_SANITIZE=1).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+jobs=$(nproc)
+bash tools/setup.sh
+echo "== tests (Release)"
+ctest --test-dir build --output-on-failure -j"$jobs" --timeout 600
+if [ "${COSIM_NO_SANITIZE:-0}" != 1 ]; then
+  echo "== tests (AddressSanitizer + UndefinedBehaviorSanitizer)"
+  COSIM_BUILD_DIR=build-asan bash tools/setup.sh -DCMAKE_BUILD_TYPE=Debug -DCOSIM_SANITIZE=ON
+  # slow-labelled tests are left to the Release pass
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    ctest --test-dir build-asan --output-on-failure -j"$jobs" --timeout 900 -LE slow
+fi
