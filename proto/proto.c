@@ -45,16 +45,24 @@ static const char *const dtype_names[] = {"f8", "i4", "i8", "u1"};
 static const size_t dtype_sizes[] = {8, 4, 8, 1};
 
 /* Received frames, owned by the message; arrays point into them (or into
- * `aligned` copies when a frame's data was not 8-byte aligned). */
+ * `aligned` copies when a frame's data was not 8-byte aligned). Kept across
+ * receives so that a message reused in a loop allocates nothing. */
 struct proto_msg_frames {
   int n;
   zmq_msg_t frame[PROTO_MAX_ARRAYS + 2];
   void *aligned[PROTO_MAX_ARRAYS];
+  size_t aligned_cap[PROTO_MAX_ARRAYS];
 };
+
+static void frames_close(struct proto_msg_frames *f) {
+  if (!f) return;
+  for (int i = 0; i < f->n; i++) zmq_msg_close(&f->frame[i]);
+  f->n = 0;
+}
 
 static void frames_free(struct proto_msg_frames *f) {
   if (!f) return;
-  for (int i = 0; i < f->n; i++) zmq_msg_close(&f->frame[i]);
+  frames_close(f);
   for (int i = 0; i < PROTO_MAX_ARRAYS; i++) free(f->aligned[i]);
   free(f);
 }
@@ -69,16 +77,18 @@ void proto_msg_free(proto_msg *m) {
 
 void proto_msg_reset(proto_msg *m, const char *topic, const char *type,
                      int64_t step, double t) {
+  /* A zero-initialised proto_msg is valid; a reused one releases its
+   * frames and header but keeps its buffers. */
   struct proto_msg_frames *keep = m->frames_;
-  cJSON *hdr = m->header;
-  /* A zero-initialised proto_msg is valid; a reused one frees its parts. */
-  frames_free(keep);
-  cJSON_Delete(hdr);
-  memset(m, 0, sizeof *m);
+  frames_close(keep);
+  cJSON_Delete(m->header);
+  m->header = NULL;
+  m->narrays = 0;
   snprintf(m->topic, sizeof m->topic, "%s", topic ? topic : "");
   snprintf(m->type, sizeof m->type, "%s", type ? type : "");
   m->step = step;
   m->t = t;
+  m->frames_ = keep;
 }
 
 cJSON *proto_msg_header(proto_msg *m) {
@@ -89,8 +99,11 @@ cJSON *proto_msg_header(proto_msg *m) {
 int proto_msg_add(proto_msg *m, const char *name, proto_dtype dtype, int ndim,
                   const int64_t *shape, const void *data) {
   if (m->narrays >= PROTO_MAX_ARRAYS || ndim < 1 || ndim > PROTO_MAX_NDIM ||
-      strlen(name) >= PROTO_NAME_LEN)
+      strlen(name) >= PROTO_NAME_LEN || (unsigned)dtype > PROTO_U1)
     return -1;
+  /* names go into the JSON header verbatim: keep them plain */
+  for (const char *c = name; *c; c++)
+    if (*c == '"' || *c == '\\' || (unsigned char)*c < 0x20) return -1;
   proto_array *a = &m->arrays[m->narrays++];
   memset(a, 0, sizeof *a);
   snprintf(a->name, sizeof a->name, "%s", name);
@@ -174,32 +187,71 @@ const double *proto_msg_get_f8(const proto_msg *m, const char *name,
 
 /* ------------------------------------------------------------------ encode */
 
-static char *header_json(const proto_msg *m) {
-  cJSON *h = m->header ? cJSON_Duplicate(m->header, 1) : cJSON_CreateObject();
-  /* Fixed fields overwrite any same-named extra field. */
-  cJSON_DeleteItemFromObject(h, "v");
-  cJSON_DeleteItemFromObject(h, "type");
-  cJSON_DeleteItemFromObject(h, "step");
-  cJSON_DeleteItemFromObject(h, "t");
-  cJSON_DeleteItemFromObject(h, "arrays");
-  cJSON_AddNumberToObject(h, "v", PROTO_VERSION);
-  cJSON_AddStringToObject(h, "type", m->type);
-  cJSON_AddNumberToObject(h, "step", (double)m->step);
-  cJSON_AddNumberToObject(h, "t", m->t);
-  cJSON *arrays = cJSON_AddArrayToObject(h, "arrays");
-  for (int i = 0; i < m->narrays; i++) {
-    const proto_array *a = &m->arrays[i];
-    cJSON *o = cJSON_CreateObject();
-    cJSON_AddStringToObject(o, "name", a->name);
-    cJSON_AddStringToObject(o, "dtype", dtype_names[a->dtype]);
-    cJSON *shape = cJSON_AddArrayToObject(o, "shape");
-    for (int d = 0; d < a->ndim; d++)
-      cJSON_AddItemToArray(shape, cJSON_CreateNumber((double)a->shape[d]));
-    cJSON_AddItemToArray(arrays, o);
+/* Appends to a growing buffer; returns -1 when out of memory. */
+typedef struct text_buf {
+  char *p;
+  size_t len, cap;
+} text_buf;
+
+static int tb_printf(text_buf *b, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+static int tb_printf(text_buf *b, const char *fmt, ...) {
+  while (1) {
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(b->p + b->len, b->cap - b->len, fmt, ap);
+    va_end(ap);
+    if (n < 0) return -1;
+    if ((size_t)n < b->cap - b->len) {
+      b->len += (size_t)n;
+      return 0;
+    }
+    char *bigger = realloc(b->p, b->cap * 2 + (size_t)n);
+    if (!bigger) return -1;
+    b->p = bigger;
+    b->cap = b->cap * 2 + (size_t)n;
   }
-  char *text = cJSON_PrintUnformatted(h);
-  cJSON_Delete(h);
-  return text;
+}
+
+/* The header's fixed fields are printed directly (a cJSON round trip per
+ * message was most of the cost of a small exchange); extra fields are
+ * spliced in from the cJSON object. Array names are checked plain by
+ * proto_msg_add, so they need no escaping; the fixed fields take precedence
+ * over extras of the same name. */
+static char *header_json(const proto_msg *m) {
+  text_buf b = {malloc(512), 0, 512};
+  if (!b.p) return NULL;
+  int rc = tb_printf(&b, "{\"v\":%d,\"type\":\"%s\",\"step\":%lld,\"t\":%.17g,"
+                     "\"arrays\":[", PROTO_VERSION, m->type, (long long)m->step,
+                     m->t);
+  for (int i = 0; rc == 0 && i < m->narrays; i++) {
+    const proto_array *a = &m->arrays[i];
+    rc = tb_printf(&b, "%s{\"name\":\"%s\",\"dtype\":\"%s\",\"shape\":[",
+                   i ? "," : "", a->name, dtype_names[a->dtype]);
+    for (int d = 0; rc == 0 && d < a->ndim; d++)
+      rc = tb_printf(&b, "%s%lld", d ? "," : "", (long long)a->shape[d]);
+    if (rc == 0) rc = tb_printf(&b, "]}");
+  }
+  if (rc == 0) rc = tb_printf(&b, "]");
+  for (const cJSON *e = m->header ? m->header->child : NULL; rc == 0 && e;
+       e = e->next) {
+    static const char *const fixed[] = {"v", "type", "step", "t", "arrays"};
+    int skip = 0;
+    for (int k = 0; k < 5; k++) skip |= strcmp(e->string, fixed[k]) == 0;
+    if (skip) continue;
+    char *value = cJSON_PrintUnformatted(e);
+    char *key = cJSON_PrintUnformatted(&(cJSON){.type = cJSON_String,
+                                                .valuestring = e->string});
+    rc = value && key ? tb_printf(&b, ",%s:%s", key, value) : -1;
+    free(value);
+    free(key);
+  }
+  if (rc == 0) rc = tb_printf(&b, "}");
+  if (rc < 0) {
+    free(b.p);
+    return NULL;
+  }
+  return b.p;
 }
 
 static int send_frame(void *s, const void *data, size_t n, int more, int copy,
@@ -413,7 +465,9 @@ static int recv_frames(void *s, struct proto_msg_frames *f, proto_err *err) {
 
 int proto_recv(void *socket, proto_msg *m, char *identity, proto_err *err) {
   proto_msg_reset(m, "", "", 0, 0);
-  struct proto_msg_frames *f = calloc(1, sizeof *f);
+  struct proto_msg_frames *f = m->frames_;
+  m->frames_ = NULL;
+  if (!f) f = calloc(1, sizeof *f);
   if (!f) return proto_fail(err, "out of memory");
   int rc = recv_frames(socket, f, err);
   int first = 0;
@@ -434,7 +488,11 @@ int proto_recv(void *socket, proto_msg *m, char *identity, proto_err *err) {
       size[i] = zmq_msg_size(fr);
       /* Small frames may sit unaligned inside zmq_msg_t: copy those. */
       if (i >= 2 && ((uintptr_t)data[i] % 8) != 0 && size[i] > 0) {
-        f->aligned[i - 2] = malloc(size[i]);
+        if (f->aligned_cap[i - 2] < size[i]) {
+          free(f->aligned[i - 2]);
+          f->aligned[i - 2] = malloc(size[i]);
+          f->aligned_cap[i - 2] = f->aligned[i - 2] ? size[i] : 0;
+        }
         if (!f->aligned[i - 2]) {
           rc = proto_fail(err, "out of memory");
           break;
@@ -445,11 +503,11 @@ int proto_recv(void *socket, proto_msg *m, char *identity, proto_err *err) {
     }
     if (rc == 0) rc = proto_decode(m, nf, data, size, err);
   }
+  m->frames_ = f; /* kept even on error: its buffers serve the next receive */
   if (rc < 0) {
-    frames_free(f);
+    frames_close(f);
     return -1;
   }
-  m->frames_ = f;
   return 0;
 }
 
