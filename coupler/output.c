@@ -6,6 +6,7 @@
 #include "internal.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -212,6 +213,14 @@ static int append_series(out_part *p, const proto_msg *done, proto_err *err) {
     int64_t shape[1] = {set->ncols};
     if (!proto_msg_get(done, a->name, PROTO_F8, 1, shape, err)) return -1;
     if (proto_series_append(set->series, a->data, err) < 0) return -1;
+    /* written first, so the file shows the bad row; then the run stops */
+    const double *row = a->data;
+    for (int c = 0; c < set->ncols; c++)
+      if (!isfinite(row[c]))
+        return proto_fail(err, "%s: %s column %d (%s) is %g at t = %g s "
+                          "(the solver blew up; see its log)", p->name, ds, c,
+                          strcmp(ds, "series") == 0 ? p->columns[c] : "-",
+                          row[c], done->t);
     if (set == &p->sets[0] || strcmp(ds, "series") == 0) {
       memcpy(p->last, a->data, sizeof(double) * (size_t)set->ncols);
       p->have_last = 1;

@@ -9,6 +9,7 @@ truncated   say hello with an array frame shorter than its header claims
 oversized   say hello with an array header claiming 1e12 doubles
 role        say hello with the wrong role
 crash_step  behave until the first step, then exit(5)
+nan         answer steps, with a NaN force from step 3 on
 """
 import json
 import os
@@ -36,8 +37,8 @@ s.setsockopt(zmq.LINGER, 1000)
 s.connect(endpoint)
 
 
-def header(type_, v=1, arrays=(), **kw):
-    h = {"v": v, "type": type_, "step": 0, "t": 0.0, "arrays": list(arrays)}
+def header(type_, v=1, arrays=(), step=0, **kw):
+    h = {"v": v, "type": type_, "step": step, "t": 0.0, "arrays": list(arrays)}
     h.update(kw)
     return json.dumps(h).encode()
 
@@ -58,6 +59,19 @@ elif mode == "role":
 else:
     s.send_multipart([name.encode(), header("hello", role=role, name=name)])
     welcome = s.recv_multipart()
+    if mode == "nan":
+        import numpy as np
+        s.send_multipart([name.encode(), header("ready", series={"series": ["t", "force"]})])
+        while True:
+            h = json.loads(s.recv_multipart()[1])
+            if h["type"] != "step":
+                break
+            f = np.array([float("nan") if h["step"] >= 3 else 1.0])
+            row = np.array([h["t"] + h["dt"], f[0]])
+            arrays = [{"name": "force", "dtype": "f8", "shape": [1]},
+                      {"name": "series", "dtype": "f8", "shape": [2]}]
+            s.send_multipart([name.encode(), header("done", arrays=arrays, step=h["step"]),
+                              f.tobytes(), row.tobytes()])
     if mode == "crash_step":
         s.send_multipart([name.encode(), header("ready", series={"series": ["t"]})])
         s.recv_multipart()

@@ -81,6 +81,7 @@ rogue("version", ["protocol version mismatch", "participant 'block'"])
 rogue("truncated", ["needs 240 bytes, frame has 17", "participant 'block'"])
 rogue("oversized", ["exceeds the limit", "participant 'block'"])
 rogue("role", ["expected a hello with role 'block'"])
+rogue("nan", ["participant 'block': force is not finite", "step 3"])
 rogue("crash_step", ["participant 'block'", "exited with status 5", "crashing at the first step"])
 
 # --- Ctrl-C during a long run: exit 130, everyone stopped, results kept
