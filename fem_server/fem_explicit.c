@@ -1,0 +1,170 @@
+/* fem_explicit.c — central differences (seed 000 eq. 30, 32) in leapfrog
+ * form with lumped mass and optional mass-proportional damping C = alpha M:
+ *
+ *   v_{n+1/2} = [(1 - alpha dt/2) v_{n-1/2} + dt M^-1 (b - K u_n)] / (1 + alpha dt/2)
+ *   u_{n+1}   = u_n + dt v_{n+1/2}
+ *
+ * which for alpha = 0 is exactly eq. 32. The discrete energy
+ *   E_n = 1/2 v_{n+1/2}.M v_{n+1/2} + 1/2 u_{n+1}.K u_n
+ * changes only by the work 1/2 dt b.(v_{n+1/2} + v_{n-1/2}) (and damping),
+ * to round-off: an exact invariant of eq. 32, used to detect instability. */
+#include "fem_server/fem.h"
+#include "fem_server/fem_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+int fem_state_init(const fem_model *md, fem_state *st, proto_err *err) {
+  memset(st, 0, sizeof *st);
+  size_t n = (size_t)md->n_dof;
+  st->u = calloc(n, sizeof *st->u);
+  st->v = calloc(n, sizeof *st->v);
+  st->v_half = calloc(n, sizeof *st->v_half);
+  st->fint = calloc(n, sizeof *st->fint);
+  st->b = calloc(n, sizeof *st->b);
+  if (!st->u || !st->v || !st->v_half || !st->fint || !st->b)
+    return proto_fail(err, "out of memory (state with %zu DOFs)", n);
+  return 0;
+}
+
+void fem_state_free(fem_state *st) {
+  if (!st) return;
+  free(st->u);
+  free(st->v);
+  free(st->v_half);
+  free(st->fint);
+  free(st->b);
+  memset(st, 0, sizeof *st);
+}
+
+void fem_state_reset(fem_model *md, fem_state *st, const double *u) {
+  size_t n = (size_t)md->n_dof;
+  for (size_t i = 0; i < n; i++) st->u[i] = md->fixed[i] ? md->u_fixed[i] : (u ? u[i] : 0);
+  memset(st->v, 0, sizeof *st->v * n);
+  memset(st->v_half, 0, sizeof *st->v_half * n);
+  fem_internal_force(md, st->u, st->fint);
+  double se = 0;
+  for (size_t i = 0; i < n; i++) se += 0.5 * st->u[i] * st->fint[i];
+  st->strain = se;
+  st->kinetic = 0;
+  st->energy0 = st->energy = se; /* u_{-1} = u_0 when v = 0 */
+  st->work_ext = st->work_abs = 0;
+  st->t = 0;
+  st->n_sub = 0;
+}
+
+int fem_stable_dt(fem_model *md, int max_iter, proto_err *err) {
+  size_t n = (size_t)md->n_dof;
+  double *x = malloc(sizeof *x * n), *y = malloc(sizeof *y * n);
+  if (!x || !y) {
+    free(x);
+    free(y);
+    return proto_fail(err, "out of memory (power iteration)");
+  }
+  uint64_t s = 0x9e3779b97f4a7c15ULL; /* deterministic start vector */
+  for (size_t i = 0; i < n; i++) {
+    s = s * 6364136223846793005ULL + 1442695040888963407ULL;
+    x[i] = md->fixed[i] ? 0 : (double)(s >> 11) / 9007199254740992.0 - 0.5;
+  }
+  double lam = 0, lam_old = 0;
+  int it;
+  for (it = 1; it <= max_iter; it++) {
+    fem_internal_force(md, x, y);
+    double xKx = 0, xMx = 0, nrm = 0;
+    for (size_t i = 0; i < n; i++) {
+      if (md->fixed[i]) continue;
+      double m = md->mass[i / 3];
+      xKx += x[i] * y[i];
+      xMx += m * x[i] * x[i];
+    }
+    lam = xKx / xMx; /* Rayleigh quotient of M^-1 K */
+    for (size_t i = 0; i < n; i++) {
+      x[i] = md->fixed[i] ? 0 : y[i] / md->mass[i / 3];
+      nrm += x[i] * x[i];
+    }
+    nrm = sqrt(nrm);
+    if (!(nrm > 0) || !isfinite(nrm)) break;
+    for (size_t i = 0; i < n; i++) x[i] /= nrm;
+    if (it > 30 && fabs(lam - lam_old) < 1e-7 * lam) break;
+    lam_old = lam;
+  }
+  free(x);
+  free(y);
+  if (!(lam > 0) || !isfinite(lam))
+    return proto_fail(err, "stable time step: power iteration gave lambda_max = %g", lam);
+  md->omega_max = sqrt(lam);
+  md->dt_crit = 2.0 / md->omega_max;
+  return 0;
+}
+
+static int unstable(const fem_model *md, const fem_state *st, double dt, int64_t k,
+                    int64_t n, proto_err *err) {
+  for (int32_t i = 0; i < md->n_dof; i++)
+    if (!isfinite(st->u[i]))
+      return proto_fail(err, "explicit run diverged at t = %.6g s (sub-step %lld of %lld): "
+                        "non-finite displacement at node %d; dt_sub = %.4g s, stable limit "
+                        "dt_crit = 2/omega_max = %.4g s", st->t, (long long)k, (long long)n,
+                        i / 3, dt, md->dt_crit);
+  return proto_fail(err, "explicit run unstable at t = %.6g s (sub-step %lld of %lld): discrete "
+                    "energy %.4g J exceeds 10x (initial %.4g J + work %.4g J); dt_sub = %.4g s "
+                    "vs stable limit dt_crit = 2/omega_max = %.4g s", st->t, (long long)k,
+                    (long long)n, st->energy, st->energy0, st->work_abs, dt, md->dt_crit);
+}
+
+int fem_explicit_advance(fem_model *md, fem_state *st, double span, double safety,
+                         double dt_sub, proto_err *err) {
+  if (!(span > 0)) return proto_fail(err, "explicit advance: span %g must be > 0", span);
+  if (!(md->dt_crit > 0) && !(dt_sub > 0))
+    return proto_fail(err, "explicit advance: stable step not computed (fem_stable_dt)");
+  double target = dt_sub > 0 ? dt_sub : safety * md->dt_crit;
+  int64_t n = (int64_t)ceil(span / target - 1e-9);
+  if (n < 1) n = 1;
+  const double dt = span / n, alpha = md->mat.damping;
+  const double c1 = (1 - 0.5 * alpha * dt) / (1 + 0.5 * alpha * dt), c2 = dt / (1 + 0.5 * alpha * dt);
+  const int32_t nd = md->n_dof;
+  const double t0 = st->t;
+  st->dt_sub = dt;
+  for (int64_t k = 1; k <= n; k++) {
+    double kin = 0, uKu = 0, dw = 0;
+#pragma omp parallel for reduction(+ : kin, uKu, dw) schedule(static) if (nd > 8 * FEM_OMP_MIN_ELEMS)
+    for (int32_t i = 0; i < nd; i++) {
+      if (md->fixed[i]) {
+        uKu += md->u_fixed[i] * st->fint[i];
+        continue;
+      }
+      double m = md->mass[i / 3];
+      double w_old = st->v_half[i];
+      double w = c1 * w_old + c2 * (st->b[i] - st->fint[i]) / m;
+      st->v_half[i] = w;
+      st->u[i] += dt * w;
+      kin += 0.5 * m * w * w;
+      uKu += st->u[i] * st->fint[i]; /* u_{n+1} . K u_n */
+      dw += 0.5 * dt * st->b[i] * (w + w_old);
+    }
+    st->energy = kin + 0.5 * uKu;
+    st->work_ext += dw;
+    st->work_abs += fabs(dw);
+    st->t = t0 + span * (double)k / (double)n;
+    st->n_sub++;
+    fem_internal_force(md, st->u, st->fint);
+    if (!isfinite(st->energy) || fabs(st->energy) > 10 * (fabs(st->energy0) + st->work_abs))
+      return unstable(md, st, dt, k, n, err);
+  }
+  /* velocity and energies at the end of the span: v_n = v_{n-1/2} + dt/2 a_n */
+  double kin = 0, se = 0;
+  for (int32_t i = 0; i < nd; i++) {
+    if (md->fixed[i]) {
+      st->v[i] = 0;
+    } else {
+      double m = md->mass[i / 3];
+      double a = (st->b[i] - st->fint[i]) / m - alpha * st->v_half[i];
+      st->v[i] = st->v_half[i] + 0.5 * dt * a;
+      kin += 0.5 * m * st->v[i] * st->v[i];
+    }
+    se += 0.5 * st->u[i] * st->fint[i];
+  }
+  st->kinetic = kin;
+  st->strain = se;
+  return 0;
+}

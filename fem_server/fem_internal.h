@@ -1,0 +1,52 @@
+/* fem_internal.h — helpers shared by the fem_server sources (not public). */
+#ifndef COSIM_FEM_INTERNAL_H
+#define COSIM_FEM_INTERNAL_H
+
+#include "fem_server/fem.h"
+
+/* Below this many elements the OpenMP fork/join costs more than it saves
+ * (and spins on a shared machine). */
+#define FEM_OMP_MIN_ELEMS 20000
+
+/* Index of the mid-edge node between local corners a and b (TET10). */
+int fem_edge_mid(int a, int b);
+/* Nodes of local face f of element e: 3 corners, then (TET10) the mid-edge
+ * nodes (c0,c1), (c1,c2), (c2,c0) — Gmsh TRI6 order. */
+void fem_face_nodes(const fem_mesh *m, int32_t e, int f, int32_t out[6]);
+/* 6 x signed volume of the tetrahedron x0..x3. */
+double fem_tet_volume6(const double *x0, const double *x1, const double *x2,
+                       const double *x3);
+
+/* Boundary faces (faces of exactly one element), sorted by corner set. */
+typedef struct fem_face_index {
+  struct face_key *keys;
+  size_t n;
+} fem_face_index;
+fem_face_index *fem_face_index_build(const fem_mesh *m, proto_err *err);
+void fem_face_index_free(fem_face_index *ix);
+/* Finds the boundary face with these corners (any order); -1 if none. */
+int fem_face_index_find(const fem_face_index *ix, const int32_t corners[3],
+                        int32_t *elem, int *local);
+
+/* Shape functions of the reference tetrahedron (barycentric L0 = 1-r-s-t,
+ * L1 = r, L2 = s, L3 = t): values N[npe] and derivatives dN[npe][3] wrt
+ * (r, s, t). */
+void fem_shape(int npe, const double rst[3], double *N, double (*dN)[3]);
+/* 4-point rule (degree 2) on the reference tet: points and weights (sum 1/6). */
+extern const double fem_quad4_pts[4][3];
+extern const double fem_quad4_w;
+
+/* Triangle face loads: f_a += integral of N_a * traction(n) dA over face,
+ * with traction = t_vec + p_normal * n_out (n_out outward unit normal). */
+void fem_face_load(const fem_model *md, int32_t e, int f, const double t_vec[3],
+                   double p_normal, double *b);
+
+/* ANP (fem_anp.c): nodal dilatation of u into md->node_theta, and the
+ * element force of the volumetric part added in elem_force (via
+ * fem_anp_elem_pressure). */
+void fem_anp_prepare(fem_model *md, const double *u);
+int fem_anp_assemble(fem_model *md, proto_err *err);
+/* 2-ring node neighbours for the ANP pattern: nb[ptr[n]..ptr[n+1]) sorted. */
+int fem_anp_neighbours(const fem_model *md, int32_t **ptr, int32_t **nb, proto_err *err);
+
+#endif

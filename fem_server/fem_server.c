@@ -1,0 +1,311 @@
+/* fem_server.c — the FEM participant (role "fem", PROTOCOL.md).
+ *
+ * The tread is solved in the rim's frame (DESIGN.md): x = R(t)(X + u) + c(t).
+ * Each coupling step: nodal forces (world) are rotated into the rim frame,
+ * added to the inflation pressure and gravity (rotated likewise), the tread
+ * is advanced by sub-cycled central differences (or re-solved statically
+ * with the kept factor in quasi_static mode), and the surface nodes go back
+ * in the world frame: v = R v_rel + omega x (x - c) + v_c. Fictitious
+ * (centrifugal, Coriolis) forces of the rotating frame are neglected, as in
+ * the linear model of seed 000 §3. */
+#include "fem_server/fem.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct server {
+  fem_config cfg;
+  fem_model md;
+  fem_state st;
+  double span;          /* coupling step, s */
+  double *b_static;     /* [n_dof] pressure loads (rim frame) */
+  double *b_qs;         /* [n_dof] quasi-static right-hand side */
+  double *u_prev;       /* [n_dof] quasi-static: previous solution */
+  int32_t n_surf, n_tri;
+  int32_t *surf_node;   /* [n_surf] mesh node of each surface node */
+  int32_t *surf_tri;    /* [n_tri*3] */
+  double *surf_x0;      /* [n_surf*3] rim frame, after the static solve */
+  double *x_out, *v_out; /* [n_surf*3] world */
+  double series[5];
+  /* snapshots */
+  int32_t *cells;       /* [n_elems*npe] VTK order */
+  double *mesh_x0, *snap_x, *snap_v, *strain, *stress, *voigt;
+} server;
+
+/* ------------------------------------------------------------- configure */
+
+static int configure(void *user, const proto_run_info *info, const cJSON *section,
+                     proto_err *err) {
+  server *s = user;
+  if (fem_config_read(section, info->key_path, &s->cfg, err)) return -1;
+  if (fem_config_build(&s->cfg, &s->md, err)) return -1;
+  s->span = info->dt;
+  if (s->cfg.dt_sub > 0 && info->dt > 0 && s->cfg.dt_sub > info->dt)
+    return proto_fail(err, "%s.dt_sub: %g s exceeds the coupling step %g s", info->key_path,
+                      s->cfg.dt_sub, info->dt);
+  return 0;
+}
+
+/* -------------------------------------------------------------- surface */
+
+/* Surface triangles of the coupled group; TET10 faces split into 4. */
+static int build_surface(server *s, proto_err *err) {
+  const fem_mesh *m = &s->md.mesh;
+  int g = fem_mesh_group(m, s->cfg.surface_group, err);
+  if (g < 0) return -1;
+  const fem_group *gr = &m->groups[g];
+  int split = m->nodes_per_elem == 10 ? 4 : 1;
+  int32_t *local = malloc(sizeof *local * (size_t)m->n_nodes);
+  s->surf_tri = malloc(sizeof *s->surf_tri * 3 * (size_t)gr->n_faces * split);
+  s->surf_node = malloc(sizeof *s->surf_node * 6 * (size_t)gr->n_faces);
+  if (!local || !s->surf_tri || !s->surf_node) {
+    free(local);
+    return proto_fail(err, "out of memory (surface)");
+  }
+  for (int32_t i = 0; i < m->n_nodes; i++) local[i] = -1;
+  static const int sub[4][3] = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}, {3, 4, 5}};
+  for (int32_t f = 0; f < gr->n_faces; f++) {
+    int32_t fn[6];
+    const int8_t lf = gr->face_local[f];
+    const int32_t e = gr->face_elem[f];
+    const int *fc = fem_tet_face[lf];
+    const int32_t *c = m->conn + (size_t)e * m->nodes_per_elem;
+    for (int a = 0; a < 3; a++) fn[a] = c[fc[a]];
+    if (split == 4)
+      for (int a = 0; a < 3; a++) { /* mid-edge node between fc[a], fc[a+1] */
+        int p = fc[a], q = fc[(a + 1) % 3], k;
+        for (k = 0; k < 6; k++)
+          if ((fem_tet10_edge[k][0] == p && fem_tet10_edge[k][1] == q) ||
+              (fem_tet10_edge[k][0] == q && fem_tet10_edge[k][1] == p))
+            break;
+        fn[3 + a] = c[4 + k];
+      }
+    for (int a = 0; a < 3 * (split == 4 ? 2 : 1); a++)
+      if (local[fn[a]] < 0) {
+        local[fn[a]] = s->n_surf;
+        s->surf_node[s->n_surf++] = fn[a];
+      }
+    for (int t = 0; t < split; t++)
+      for (int a = 0; a < 3; a++)
+        s->surf_tri[3 * ((size_t)s->n_tri + t) + a] = local[fn[split == 4 ? sub[t][a] : a]];
+    s->n_tri += split;
+  }
+  free(local);
+  size_t n3 = 3 * (size_t)s->n_surf;
+  s->surf_x0 = malloc(sizeof *s->surf_x0 * n3);
+  s->x_out = malloc(sizeof *s->x_out * n3);
+  s->v_out = malloc(sizeof *s->v_out * n3);
+  if (!s->surf_x0 || !s->x_out || !s->v_out) return proto_fail(err, "out of memory (surface)");
+  for (int32_t i = 0; i < s->n_surf; i++)
+    for (int d = 0; d < 3; d++)
+      s->surf_x0[3 * i + d] = m->x[3 * (size_t)s->surf_node[i] + d] + s->st.u[3 * (size_t)s->surf_node[i] + d];
+  return 0;
+}
+
+static int alloc_snapshots(server *s, proto_err *err) {
+  const fem_mesh *m = &s->md.mesh;
+  size_t nn3 = 3 * (size_t)m->n_nodes, ne6 = 6 * (size_t)m->n_elems;
+  const int npe = m->nodes_per_elem;
+  s->cells = malloc(sizeof *s->cells * (size_t)m->n_elems * npe);
+  s->mesh_x0 = malloc(sizeof(double) * nn3);
+  s->snap_x = malloc(sizeof(double) * nn3);
+  s->snap_v = malloc(sizeof(double) * nn3);
+  s->strain = malloc(sizeof(double) * ne6);
+  s->stress = malloc(sizeof(double) * ne6);
+  s->voigt = malloc(sizeof(double) * ne6);
+  if (!s->cells || !s->mesh_x0 || !s->snap_x || !s->snap_v || !s->strain || !s->stress || !s->voigt)
+    return proto_fail(err, "out of memory (snapshots)");
+  memcpy(s->mesh_x0, m->x, sizeof(double) * nn3);
+  /* Gmsh TET10 has edges (2,3) then (1,3); VTK/XDMF the other way round */
+  for (int32_t e = 0; e < m->n_elems; e++)
+    for (int a = 0; a < npe; a++) {
+      int src = npe == 10 && a == 8 ? 9 : npe == 10 && a == 9 ? 8 : a;
+      s->cells[(size_t)e * npe + a] = m->conn[(size_t)e * npe + src];
+    }
+  return 0;
+}
+
+/* ------------------------------------------------------------------ init */
+
+static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_err *err) {
+  (void)welcome;
+  server *s = user;
+  fem_model *md = &s->md;
+  const char *path = s->cfg.path;
+  size_t nd = (size_t)md->n_dof;
+  s->b_static = calloc(nd, sizeof *s->b_static);
+  s->b_qs = calloc(nd, sizeof *s->b_qs);
+  s->u_prev = calloc(nd, sizeof *s->u_prev);
+  if (!s->b_static || !s->b_qs || !s->u_prev) return proto_fail(err, "out of memory");
+  if (fem_state_init(md, &s->st, err) || fem_config_loads(&s->cfg, md, s->b_static, err)) return -1;
+  double *u0 = s->u_prev; /* R(0) = I: gravity in the rim frame = world */
+  memcpy(s->b_qs, s->b_static, sizeof *s->b_qs * nd);
+  fem_load_gravity(md, s->cfg.gravity, s->b_qs);
+  if (s->cfg.initial_static || s->cfg.mode == FEM_QUASI_STATIC) {
+    fem_solve_stats ss;
+    if (fem_static_solve(md, s->cfg.solver, 1e-10, s->b_qs, u0, &ss, err))
+      return proto_wrap(err, "%s: initial static solve", path);
+    fprintf(stderr, "%s: static solve K u0 = b0: %d equations, %s (BLAS: %s), analyze %.3f s, "
+            "factor %.3f s, solve %.3f s, %d iterations, residual %.1e\n", path, md->n_eq,
+            s->cfg.solver == FEM_CHOLMOD ? "CHOLMOD" : "PCG", fem_blas_name(), ss.t_analyze,
+            ss.t_factor, ss.t_solve, ss.iterations, ss.residual);
+  }
+  fem_state_reset(md, &s->st, u0);
+  if (s->cfg.mode == FEM_EXPLICIT) {
+    if (fem_stable_dt(md, s->cfg.power_iterations, err)) return -1;
+    double dt = s->cfg.dt_sub > 0 ? s->cfg.dt_sub : s->cfg.safety * md->dt_crit;
+    if (s->cfg.dt_sub > md->dt_crit && !s->cfg.allow_unstable)
+      return proto_fail(err, "%s.dt_sub: %.4g s exceeds the stable limit dt_crit = 2/omega_max = "
+                        "%.4g s (set allow_unstable to force it)", path, s->cfg.dt_sub, md->dt_crit);
+    fprintf(stderr, "%s: %d nodes, %d %s elements; stable step dt_crit = 2/omega_max = %.4g s "
+            "(power iteration), sub-step %.4g s (safety %.2f), %lld sub-steps per coupling step "
+            "of %.4g s\n", path, md->mesh.n_nodes, md->mesh.n_elems,
+            md->npe == 10 ? "tet10" : "tet4", md->dt_crit, dt, s->cfg.safety,
+            s->span > 0 ? (long long)((s->span / dt) + 0.999999) : 0LL, s->span);
+  }
+  if (build_surface(s, err) || alloc_snapshots(s, err)) return -1;
+
+  cJSON *h = proto_msg_header(ready);
+  cJSON *series = cJSON_AddObjectToObject(h, "series");
+  static const char *const cols[] = {"t", "strain_energy", "kinetic_energy", "dt_sub", "sub_steps"};
+  cJSON_AddItemToObject(series, "series", cJSON_CreateStringArray(cols, 5));
+  cJSON *snap = cJSON_AddObjectToObject(h, "snapshot");
+  cJSON_AddStringToObject(snap, "kind", md->npe == 10 ? "tet10" : "tet4");
+  cJSON_AddStringToObject(snap, "geometry", "x");
+  cJSON_AddStringToObject(snap, "cells", "cells");
+  static const char *const attrs[] = {"u", "v", "strain", "stress"};
+  cJSON_AddItemToObject(snap, "attributes", cJSON_CreateStringArray(attrs, 4));
+  cJSON *info = cJSON_AddObjectToObject(h, "fem");
+  cJSON_AddNumberToObject(info, "dt_crit", md->dt_crit);
+  cJSON_AddNumberToObject(info, "nodes", md->mesh.n_nodes);
+  cJSON_AddNumberToObject(info, "elements", md->mesh.n_elems);
+  cJSON_AddNumberToObject(info, "equations", md->n_eq);
+  if (proto_msg_add_f8(ready, "surface_x0", s->n_surf, 3, s->surf_x0) ||
+      proto_msg_add_i4(ready, "surface_tri", s->n_tri, 3, s->surf_tri) ||
+      proto_msg_add_f8(ready, "mesh.x0", md->mesh.n_nodes, 3, s->mesh_x0) ||
+      proto_msg_add_i4(ready, "mesh.cells", md->mesh.n_elems, md->npe, s->cells))
+    return proto_fail(err, "ready message full");
+  return 0;
+}
+
+/* ------------------------------------------------------------------ step */
+
+/* y = R x (row-major R) and y = R^T x */
+static void rot(const double *R, const double *x, double *y) {
+  for (int a = 0; a < 3; a++) y[a] = R[3 * a] * x[0] + R[3 * a + 1] * x[1] + R[3 * a + 2] * x[2];
+}
+static void rot_t(const double *R, const double *x, double *y) {
+  for (int a = 0; a < 3; a++) y[a] = R[a] * x[0] + R[3 + a] * x[1] + R[6 + a] * x[2];
+}
+
+/* World position and velocity of node n. */
+static void to_world(const server *s, const double *R, const double *c, const double *w,
+                     const double *vc, int32_t n, double *x, double *v) {
+  double X[3], r[3], vr[3];
+  for (int d = 0; d < 3; d++) X[d] = s->md.mesh.x[3 * (size_t)n + d] + s->st.u[3 * (size_t)n + d];
+  rot(R, X, r);
+  rot(R, s->st.v + 3 * (size_t)n, vr);
+  double wr[3] = {w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]};
+  for (int d = 0; d < 3; d++) {
+    x[d] = c[d] + r[d];
+    v[d] = vc[d] + wr[d] + vr[d];
+  }
+}
+
+static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *reply,
+                proto_err *err) {
+  (void)peer;
+  server *s = user;
+  fem_model *md = &s->md;
+  const double *f = proto_msg_get_f8(req, "nodal_force", s->n_surf, 3, err);
+  const double *R = f ? proto_msg_get_f8(req, "rim_R", 3, 3, err) : NULL;
+  const double *c = R ? proto_msg_get_f8(req, "rim_c", 3, 0, err) : NULL;
+  const double *w = c ? proto_msg_get_f8(req, "rim_omega", 3, 0, err) : NULL;
+  const double *vc = w ? proto_msg_get_f8(req, "rim_v", 3, 0, err) : NULL;
+  if (!vc) return -1;
+  const cJSON *jdt = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "dt") : NULL;
+  double span = cJSON_IsNumber(jdt) && jdt->valuedouble > 0 ? jdt->valuedouble : s->span;
+  if (!(span > 0)) return proto_fail(err, "step request without a positive dt");
+  /* external force in the rim frame: pressure + R^T g m + R^T f */
+  double g[3];
+  rot_t(R, s->cfg.gravity, g);
+  double *b = s->cfg.mode == FEM_EXPLICIT ? s->st.b : s->b_qs;
+  memcpy(b, s->b_static, sizeof *b * (size_t)md->n_dof);
+  fem_load_gravity(md, g, b);
+  for (int32_t i = 0; i < s->n_surf; i++) {
+    double fr[3];
+    if (!isfinite(f[3 * (size_t)i]) || !isfinite(f[3 * (size_t)i + 1]) || !isfinite(f[3 * (size_t)i + 2]))
+      return proto_fail(err, "nodal_force[%d] (surface node %d) is not finite", i, i);
+    rot_t(R, f + 3 * (size_t)i, fr);
+    for (int d = 0; d < 3; d++) b[3 * (size_t)s->surf_node[i] + d] += fr[d];
+  }
+  if (s->cfg.mode == FEM_EXPLICIT) {
+    if (fem_explicit_advance(md, &s->st, span, s->cfg.safety, s->cfg.dt_sub, err)) return -1;
+  } else { /* quasi-static: K u = b with the kept factor */
+    memcpy(s->u_prev, s->st.u, sizeof *s->u_prev * (size_t)md->n_dof);
+    if (fem_static_solve(md, s->cfg.solver, 1e-10, b, s->st.u, NULL, err)) return -1;
+    for (int32_t i = 0; i < md->n_dof; i++) s->st.v[i] = (s->st.u[i] - s->u_prev[i]) / span;
+    fem_internal_force(md, s->st.u, s->st.fint);
+    double se = 0, ke = 0;
+    for (int32_t i = 0; i < md->n_dof; i++) {
+      se += 0.5 * s->st.u[i] * s->st.fint[i];
+      ke += 0.5 * md->mass[i / 3] * s->st.v[i] * s->st.v[i];
+    }
+    s->st.strain = se;
+    s->st.kinetic = ke;
+    s->st.t += span;
+    s->st.dt_sub = span;
+  }
+  for (int32_t i = 0; i < s->n_surf; i++)
+    to_world(s, R, c, w, vc, s->surf_node[i], s->x_out + 3 * (size_t)i, s->v_out + 3 * (size_t)i);
+  s->series[0] = reply->t;
+  s->series[1] = s->st.strain;
+  s->series[2] = s->st.kinetic;
+  s->series[3] = s->st.dt_sub;
+  s->series[4] = s->cfg.mode == FEM_EXPLICIT ? (double)(int64_t)(span / s->st.dt_sub + 0.5) : 1;
+  if (proto_msg_add_f8(reply, "x", s->n_surf, 3, s->x_out) ||
+      proto_msg_add_f8(reply, "v", s->n_surf, 3, s->v_out) ||
+      proto_msg_add_f8(reply, "series", 5, 0, s->series))
+    return proto_fail(err, "reply full");
+  const cJSON *out = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "output") : NULL;
+  if (cJSON_IsTrue(out)) {
+    const int32_t nn = md->mesh.n_nodes, ne = md->mesh.n_elems;
+    for (int32_t n = 0; n < nn; n++)
+      to_world(s, R, c, w, vc, n, s->snap_x + 3 * (size_t)n, s->snap_v + 3 * (size_t)n);
+    fem_element_strain_stress(md, s->st.u, s->voigt, NULL);
+    /* XDMF Tensor6 order: xx xy xz yy yz zz (ours: xx yy zz yz xz xy) */
+    static const int perm[6] = {0, 5, 4, 1, 3, 2};
+    for (int32_t e = 0; e < ne; e++)
+      for (int k = 0; k < 6; k++) s->strain[6 * (size_t)e + k] = s->voigt[6 * (size_t)e + perm[k]];
+    fem_element_strain_stress(md, s->st.u, NULL, s->voigt);
+    for (int32_t e = 0; e < ne; e++)
+      for (int k = 0; k < 6; k++) s->stress[6 * (size_t)e + k] = s->voigt[6 * (size_t)e + perm[k]];
+    if (proto_msg_add_f8(reply, "snap.x", nn, 3, s->snap_x) ||
+        proto_msg_add_f8(reply, "snap.u", nn, 3, s->st.u) ||
+        proto_msg_add_f8(reply, "snap.v", nn, 3, s->snap_v) ||
+        proto_msg_add_f8(reply, "snap.strain", ne, 6, s->strain) ||
+        proto_msg_add_f8(reply, "snap.stress", ne, 6, s->stress))
+      return proto_fail(err, "reply full");
+  }
+  return 0;
+}
+
+static void finish(void *user) {
+  server *s = user;
+  fem_state_free(&s->st);
+  fem_model_free(&s->md);
+  free(s->b_static); free(s->b_qs); free(s->u_prev);
+  free(s->surf_node); free(s->surf_tri); free(s->surf_x0);
+  free(s->x_out); free(s->v_out);
+  free(s->cells); free(s->mesh_x0); free(s->snap_x); free(s->snap_v);
+  free(s->strain); free(s->stress); free(s->voigt);
+  memset(s, 0, sizeof *s);
+}
+
+int main(int argc, char **argv) {
+  static server s;
+  static const proto_participant_ops ops = {"fem", configure, init, step, finish};
+  return proto_participant_main(argc, argv, &ops, &s);
+}
