@@ -1,0 +1,194 @@
+/* dem.h — the one public header of cosim's DEM part (prefix dem_).
+ *
+ * Spheres with Hertz–Mindlin contacts, exactly LIGGGHTS 3.8
+ * `pair gran model hertz tangential history` (seed 000 eq. 16–27; the LIGGGHTS
+ * Coulomb rule of ../shared/notes/dem.md §1.1), velocity Verlet (eq. 4–5) with
+ * quaternion orientation, linked cells + Verlet list with skin, plane/box walls
+ * and triangle meshes (closest point, eq. 35; nodal reaction by ζ, eq. 42; BVH).
+ *
+ * Model (the scene, read-only during a run) and state (what changes) are
+ * separate, MuJoCo style. Per-grain arrays in the state are structure of arrays
+ * and are reordered by cell at neighbour-list rebuilds; `id` maps a slot to the
+ * grain's index in the model (config order). Units SI.
+ */
+#ifndef COSIM_DEM_H
+#define COSIM_DEM_H
+
+#include <stdint.h>
+#include "proto/proto.h"
+
+#define DEM_MAX_MATERIALS 8
+#define DEM_MAX_WALLS 32
+#define DEM_MAX_PLANES 64
+#define DEM_MAX_MESHES 8
+#define DEM_MESH_SLOTS 6 /* mesh contacts kept per grain */
+
+typedef struct dem_material {
+  double density, E, nu, G; /* G = E/(2(1+nu)) unless given */
+  double restitution;       /* e in (0, 1] */
+  double friction;          /* Coulomb μ */
+  double rolling_friction;  /* μ_r of LIGGGHTS `rolling_friction cdt`, 0 = off */
+} dem_material;
+
+/* Per material pair, LIGGGHTS' effective values (notes §1.1). */
+typedef struct dem_pair_law {
+  double Estar; /* Y* = 1/((1-ν1²)/E1 + (1-ν2²)/E2), seed 000 eq. 21 */
+  double Gstar; /* 1/(2(2-ν1)(1+ν1)/E1 + 2(2-ν2)(1+ν2)/E2), eq. 26 with G = E/(2(1+ν)) */
+  double beta;  /* ln e / sqrt(ln² e + π²) (≤ 0) */
+  double mu, mu_roll;
+  double damp_n, damp_t; /* −2√(5/6) β √(2Y*), −2√(5/6) β √(8G*): γ = damp·√(√(R*δ) m*) */
+} dem_pair_law;
+
+typedef enum dem_wall_kind { DEM_WALL_PLANE, DEM_WALL_BOX, DEM_WALL_MESH } dem_wall_kind;
+
+typedef struct dem_wall {
+  dem_wall_kind kind;
+  int material;
+  int plane0, nplanes; /* planes of this wall in model->planes */
+  int mesh;            /* index in model->meshes (DEM_WALL_MESH) */
+  double lo[3], hi[3]; /* box extent */
+} dem_wall;
+
+/* An infinite plane; grains live on the side the normal points to. */
+typedef struct dem_plane {
+  double point[3], normal[3];
+  int material, wall;
+} dem_plane;
+
+typedef struct dem_mesh {
+  int n_nodes, n_tri;
+  double *x0;        /* [n_nodes*3] node positions at t = 0 */
+  int32_t *tri;      /* [n_tri*3] node indices */
+  double velocity[3];/* rigid meshes: constant translation velocity */
+  int material, wall;
+  int coupled;       /* node positions/velocities set each step (FEM surface) */
+} dem_mesh;
+
+/* Config values kept as given (the derived ones live in dem_model). */
+typedef struct dem_model_config {
+  double dt_given;     /* "dt", 0 = use dt_fraction */
+  double dt_fraction;  /* "dt_fraction" of the Rayleigh time */
+  double skin;         /* "skin", < 0 = default */
+  double settle_ke;    /* generated beds: settle until KE per grain below this (J) */
+  double settle_steps; /* ... or this many steps (0 = no settling) */
+  char save_bed[512];  /* generated beds: HDF5 file written after settling ("" = none) */
+} dem_model_config;
+
+typedef struct dem_model {
+  char key_path[128]; /* "processes.<name>", for messages */
+  dem_model_config cfg;
+  int n_materials;
+  dem_material mat[DEM_MAX_MATERIALS];
+  dem_pair_law law[DEM_MAX_MATERIALS][DEM_MAX_MATERIALS];
+  int n_walls, n_planes, n_meshes;
+  dem_wall walls[DEM_MAX_WALLS];
+  dem_plane planes[DEM_MAX_PLANES];
+  dem_mesh meshes[DEM_MAX_MESHES];
+  int surface_material; /* material of the coupled FEM surface */
+  double gravity[3];
+  double dt;             /* DEM step actually used (s) */
+  double rayleigh_time;  /* over the smallest grain, notes §2 */
+  double skin;           /* neighbour-list skin (m) */
+  double overlap_tolerance;   /* initial overlap allowed, fraction of the smaller radius */
+  double max_overlap_ratio;   /* overlap/radius that stops a run as unstable */
+  int unsafe_dt;         /* skip the stability refusal (stress tests only) */
+  int threads;           /* OpenMP threads, 0 = runtime default */
+  int has_rolling;
+  int n_grains;
+  double *x0, *v0, *omega0, *radius; /* [n*3], [n*3], [n*3], [n] */
+  int32_t *material;                 /* [n] */
+  uint8_t *fix_rotation;             /* [n] 1 = grain does not rotate */
+} dem_model;
+
+struct dem_work; /* private: neighbour lists, cells, histories, BVH, scratch */
+
+typedef struct dem_state {
+  int n;
+  int64_t step;
+  double t;
+  /* per grain (slot order, see id) */
+  double *x, *v, *omega, *q; /* q: quaternion [n*4] (w, x, y, z), body→world */
+  double *force, *torque;    /* contact forces/torques (gravity enters the kick as g) */
+  double *radius, *inv_mass, *inv_inertia;
+  int32_t *material, *id;
+  uint8_t *fix_rotation;
+  /* meshes: current node positions/velocities and the force grains exert on nodes */
+  double *mesh_x[DEM_MAX_MESHES], *mesh_v[DEM_MAX_MESHES], *mesh_force[DEM_MAX_MESHES];
+  /* per-step summary */
+  double kinetic_energy;   /* translational + rotational, J */
+  double elastic_energy;   /* normal Hertz energy stored in contacts, J */
+  int64_t contacts;        /* grain–grain + grain–wall contacts */
+  double max_overlap_ratio;/* max overlap / radius */
+  double *wall_force;      /* [n_walls*3] force ON each wall, N */
+  int64_t rebuilds;
+  struct dem_work *work;
+} dem_state;
+
+/* ---- model ---- */
+/* Reads a config section `processes.<name>` (key path `path`). Accepts and
+ * ignores "exec". Needs no run information; dem_model_set_dt() finishes it. */
+int dem_model_from_json(dem_model *m, const cJSON *section, const char *path,
+                        proto_err *err);
+/* Chooses the DEM step: the configured dt, or dt_fraction·T_R; when
+ * coupling_dt > 0 it is split into equal sub-steps not larger than that.
+ * Refuses a step above the stability limit (with the limit in the message). */
+int dem_model_set_dt(dem_model *m, double coupling_dt, proto_err *err);
+/* Adds the coupled FEM surface as a mesh wall (world positions at t = 0). */
+int dem_model_set_surface(dem_model *m, int n_nodes, const double *x0, int n_tri,
+                          const int32_t *tri, proto_err *err);
+void dem_model_free(dem_model *m);
+double dem_rayleigh_time(double r, double density, double E, double nu);
+/* Smallest Rayleigh time over the model's grains (call after replacing grains,
+ * then dem_model_set_dt). */
+double dem_model_rayleigh(const dem_model *m);
+/* Stability limit: largest dt accepted, as a fraction of T_R. */
+#define DEM_DT_LIMIT_FRACTION 0.5
+
+/* ---- state ---- */
+/* Allocates everything the run needs, checks the initial configuration
+ * (overlaps, grains outside walls/domain) and computes the initial forces. */
+int dem_state_init(const dem_model *m, dem_state *s, proto_err *err);
+void dem_state_free(dem_state *s);
+/* One DEM step of m->dt. Fails (with where and why) on NaN, runaway overlap. */
+int dem_step(const dem_model *m, dem_state *s, proto_err *err);
+/* Advances by `duration` in equal steps of m->dt (duration/m->dt rounded). */
+int dem_advance(const dem_model *m, dem_state *s, double duration, proto_err *err);
+/* Sets coupled mesh nodes: positions at the current time and velocities. */
+void dem_mesh_set_nodes(const dem_model *m, dem_state *s, int mesh,
+                        const double *x, const double *v);
+/* Copies per-grain data back into model order (out[id]). cols = 3 or 1. */
+void dem_gather(const dem_state *s, const double *slot_data, int cols, double *out);
+/* Mean coordination number (contacts per grain, grain–grain only). */
+double dem_coordination(const dem_model *m, const dem_state *s);
+
+/* ---- beds ---- */
+typedef struct dem_bed_layer {
+  double diameter, spread; /* uniform in diameter ± spread */
+  int64_t count;
+} dem_bed_layer;
+
+typedef struct dem_bed_spec {
+  double size[2];          /* box footprint Lx, Ly */
+  int n_layers;            /* bottom first */
+  dem_bed_layer layers[4];
+  int material;
+  double gap;              /* clearance between placed grains (m) */
+  uint64_t seed;
+} dem_bed_spec;
+
+/* The paper's bed (seed 000 table 2) scaled: counts × scale, footprint × sqrt(scale). */
+void dem_bed_paper(dem_bed_spec *b, double scale);
+/* Places grains without overlap on jittered lattices in the model's grain
+ * arrays (replaces any). Does not settle. */
+int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err);
+/* Runs until the kinetic energy per grain is below ke_per_grain or max_steps. */
+int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain,
+               int64_t max_steps, proto_err *err);
+/* HDF5 beds: datasets x [n,3], v [n,3], omega [n,3], r [n], material [n] (i4). */
+int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto_err *err);
+int dem_bed_load(dem_model *m, const char *path, proto_err *err);
+
+/* Allocates the model's grain arrays for n grains (zeroed). */
+int dem_model_alloc_grains(dem_model *m, int n, proto_err *err);
+
+#endif

@@ -1,0 +1,459 @@
+/* dem_mesh.c — sphere–triangle contacts (seed 000 §4.2–4.4): BVH over the
+ * triangles, closest point with face/edge/vertex classification by the
+ * barycentric coordinates ζ (eq. 35), one force per grain for a shared edge or
+ * vertex, and the reaction distributed onto the nodes by ζ (eq. 42). */
+#include "dem_server/dem_internal.h"
+
+#include <float.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ------------------------------------------------------------ geometry */
+
+/* Ericson, Real-Time Collision Detection §5.1.5, returning the barycentric
+ * weights (ζ_a, ζ_b, ζ_c) of the closest point q; clamped cases give exact zeros. */
+void dem_closest_on_triangle(const double *p, const double *a, const double *b,
+                             const double *c, double *q, double *zeta) {
+  double ab[3], ac[3], ap[3], bp[3], cp[3];
+  for (int k = 0; k < 3; k++) {
+    ab[k] = b[k] - a[k]; ac[k] = c[k] - a[k]; ap[k] = p[k] - a[k];
+    bp[k] = p[k] - b[k]; cp[k] = p[k] - c[k];
+  }
+  double u = 1, v = 0, w = 0;
+  const double d1 = dem_dot(ab, ap), d2 = dem_dot(ac, ap);
+  const double d3 = dem_dot(ab, bp), d4 = dem_dot(ac, bp);
+  const double d5 = dem_dot(ab, cp), d6 = dem_dot(ac, cp);
+  const double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
+  if (d1 <= 0 && d2 <= 0) {
+    u = 1; v = 0; w = 0;
+  } else if (d3 >= 0 && d4 <= d3) {
+    u = 0; v = 1; w = 0;
+  } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    v = d1 / (d1 - d3); u = 1 - v; w = 0;
+  } else if (d6 >= 0 && d5 <= d6) {
+    u = 0; v = 0; w = 1;
+  } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    w = d2 / (d2 - d6); u = 1 - w; v = 0;
+  } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    w = (d4 - d3) / ((d4 - d3) + (d5 - d6)); v = 1 - w; u = 0;
+  } else {
+    const double denom = 1.0 / (va + vb + vc);
+    v = vb * denom; w = vc * denom; u = 1 - v - w;
+  }
+  zeta[0] = u; zeta[1] = v; zeta[2] = w;
+  for (int k = 0; k < 3; k++) q[k] = u * a[k] + v * b[k] + w * c[k];
+}
+
+/* ----------------------------------------------------------------- BVH */
+
+static void tri_box(const double *x, const int32_t *t, double *lo, double *hi) {
+  for (int k = 0; k < 3; k++) {
+    double a = x[3 * t[0] + k], b = x[3 * t[1] + k], c = x[3 * t[2] + k];
+    lo[k] = fmin(a, fmin(b, c));
+    hi[k] = fmax(a, fmax(b, c));
+  }
+}
+
+typedef struct build_ctx {
+  dem_bvh *b;
+  const double *x;
+  const int32_t *tri;
+  int32_t *ids;
+  double *key;
+  int next;
+} build_ctx;
+
+/* Orders ids by key (shell sort; build time only, no qsort context needed). */
+static void sort_range(int32_t *ids, double *key, int n) {
+  for (int gap = n / 2; gap > 0; gap /= 2)
+    for (int i = gap; i < n; i++) {
+      double k = key[i];
+      int32_t id = ids[i];
+      int j = i;
+      for (; j >= gap && key[j - gap] > k; j -= gap) { key[j] = key[j - gap]; ids[j] = ids[j - gap]; }
+      key[j] = k; ids[j] = id;
+    }
+}
+
+/* Splits the triangles ids[lo..hi) in half along the longest axis of their
+ * centroids (seed 000 §4.2: halved by extent and by count). */
+static int build_node(build_ctx *c, int lo, int hi) {
+  dem_bvh *b = c->b;
+  int node = c->next++;
+  double blo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, bhi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};
+  double clo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, chi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};
+  for (int i = lo; i < hi; i++) {
+    double tl[3], th[3];
+    tri_box(c->x, &c->tri[3 * c->ids[i]], tl, th);
+    for (int k = 0; k < 3; k++) {
+      blo[k] = fmin(blo[k], tl[k]); bhi[k] = fmax(bhi[k], th[k]);
+      double m = 0.5 * (tl[k] + th[k]);
+      clo[k] = fmin(clo[k], m); chi[k] = fmax(chi[k], m);
+    }
+  }
+  memcpy(&b->lo[3 * node], blo, sizeof blo);
+  memcpy(&b->hi[3 * node], bhi, sizeof bhi);
+  if (hi - lo == 1) {
+    b->left[node] = ~c->ids[lo];
+    b->right[node] = -1;
+    return node;
+  }
+  int axis = 0;
+  for (int k = 1; k < 3; k++)
+    if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
+  for (int i = lo; i < hi; i++) {
+    double tl[3], th[3];
+    tri_box(c->x, &c->tri[3 * c->ids[i]], tl, th);
+    c->key[i] = tl[axis] + th[axis];
+  }
+  sort_range(&c->ids[lo], &c->key[lo], hi - lo);
+  int mid = lo + (hi - lo) / 2;
+  b->left[node] = build_node(c, lo, mid);
+  b->right[node] = build_node(c, mid, hi);
+  return node;
+}
+
+static double box_area_sum(const dem_bvh *b) {
+  double s = 0;
+  for (int i = 0; i < b->n_nodes; i++) {
+    double e[3];
+    for (int k = 0; k < 3; k++) e[k] = b->hi[3 * i + k] - b->lo[3 * i + k];
+    s += 2 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0]);
+  }
+  return s;
+}
+
+int dem_bvh_build(dem_bvh *b, const double *x, const int32_t *tri, int n_tri) {
+  int nn = n_tri > 0 ? 2 * n_tri - 1 : 0;
+  if (nn > b->n_nodes || !b->lo) {
+    dem_bvh_free(b);
+    b->lo = malloc(sizeof(double) * 3 * (size_t)(nn + 1));
+    b->hi = malloc(sizeof(double) * 3 * (size_t)(nn + 1));
+    b->left = malloc(sizeof(int32_t) * (size_t)(nn + 1));
+    b->right = malloc(sizeof(int32_t) * (size_t)(nn + 1));
+    if (!b->lo || !b->hi || !b->left || !b->right) return -1;
+  }
+  b->n_nodes = nn;
+  if (n_tri == 0) return 0;
+  build_ctx c = {b, x, tri, malloc(sizeof(int32_t) * (size_t)n_tri),
+                 malloc(sizeof(double) * (size_t)n_tri), 0};
+  if (!c.ids || !c.key) { free(c.ids); free(c.key); return -1; }
+  for (int i = 0; i < n_tri; i++) c.ids[i] = i;
+  build_node(&c, 0, n_tri);
+  free(c.ids);
+  free(c.key);
+  b->area_built = box_area_sum(b);
+  return 0;
+}
+
+void dem_bvh_refit(dem_bvh *b, const double *x, const int32_t *tri) {
+  for (int i = b->n_nodes - 1; i >= 0; i--) {
+    if (b->left[i] < 0) {
+      tri_box(x, &tri[3 * (~b->left[i])], &b->lo[3 * i], &b->hi[3 * i]);
+    } else {
+      int l = b->left[i], r = b->right[i];
+      for (int k = 0; k < 3; k++) {
+        b->lo[3 * i + k] = fmin(b->lo[3 * l + k], b->lo[3 * r + k]);
+        b->hi[3 * i + k] = fmax(b->hi[3 * l + k], b->hi[3 * r + k]);
+      }
+    }
+  }
+}
+
+void dem_bvh_free(dem_bvh *b) {
+  free(b->lo); free(b->hi); free(b->left); free(b->right);
+  memset(b, 0, sizeof *b);
+}
+
+static inline int sphere_box(const double *p, double r, const double *lo, const double *hi) {
+  double d2 = 0;
+  for (int k = 0; k < 3; k++) {
+    double e = p[k] < lo[k] ? lo[k] - p[k] : (p[k] > hi[k] ? p[k] - hi[k] : 0);
+    d2 += e * e;
+  }
+  return d2 < r * r;
+}
+
+/* ------------------------------------------------------- state / motion */
+
+int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
+  struct dem_work *w = s->work;
+  size_t nk = (size_t)s->n * DEM_MESH_SLOTS;
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    const dem_mesh *me = &m->meshes[mi];
+    size_t bytes = sizeof(double) * 3 * (size_t)(me->n_nodes ? me->n_nodes : 1);
+    s->mesh_x[mi] = malloc(bytes);
+    s->mesh_v[mi] = calloc(1, bytes);
+    s->mesh_force[mi] = calloc(1, bytes);
+    if (!s->mesh_x[mi] || !s->mesh_v[mi] || !s->mesh_force[mi])
+      return proto_fail(err, "out of memory for mesh %d", mi);
+    memcpy(s->mesh_x[mi], me->x0, bytes);
+    for (int a = 0; a < me->n_nodes; a++) memcpy(&s->mesh_v[mi][3 * a], me->velocity, 3 * sizeof(double));
+    if (dem_bvh_build(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri))
+      return proto_fail(err, "out of memory for the BVH of mesh %d", mi);
+  }
+  if (m->n_meshes == 0) return 0;
+  w->mc_key = calloc(nk, sizeof(int64_t));
+  w->mc_tri = calloc(nk, sizeof(int32_t));
+  w->mc_mesh = calloc(nk, 1);
+  w->mc_shear = calloc(3 * nk, sizeof(double));
+  w->mc_normal = calloc(3 * nk, sizeof(double));
+  w->mc_zeta = calloc(3 * nk, sizeof(double));
+  w->mc_force = calloc(3 * nk, sizeof(double));
+  w->mesh_f = calloc(3 * (size_t)s->n, sizeof(double));
+  w->mesh_t = calloc(3 * (size_t)s->n, sizeof(double));
+  if (!w->mc_key || !w->mc_tri || !w->mc_mesh || !w->mc_shear || !w->mc_normal || !w->mc_zeta ||
+      !w->mc_force || !w->mesh_f || !w->mesh_t)
+    return proto_fail(err, "out of memory for mesh contacts");
+  return 0;
+}
+
+void dem_mesh_free(const dem_model *m, dem_state *s) {
+  struct dem_work *w = s->work;
+  for (int mi = 0; mi < DEM_MAX_MESHES; mi++) {
+    free(s->mesh_x[mi]); free(s->mesh_v[mi]); free(s->mesh_force[mi]);
+    s->mesh_x[mi] = s->mesh_v[mi] = s->mesh_force[mi] = NULL;
+    dem_bvh_free(&w->bvh[mi]);
+  }
+  (void)m;
+  free(w->mc_key); free(w->mc_tri); free(w->mc_mesh); free(w->mc_shear); free(w->mc_normal);
+  free(w->mc_zeta); free(w->mc_force); free(w->mesh_f); free(w->mesh_t);
+}
+
+/* Meshes move with their node velocities (constant for rigid meshes, the
+ * FEM's velocities between two coupling steps); the BVH is refitted, and
+ * rebuilt only when refitting has doubled its total box area. */
+void dem_mesh_move(const dem_model *m, dem_state *s, double dt) {
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    const dem_mesh *me = &m->meshes[mi];
+    double *x = s->mesh_x[mi];
+    const double *v = s->mesh_v[mi];
+    int moved = 0;
+    for (int a = 0; a < 3 * me->n_nodes; a++) {
+      if (v[a] != 0) moved = 1;
+      x[a] += v[a] * dt;
+    }
+    if (!moved) continue;
+    dem_bvh_update(&s->work->bvh[mi], x, me->tri, me->n_tri);
+  }
+}
+
+void dem_bvh_update(dem_bvh *b, const double *x, const int32_t *tri, int n_tri) {
+  dem_bvh_refit(b, x, tri);
+  if (box_area_sum(b) > 2.0 * b->area_built) dem_bvh_build(b, x, tri, n_tri);
+}
+
+/* ------------------------------------------------------------ contacts */
+
+typedef struct cand {
+  int mesh, tri, feat;
+  int64_t key;
+  double q[3], zeta[3], d2;
+} cand;
+#define MAX_CAND 64
+
+/* Feature key: kind, mesh and the sorted node ids of the feature (a face by
+ * its triangle). Unique across meshes; never 0. */
+static int64_t feature_key(int mesh, int feat, int64_t a, int64_t b) {
+  return ((int64_t)feat << 60) | ((int64_t)mesh << 56) | (a << 28) | b;
+}
+
+static void classify(cand *c, const int32_t *t) {
+  const double eps = 1e-12; /* ζ below this counts as zero (on an edge/vertex) */
+  int nz[3], cnt = 0;
+  for (int k = 0; k < 3; k++)
+    if (c->zeta[k] > eps) nz[cnt++] = k;
+  if (cnt == 3) {
+    c->feat = DEM_FEAT_FACE;
+    c->key = feature_key(c->mesh, DEM_FEAT_FACE, 0, c->tri);
+  } else if (cnt == 2) {
+    int64_t a = t[nz[0]], b = t[nz[1]];
+    c->feat = DEM_FEAT_EDGE;
+    c->key = feature_key(c->mesh, DEM_FEAT_EDGE, a < b ? a : b, a < b ? b : a);
+  } else {
+    c->feat = DEM_FEAT_VERTEX;
+    c->key = feature_key(c->mesh, DEM_FEAT_VERTEX, 0, t[cnt == 1 ? nz[0] : 0]);
+  }
+}
+
+static int share_node(const int32_t *a, const int32_t *b) {
+  for (int k = 0; k < 3; k++)
+    for (int l = 0; l < 3; l++)
+      if (a[k] == b[l]) return 1;
+  return 0;
+}
+
+static int collect(const dem_model *m, const dem_state *s, int i, cand *out) {
+  int nc = 0;
+  const double *p = &s->x[3 * i];
+  const double r = s->radius[i];
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    const dem_bvh *b = &s->work->bvh[mi];
+    if (b->n_nodes == 0 || !sphere_box(p, r, b->lo, b->hi)) continue; /* outside the root box */
+    const double *x = s->mesh_x[mi];
+    const int32_t *tri = m->meshes[mi].tri;
+    int stack[64], sp = 0;
+    stack[sp++] = 0;
+    while (sp > 0) {
+      int nd = stack[--sp];
+      if (!sphere_box(p, r, &b->lo[3 * nd], &b->hi[3 * nd])) continue;
+      if (b->left[nd] >= 0) {
+        if (sp < 62) { stack[sp++] = b->right[nd]; stack[sp++] = b->left[nd]; }
+        continue;
+      }
+      int t = ~b->left[nd];
+      const int32_t *tn = &tri[3 * t];
+      cand c = {.mesh = mi, .tri = t};
+      dem_closest_on_triangle(p, &x[3 * tn[0]], &x[3 * tn[1]], &x[3 * tn[2]], c.q, c.zeta);
+      double d[3] = {p[0] - c.q[0], p[1] - c.q[1], p[2] - c.q[2]};
+      c.d2 = dem_dot(d, d);
+      if (c.d2 >= r * r || c.d2 == 0 || nc >= MAX_CAND) continue;
+      classify(&c, tn);
+      out[nc++] = c;
+    }
+  }
+  return nc;
+}
+
+/* One force per touched patch: every face contact is kept (concave corners
+ * touch several faces); edge/vertex contacts are taken nearest first and
+ * dropped when their feature was already taken (an edge shared by two
+ * triangles, a vertex shared by a fan) or when their triangle is connected
+ * (shares a node) with a triangle seen before — on a flat or convex patch the
+ * neighbours' closest points are only shadows of the true one. */
+static int dedupe(const dem_model *m, cand *c, int nc) {
+  int na = 0;
+  for (int k = 0; k < nc; k++) /* faces first */
+    if (c[k].feat == DEM_FEAT_FACE) {
+      cand t = c[na]; c[na] = c[k]; c[k] = t;
+      na++;
+    }
+  for (int a = na; a < nc; a++) /* the rest by distance (insertion sort, few) */
+    for (int b = a; b > na && c[b].d2 < c[b - 1].d2; b--) {
+      cand t = c[b]; c[b] = c[b - 1]; c[b - 1] = t;
+    }
+  int nkeep = na;
+  for (int k = na; k < nc; k++) {
+    const int32_t *tk = &m->meshes[c[k].mesh].tri[3 * c[k].tri];
+    int keep = 1;
+    for (int a = 0; a < k && keep; a++) {
+      if (c[a].key == c[k].key) keep = 0;
+      else if (c[a].mesh == c[k].mesh && share_node(&m->meshes[c[a].mesh].tri[3 * c[a].tri], tk))
+        keep = 0;
+    }
+    if (keep) { /* move to the kept prefix; seen candidates stay before k */
+      cand t = c[k];
+      for (int b = k; b > nkeep; b--) c[b] = c[b - 1];
+      c[nkeep++] = t;
+    }
+  }
+  return nkeep;
+}
+
+/* History of a new contact: same feature key, else a contact of the same mesh
+ * whose normal hardly turned (the grain moved over an edge onto the next
+ * triangle: one continuing contact). */
+static void find_history(const int64_t *okey, const int8_t *omesh, const double *onormal,
+                         const double *oshear, uint8_t *used, const cand *c,
+                         const double *n, double *shear) {
+  const int K = DEM_MESH_SLOTS;
+  int best = -1;
+  for (int k = 0; k < K && best < 0; k++)
+    if (okey[k] == c->key && !used[k]) best = k;
+  for (int k = 0; k < K && best < 0; k++)
+    if (okey[k] != 0 && !used[k] && omesh[k] == c->mesh && dem_dot(&onormal[3 * k], n) > 0.9)
+      best = k;
+  if (best < 0) { shear[0] = shear[1] = shear[2] = 0; return; }
+  used[best] = 1;
+  memcpy(shear, &oshear[3 * best], 3 * sizeof(double));
+}
+
+static void grain_mesh(const dem_model *m, dem_state *s, int i, int *ncontacts, double *ratio) {
+  struct dem_work *w = s->work;
+  const int K = DEM_MESH_SLOTS;
+  cand c[MAX_CAND];
+  int nc = collect(m, s, i, c);
+  nc = dedupe(m, c, nc);
+  if (nc > K) nc = K;
+  int64_t okey[DEM_MESH_SLOTS];
+  int8_t omesh[DEM_MESH_SLOTS];
+  double onormal[3 * DEM_MESH_SLOTS], oshear[3 * DEM_MESH_SLOTS];
+  uint8_t used[DEM_MESH_SLOTS] = {0};
+  size_t base = (size_t)i * K;
+  memcpy(okey, &w->mc_key[base], sizeof okey);
+  memcpy(omesh, &w->mc_mesh[base], sizeof omesh);
+  memcpy(onormal, &w->mc_normal[3 * base], sizeof onormal);
+  memcpy(oshear, &w->mc_shear[3 * base], sizeof oshear);
+  double *f = &w->mesh_f[3 * i], *t = &w->mesh_t[3 * i];
+  f[0] = f[1] = f[2] = t[0] = t[1] = t[2] = 0;
+  const double r = s->radius[i], mass = w->mass[i];
+  for (int k = 0; k < K; k++) w->mc_key[base + k] = 0;
+  for (int k = 0; k < nc; k++) {
+    const dem_mesh *me = &m->meshes[c[k].mesh];
+    const int32_t *tn = &me->tri[3 * c[k].tri];
+    const double dist = sqrt(c[k].d2);
+    double n[3], vc[3], wxn[3], F[3], nxf[3];
+    for (int d = 0; d < 3; d++) n[d] = (s->x[3 * i + d] - c[k].q[d]) / dist;
+    double *shear = &w->mc_shear[3 * (base + k)];
+    find_history(okey, omesh, onormal, oshear, used, &c[k], n, shear);
+    /* contact point velocities: grain at −(r − δ/2) n (LIGGGHTS' contact point
+     * in the middle of the overlap); the wall's interpolated by ζ */
+    const double delta = r - dist, cr = r - 0.5 * delta;
+    dem_cross(&s->omega[3 * i], n, wxn);
+    const double *vn = s->mesh_v[c[k].mesh];
+    for (int d = 0; d < 3; d++)
+      vc[d] = s->v[3 * i + d] - cr * wxn[d] -
+              (c[k].zeta[0] * vn[3 * tn[0] + d] + c[k].zeta[1] * vn[3 * tn[1] + d] +
+               c[k].zeta[2] * vn[3 * tn[2] + d]);
+    const dem_pair_law *l = &m->law[s->material[i]][me->material];
+    double up;
+    double Fn = dem_hertz(l, delta, r, mass, n, vc, m->dt, shear, F, nxf, &up);
+    if (m->has_rolling && l->mu_roll > 0) {
+      double tr[3];
+      dem_rolling(l, Fn, r, &s->omega[3 * i], tr);
+      for (int d = 0; d < 3; d++) t[d] += tr[d];
+    }
+    for (int d = 0; d < 3; d++) {
+      f[d] += F[d];
+      t[d] -= cr * nxf[d];
+    }
+    w->mc_key[base + k] = c[k].key;
+    w->mc_mesh[base + k] = (int8_t)c[k].mesh;
+    w->mc_tri[base + k] = c[k].tri;
+    memcpy(&w->mc_normal[3 * (base + k)], n, sizeof n);
+    memcpy(&w->mc_zeta[3 * (base + k)], c[k].zeta, sizeof c[k].zeta);
+    memcpy(&w->mc_force[3 * (base + k)], F, sizeof F);
+    w->wall_u[i] += up;
+    if (delta / r > *ratio) *ratio = delta / r;
+  }
+  *ncontacts += nc;
+}
+
+/* Mesh forces on every grain (parallel, per grain), then the reactions onto
+ * the nodes by ζ (seed 000 eq. 42) in a serial, fixed-order sweep. */
+void dem_mesh_forces(const dem_model *m, dem_state *s) {
+  if (m->n_meshes == 0) return;
+  struct dem_work *w = s->work;
+#pragma omp parallel for schedule(dynamic, 128) num_threads(w->nthreads)
+  for (int i = 0; i < s->n; i++) {
+    int nc = 0;
+    grain_mesh(m, s, i, &nc, &w->ratio[i]);
+    w->wall_contacts[i] = (uint8_t)(w->wall_contacts[i] + nc);
+  }
+  for (int mi = 0; mi < m->n_meshes; mi++)
+    memset(s->mesh_force[mi], 0, sizeof(double) * 3 * (size_t)m->meshes[mi].n_nodes);
+  const int K = DEM_MESH_SLOTS;
+  for (int i = 0; i < s->n; i++)
+    for (int k = 0; k < K; k++) {
+      size_t sl = (size_t)i * K + k;
+      if (w->mc_key[sl] == 0) continue;
+      int mi = w->mc_mesh[sl];
+      const int32_t *tn = &m->meshes[mi].tri[3 * w->mc_tri[sl]];
+      double *nf = s->mesh_force[mi];
+      const double *F = &w->mc_force[3 * sl], *z = &w->mc_zeta[3 * sl];
+      for (int a = 0; a < 3; a++)
+        for (int d = 0; d < 3; d++) nf[3 * tn[a] + d] -= z[a] * F[d];
+      double *wf = &s->wall_force[3 * m->meshes[mi].wall];
+      for (int d = 0; d < 3; d++) wf[d] -= F[d];
+    }
+}

@@ -1,0 +1,382 @@
+/* dem_model.c — the DEM scene from its config section (processes.<name>). */
+#include "dem_server/dem.h"
+
+#include <float.h>
+#include <stdio.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+double dem_rayleigh_time(double r, double density, double E, double nu) {
+  double G = E / (2.0 * (1.0 + nu));
+  return M_PI * r * sqrt(density / G) / (0.1631 * nu + 0.8766); /* notes §2 */
+}
+
+/* LIGGGHTS' effective pair values (notes §1.1; seed 000 eq. 21, 26). G is
+ * taken from each material so a given G overrides E/(2(1+ν)). */
+static void pair_law(const dem_material *a, const dem_material *b, dem_pair_law *l) {
+  l->Estar = 1.0 / ((1 - a->nu * a->nu) / a->E + (1 - b->nu * b->nu) / b->E);
+  l->Gstar = 1.0 / ((2 - a->nu) / a->G + (2 - b->nu) / b->G);
+  /* restitution and friction of a pair: LIGGGHTS takes them per type pair;
+   * from two materials we use the mean (identical materials: exact). */
+  double e = 0.5 * (a->restitution + b->restitution);
+  double le = log(e);
+  l->beta = le / sqrt(le * le + M_PI * M_PI);
+  l->mu = 0.5 * (a->friction + b->friction);
+  l->damp_n = -2.0 * sqrt(5.0 / 6.0) * l->beta * sqrt(2.0 * l->Estar);
+  l->damp_t = -2.0 * sqrt(5.0 / 6.0) * l->beta * sqrt(8.0 * l->Gstar);
+  l->mu_roll = 0.5 * (a->rolling_friction + b->rolling_friction);
+}
+
+int dem_model_alloc_grains(dem_model *m, int n, proto_err *err) {
+  free(m->x0); free(m->v0); free(m->omega0); free(m->radius);
+  free(m->material); free(m->fix_rotation);
+  m->n_grains = n;
+  size_t k = n > 0 ? (size_t)n : 1;
+  m->x0 = calloc(k * 3, sizeof(double));
+  m->v0 = calloc(k * 3, sizeof(double));
+  m->omega0 = calloc(k * 3, sizeof(double));
+  m->radius = calloc(k, sizeof(double));
+  m->material = calloc(k, sizeof(int32_t));
+  m->fix_rotation = calloc(k, 1);
+  if (!m->x0 || !m->v0 || !m->omega0 || !m->radius || !m->material || !m->fix_rotation)
+    return proto_fail(err, "out of memory for %d grains", n);
+  return 0;
+}
+
+static int read_material(proto_cfg *c, dem_material *mt) {
+  if (proto_cfg_num(c, "density", PROTO_REQUIRED, 1e-300, 1e300, &mt->density) ||
+      proto_cfg_num(c, "E", PROTO_REQUIRED, 1e-300, 1e300, &mt->E) ||
+      proto_cfg_num_below(c, "nu", PROTO_REQUIRED, 0.0, 0.5, &mt->nu))
+    return -1;
+  mt->G = mt->E / (2.0 * (1.0 + mt->nu));
+  if (proto_cfg_num(c, "G", PROTO_OPTIONAL, 1e-300, 1e300, &mt->G) ||
+      proto_cfg_num(c, "restitution", PROTO_REQUIRED, 1e-6, 1.0, &mt->restitution) ||
+      proto_cfg_num(c, "friction", PROTO_REQUIRED, 0.0, 1e3, &mt->friction) ||
+      proto_cfg_num(c, "rolling_friction", PROTO_OPTIONAL, 0.0, 1e3, &mt->rolling_friction))
+    return -1;
+  return proto_cfg_end(c);
+}
+
+/* Iterates a required/optional list of objects: calls fn on each element. */
+typedef int (*elem_fn)(dem_model *m, proto_cfg *elem, int index, void *ctx);
+static int each_object(dem_model *m, proto_cfg *c, const char *key, proto_need need,
+                       elem_fn fn, void *ctx, proto_err *err) {
+  const cJSON *list = proto_cfg_raw(c, key, need);
+  char p[320];
+  proto_cfg_subpath(c, key, -1, p, sizeof p);
+  if (!list) return need == PROTO_REQUIRED ? -1 : 0;
+  if (!cJSON_IsArray(list)) return proto_fail(err, "%s: expected a list", p);
+  int i = 0;
+  for (const cJSON *e = list->child; e; e = e->next, i++) {
+    proto_cfg elem;
+    proto_cfg_subpath(c, key, i, p, sizeof p);
+    if (proto_cfg_open(&elem, e, p, err) || fn(m, &elem, i, ctx)) return -1;
+  }
+  return i;
+}
+
+static int material_index(dem_model *m, proto_cfg *c, int *out) {
+  int64_t k = 0;
+  if (proto_cfg_int(c, "material", PROTO_OPTIONAL, 0, m->n_materials - 1, &k)) return -1;
+  *out = (int)k;
+  return 0;
+}
+
+static int read_material_elem(dem_model *m, proto_cfg *c, int i, void *ctx) {
+  (void)ctx;
+  if (i >= DEM_MAX_MATERIALS)
+    return proto_fail(c->err, "%s: at most %d materials", c->path, DEM_MAX_MATERIALS);
+  m->n_materials = i + 1;
+  return read_material(c, &m->mat[i]);
+}
+
+static int read_particle(dem_model *m, proto_cfg *c, int i, void *ctx) {
+  (void)ctx;
+  double r = 0;
+  int mat = 0, fix = 0;
+  if (proto_cfg_vec(c, "x", PROTO_REQUIRED, &m->x0[3 * i], 3, 3, NULL) ||
+      proto_cfg_vec(c, "v", PROTO_OPTIONAL, &m->v0[3 * i], 3, 3, NULL) ||
+      proto_cfg_vec(c, "omega", PROTO_OPTIONAL, &m->omega0[3 * i], 3, 3, NULL) ||
+      proto_cfg_num(c, "r", PROTO_REQUIRED, -DBL_MAX, DBL_MAX, &r) ||
+      material_index(m, c, &mat) ||
+      proto_cfg_bool(c, "fix_rotation", PROTO_OPTIONAL, &fix))
+    return -1;
+  if (!(r > 0)) return proto_fail(c->err, "%s.r: radius must be > 0 (got %g)", c->path, r);
+  m->radius[i] = r;
+  m->material[i] = mat;
+  m->fix_rotation[i] = (uint8_t)fix;
+  return proto_cfg_end(c);
+}
+
+static int read_bed(dem_model *m, proto_cfg *c, dem_model_config *ex) {
+  dem_bed_spec b;
+  double scale = 1.0, seed = 1;
+  if (proto_cfg_num(c, "scale", PROTO_OPTIONAL, 1e-6, 10.0, &scale)) return -1;
+  dem_bed_paper(&b, scale);
+  int mat = 0;
+  if (proto_cfg_vec(c, "size", PROTO_OPTIONAL, b.size, 2, 2, NULL) ||
+      material_index(m, c, &mat) ||
+      proto_cfg_num(c, "gap", PROTO_OPTIONAL, 0.0, 1.0, &b.gap) ||
+      proto_cfg_num(c, "seed", PROTO_OPTIONAL, 0, 4e9, &seed) ||
+      proto_cfg_num(c, "settle_ke_per_grain", PROTO_OPTIONAL, 0.0, 1e9, &ex->settle_ke) ||
+      proto_cfg_num(c, "settle_max_steps", PROTO_OPTIONAL, 0.0, 1e9, &ex->settle_steps) ||
+      proto_cfg_str(c, "save", PROTO_OPTIONAL, ex->save_bed, sizeof ex->save_bed))
+    return -1;
+  b.material = mat;
+  b.seed = (uint64_t)seed;
+  char gen[16];
+  if (proto_cfg_str(c, "generate", PROTO_REQUIRED, gen, sizeof gen)) return -1;
+  if (strcmp(gen, "bed") != 0)
+    return proto_fail(c->err, "%s.generate: unknown generator '%s' (expected \"bed\")", c->path, gen);
+  if (proto_cfg_end(c)) return -1;
+  if (b.size[0] <= 0 || b.size[1] <= 0)
+    return proto_fail(c->err, "%s.size: must be positive", c->path);
+  return dem_bed_place(m, &b, c->err);
+}
+
+static int read_particles(dem_model *m, proto_cfg *top, dem_model_config *ex, proto_err *err) {
+  const cJSON *p = proto_cfg_raw(top, "particles", PROTO_REQUIRED);
+  char path[320];
+  proto_cfg_subpath(top, "particles", -1, path, sizeof path);
+  if (!p) return -1;
+  if (cJSON_IsArray(p)) {
+    if (dem_model_alloc_grains(m, cJSON_GetArraySize(p), err)) return -1;
+    return each_object(m, top, "particles", PROTO_REQUIRED, read_particle, NULL, err) < 0 ? -1 : 0;
+  }
+  proto_cfg c;
+  if (proto_cfg_open(&c, p, path, err)) return -1;
+  if (cJSON_GetObjectItemCaseSensitive(p, "file")) {
+    char file[512];
+    if (proto_cfg_str(&c, "file", PROTO_REQUIRED, file, sizeof file) || proto_cfg_end(&c)) return -1;
+    if (dem_bed_load(m, file, err)) return proto_wrap(err, "%s.file", path);
+    for (int i = 0; i < m->n_grains; i++)
+      if (m->material[i] < 0 || m->material[i] >= m->n_materials)
+        return proto_fail(err, "%s.file: grain %d has material %d, only %d defined", path, i,
+                          (int)m->material[i], m->n_materials);
+    return 0;
+  }
+  return read_bed(m, &c, ex);
+}
+
+static void unit(double *n) {
+  double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  n[0] /= l; n[1] /= l; n[2] /= l;
+}
+
+static int add_plane(dem_model *m, const double *p, const double *n, int mat, proto_err *err,
+                     const char *path) {
+  if (m->n_planes >= DEM_MAX_PLANES)
+    return proto_fail(err, "%s: more than %d wall planes", path, DEM_MAX_PLANES);
+  dem_plane *pl = &m->planes[m->n_planes++];
+  memcpy(pl->point, p, sizeof pl->point);
+  memcpy(pl->normal, n, sizeof pl->normal);
+  unit(pl->normal);
+  pl->material = mat;
+  pl->wall = m->n_walls;
+  return 0;
+}
+
+static int read_mesh(dem_model *m, proto_cfg *c, dem_wall *w) {
+  const cJSON *nodes = proto_cfg_raw(c, "nodes", PROTO_REQUIRED);
+  const cJSON *tris = proto_cfg_raw(c, "triangles", PROTO_REQUIRED);
+  if (!nodes || !tris) return -1;
+  if (!cJSON_IsArray(nodes) || !cJSON_IsArray(tris))
+    return proto_fail(c->err, "%s.nodes/triangles: expected lists", c->path);
+  int nn = cJSON_GetArraySize(nodes), nt = cJSON_GetArraySize(tris);
+  double *x = malloc(sizeof(double) * 3 * (size_t)(nn ? nn : 1));
+  int32_t *t = malloc(sizeof(int32_t) * 3 * (size_t)(nt ? nt : 1));
+  int i = 0, rc = 0;
+  for (const cJSON *e = nodes->child; e && !rc; e = e->next, i++)
+    for (int k = 0; k < 3; k++) {
+      const cJSON *v = cJSON_GetArrayItem(e, k);
+      if (cJSON_GetArraySize(e) != 3 || !cJSON_IsNumber(v)) {
+        rc = proto_fail(c->err, "%s.nodes[%d]: expected 3 numbers", c->path, i);
+        break;
+      }
+      x[3 * i + k] = v->valuedouble;
+    }
+  i = 0;
+  for (const cJSON *e = tris->child; e && !rc; e = e->next, i++)
+    for (int k = 0; k < 3; k++) {
+      const cJSON *v = cJSON_GetArrayItem(e, k);
+      if (cJSON_GetArraySize(e) != 3 || !cJSON_IsNumber(v) || v->valueint < 0 || v->valueint >= nn) {
+        rc = proto_fail(c->err, "%s.triangles[%d]: expected 3 node indices in [0, %d)", c->path, i, nn);
+        break;
+      }
+      t[3 * i + k] = v->valueint;
+    }
+  double vel[3] = {0, 0, 0};
+  if (!rc) rc = proto_cfg_vec(c, "velocity", PROTO_OPTIONAL, vel, 3, 3, NULL);
+  if (!rc && m->n_meshes >= DEM_MAX_MESHES)
+    rc = proto_fail(c->err, "%s: more than %d meshes", c->path, DEM_MAX_MESHES);
+  if (rc) { free(x); free(t); return -1; }
+  dem_mesh *me = &m->meshes[m->n_meshes];
+  memset(me, 0, sizeof *me);
+  me->n_nodes = nn; me->n_tri = nt; me->x0 = x; me->tri = t;
+  memcpy(me->velocity, vel, sizeof vel);
+  me->material = w->material;
+  me->wall = m->n_walls;
+  w->mesh = m->n_meshes++;
+  return 0;
+}
+
+static int read_wall(dem_model *m, proto_cfg *c, int i, void *ctx) {
+  (void)ctx;
+  static const char *const kinds[] = {"plane", "box", "mesh", NULL};
+  int kind = 0;
+  if (i >= DEM_MAX_WALLS) return proto_fail(c->err, "%s: at most %d walls", c->path, DEM_MAX_WALLS);
+  dem_wall *w = &m->walls[i];
+  memset(w, 0, sizeof *w);
+  if (proto_cfg_enum(c, "type", PROTO_REQUIRED, kinds, &kind) || material_index(m, c, &w->material))
+    return -1;
+  w->kind = (dem_wall_kind)kind;
+  w->plane0 = m->n_planes;
+  w->mesh = -1;
+  if (w->kind == DEM_WALL_PLANE) {
+    double p[3], n[3];
+    if (proto_cfg_vec(c, "point", PROTO_REQUIRED, p, 3, 3, NULL) ||
+        proto_cfg_vec(c, "normal", PROTO_REQUIRED, n, 3, 3, NULL))
+      return -1;
+    if (n[0] * n[0] + n[1] * n[1] + n[2] * n[2] < 1e-30)
+      return proto_fail(c->err, "%s.normal: must not be zero", c->path);
+    if (add_plane(m, p, n, w->material, c->err, c->path)) return -1;
+  } else if (w->kind == DEM_WALL_BOX) {
+    int open_top = 0;
+    if (proto_cfg_vec(c, "lo", PROTO_REQUIRED, w->lo, 3, 3, NULL) ||
+        proto_cfg_vec(c, "hi", PROTO_REQUIRED, w->hi, 3, 3, NULL) ||
+        proto_cfg_bool(c, "open_top", PROTO_OPTIONAL, &open_top))
+      return -1;
+    for (int d = 0; d < 3; d++) {
+      if (!(w->hi[d] > w->lo[d])) return proto_fail(c->err, "%s.hi: must exceed lo in every axis", c->path);
+      double n[3] = {0, 0, 0};
+      n[d] = 1;
+      if (add_plane(m, w->lo, n, w->material, c->err, c->path)) return -1;
+      n[d] = -1;
+      if (!(d == 2 && open_top) && add_plane(m, w->hi, n, w->material, c->err, c->path)) return -1;
+    }
+  } else if (read_mesh(m, c, w)) {
+    return -1;
+  }
+  w->nplanes = m->n_planes - w->plane0;
+  m->n_walls = i + 1;
+  return proto_cfg_end(c);
+}
+
+int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, proto_err *err) {
+  memset(m, 0, sizeof *m);
+  snprintf(m->key_path, sizeof m->key_path, "%s", path);
+  dem_model_config *ex = &m->cfg;
+  proto_cfg c;
+  char exec[512];
+  double g[3] = {0, 0, -9.81};
+  if (proto_cfg_open(&c, section, path, err) ||
+      proto_cfg_str(&c, "exec", PROTO_OPTIONAL, exec, sizeof exec))
+    goto fail;
+  if (each_object(m, &c, "materials", PROTO_REQUIRED, read_material_elem, NULL, err) < 0) goto fail;
+  if (m->n_materials == 0) {
+    proto_fail(err, "%s.materials: at least one material is needed", path);
+    goto fail;
+  }
+  for (int a = 0; a < m->n_materials; a++)
+    for (int b = 0; b < m->n_materials; b++) {
+      pair_law(&m->mat[a], &m->mat[b], &m->law[a][b]);
+      if (m->law[a][b].mu_roll > 0) m->has_rolling = 1;
+    }
+  int64_t threads = 0, surf = 0;
+  int unsafe = 0;
+  m->overlap_tolerance = 0.01;
+  m->max_overlap_ratio = 0.5;
+  ex->dt_fraction = 0.1;
+  ex->skin = -1;
+  if (proto_cfg_vec(&c, "gravity", PROTO_OPTIONAL, g, 3, 3, NULL) ||
+      proto_cfg_num(&c, "dt", PROTO_OPTIONAL, 0.0, 1.0, &ex->dt_given) ||
+      proto_cfg_num(&c, "dt_fraction", PROTO_OPTIONAL, 1e-6, 10.0, &ex->dt_fraction) ||
+      proto_cfg_num(&c, "skin", PROTO_OPTIONAL, 0.0, 1.0, &ex->skin) ||
+      proto_cfg_num(&c, "overlap_tolerance", PROTO_OPTIONAL, 0.0, 1.0, &m->overlap_tolerance) ||
+      proto_cfg_num(&c, "max_overlap_ratio", PROTO_OPTIONAL, 1e-6, 1.0, &m->max_overlap_ratio) ||
+      proto_cfg_int(&c, "threads", PROTO_OPTIONAL, 0, 1024, &threads) ||
+      proto_cfg_int(&c, "surface_material", PROTO_OPTIONAL, 0, m->n_materials - 1, &surf) ||
+      proto_cfg_bool(&c, "unsafe_dt", PROTO_OPTIONAL, &unsafe))
+    goto fail;
+  memcpy(m->gravity, g, sizeof g);
+  m->threads = (int)threads;
+  m->surface_material = (int)surf;
+  m->unsafe_dt = unsafe;
+  if (each_object(m, &c, "walls", PROTO_OPTIONAL, read_wall, NULL, err) < 0) goto fail;
+  if (read_particles(m, &c, ex, err) || proto_cfg_end(&c)) goto fail;
+  if (m->n_grains == 0) {
+    proto_fail(err, "%s.particles: no grains", path);
+    goto fail;
+  }
+  double rmin = DBL_MAX;
+  for (int i = 0; i < m->n_grains; i++)
+    if (m->radius[i] < rmin) rmin = m->radius[i];
+  m->rayleigh_time = dem_model_rayleigh(m);
+  m->skin = ex->skin >= 0 ? ex->skin : 0.5 * rmin;
+  if (dem_model_set_dt(m, 0.0, err) == 0) return 0;
+fail:
+  dem_model_free(m);
+  return -1;
+}
+
+double dem_model_rayleigh(const dem_model *m) {
+  double tr = DBL_MAX;
+  for (int i = 0; i < m->n_grains; i++) {
+    const dem_material *mt = &m->mat[m->material[i]];
+    double t = dem_rayleigh_time(m->radius[i], mt->density, mt->E, mt->nu);
+    if (t < tr) tr = t;
+  }
+  return tr;
+}
+
+int dem_model_set_dt(dem_model *m, double coupling_dt, proto_err *err) {
+  dem_model_config *ex = &m->cfg;
+  double dt = ex->dt_given > 0 ? ex->dt_given : ex->dt_fraction * m->rayleigh_time;
+  if (coupling_dt > 0) {
+    double nsub = ceil(coupling_dt / dt * (1 - 1e-12));
+    dt = coupling_dt / (nsub < 1 ? 1 : nsub);
+  }
+  double limit = DEM_DT_LIMIT_FRACTION * m->rayleigh_time;
+  if (dt > limit && !m->unsafe_dt)
+    return proto_fail(err, "%s.%s: dt = %.4g s is above the stability limit %.4g s (%.2f x Rayleigh time "
+                      "%.4g s of the smallest grain); lower dt or dt_fraction",
+                      m->key_path, ex->dt_given > 0 ? "dt" : "dt_fraction", dt, limit, DEM_DT_LIMIT_FRACTION, m->rayleigh_time);
+  m->dt = dt;
+  return 0;
+}
+
+int dem_model_set_surface(dem_model *m, int n_nodes, const double *x0, int n_tri,
+                          const int32_t *tri, proto_err *err) {
+  if (m->n_meshes >= DEM_MAX_MESHES || m->n_walls >= DEM_MAX_WALLS)
+    return proto_fail(err, "surface: too many meshes/walls");
+  for (int i = 0; i < 3 * n_tri; i++)
+    if (tri[i] < 0 || tri[i] >= n_nodes)
+      return proto_fail(err, "surface_tri[%d]: node index %d outside [0, %d)", i / 3, (int)tri[i], n_nodes);
+  dem_mesh *me = &m->meshes[m->n_meshes];
+  memset(me, 0, sizeof *me);
+  me->x0 = malloc(sizeof(double) * 3 * (size_t)(n_nodes ? n_nodes : 1));
+  me->tri = malloc(sizeof(int32_t) * 3 * (size_t)(n_tri ? n_tri : 1));
+  if (!me->x0 || !me->tri) return proto_fail(err, "surface: out of memory");
+  memcpy(me->x0, x0, sizeof(double) * 3 * (size_t)n_nodes);
+  memcpy(me->tri, tri, sizeof(int32_t) * 3 * (size_t)n_tri);
+  me->n_nodes = n_nodes;
+  me->n_tri = n_tri;
+  me->material = m->surface_material;
+  me->coupled = 1;
+  me->wall = m->n_walls;
+  dem_wall *w = &m->walls[m->n_walls++];
+  memset(w, 0, sizeof *w);
+  w->kind = DEM_WALL_MESH;
+  w->material = me->material;
+  w->plane0 = m->n_planes;
+  w->mesh = m->n_meshes++;
+  return 0;
+}
+
+void dem_model_free(dem_model *m) {
+  free(m->x0); free(m->v0); free(m->omega0); free(m->radius);
+  free(m->material); free(m->fix_rotation);
+  for (int i = 0; i < m->n_meshes; i++) { free(m->meshes[i].x0); free(m->meshes[i].tri); }
+  memset(m, 0, sizeof *m);
+}
