@@ -167,16 +167,13 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   }
   if (build_surface(s, err) || alloc_snapshots(s, err)) return -1;
 
-  cJSON *h = proto_msg_header(ready);
-  cJSON *series = cJSON_AddObjectToObject(h, "series");
   static const char *const cols[] = {"t", "strain_energy", "kinetic_energy", "dt_sub", "sub_steps"};
-  cJSON_AddItemToObject(series, "series", cJSON_CreateStringArray(cols, 5));
-  cJSON *snap = cJSON_AddObjectToObject(h, "snapshot");
-  cJSON_AddStringToObject(snap, "kind", md->npe == 10 ? "tet10" : "tet4");
-  cJSON_AddStringToObject(snap, "geometry", "x");
-  cJSON_AddStringToObject(snap, "cells", "cells");
   static const char *const attrs[] = {"u", "v", "strain", "stress"};
-  cJSON_AddItemToObject(snap, "attributes", cJSON_CreateStringArray(attrs, 4));
+  if (proto_ready_series(ready, "series", 5, cols) < 0 ||
+      proto_ready_snapshot(ready, md->npe == 10 ? "tet10" : "tet4", "x", "cells", 4,
+                           attrs) < 0)
+    return proto_fail(err, "out of memory");
+  cJSON *h = proto_msg_header(ready);
   cJSON *info = cJSON_AddObjectToObject(h, "fem");
   cJSON_AddNumberToObject(info, "dt_crit", md->dt_crit);
   cJSON_AddNumberToObject(info, "nodes", md->mesh.n_nodes);

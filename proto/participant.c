@@ -22,6 +22,30 @@ int proto_peer_publish(proto_peer *peer, const proto_msg *m) {
   return proto_publish(peer->bus, m);
 }
 
+int proto_ready_series(proto_msg *ready, const char *dataset, int ncols,
+                       const char *const *columns) {
+  cJSON *h = proto_msg_header(ready);
+  cJSON *series = cJSON_GetObjectItemCaseSensitive(h, "series");
+  if (!series) series = cJSON_AddObjectToObject(h, "series");
+  cJSON *cols = cJSON_CreateStringArray(columns, ncols);
+  return series && cols && cJSON_AddItemToObject(series, dataset, cols) ? 0 : -1;
+}
+
+int proto_ready_snapshot(proto_msg *ready, const char *kind,
+                         const char *geometry, const char *cells, int nattrs,
+                         const char *const *attributes) {
+  cJSON *snap = cJSON_AddObjectToObject(proto_msg_header(ready), "snapshot");
+  if (!snap) return -1;
+  cJSON_AddStringToObject(snap, "kind", kind);
+  cJSON_AddStringToObject(snap, "geometry", geometry);
+  if (cells)
+    cJSON_AddStringToObject(snap, "cells", cells);
+  else
+    cJSON_AddNullToObject(snap, "cells");
+  cJSON *attrs = cJSON_CreateStringArray(attributes, nattrs);
+  return attrs && cJSON_AddItemToObject(snap, "attributes", attrs) ? 0 : -1;
+}
+
 static void usage(const char *prog, const char *role) {
   fprintf(stderr,
           "usage: %s --endpoint ENDPOINT --name NAME\n"

@@ -178,6 +178,16 @@ typedef struct proto_participant_ops {
   void (*finish)(void *user);
 } proto_participant_ops;
 
+/* Declarations for the ready message (PROTOCOL.md "Series", "Snapshots"):
+ * a time-series dataset with its column names, and how the snapshot arrays
+ * are to be shown (kind "points"/"tet4"/"tet10"/"tri3"; cells NULL for
+ * points). Return -1 only when out of memory. */
+int proto_ready_series(proto_msg *ready, const char *dataset, int ncols,
+                       const char *const *columns);
+int proto_ready_snapshot(proto_msg *ready, const char *kind,
+                         const char *geometry, const char *cells, int nattrs,
+                         const char *const *attributes);
+
 int proto_participant_main(int argc, char **argv,
                            const proto_participant_ops *ops, void *user);
 /* Publishes on the bus from inside step() (topic "<name>.<what>"). */

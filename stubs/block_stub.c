@@ -29,10 +29,9 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready,
                 proto_err *err) {
   (void)user;
   (void)welcome;
-  (void)err;
-  cJSON *series = cJSON_AddObjectToObject(proto_msg_header(ready), "series");
   const char *cols[] = {"t", "d_road", "force", "points_in_contact", "iterations"};
-  cJSON_AddItemToObject(series, "series", cJSON_CreateStringArray(cols, 5));
+  if (proto_ready_series(ready, "series", 5, cols) < 0)
+    return proto_fail(err, "out of memory");
   return 0;
 }
 

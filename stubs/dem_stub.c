@@ -40,17 +40,12 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready,
     s->force = calloc((size_t)s->n_nodes * 3, sizeof(double));
     if (!s->force) return proto_fail(err, "out of memory");
   }
-  cJSON *h = proto_msg_header(ready);
-  cJSON *series = cJSON_AddObjectToObject(h, "series");
   const char *cols[] = {"t", "force_x", "force_y", "force_z", "n_nodes"};
-  cJSON_AddItemToObject(series, "series", cJSON_CreateStringArray(cols, 5));
-  if (s->n_nodes > 0) {
-    cJSON *snap = cJSON_AddObjectToObject(h, "snapshot");
-    cJSON_AddStringToObject(snap, "kind", "points");
-    cJSON_AddStringToObject(snap, "geometry", "x");
-    const char *attrs[] = {"nodal_force"};
-    cJSON_AddItemToObject(snap, "attributes", cJSON_CreateStringArray(attrs, 1));
-  }
+  const char *attrs[] = {"nodal_force"};
+  if (proto_ready_series(ready, "series", 5, cols) < 0 ||
+      (s->n_nodes > 0 &&
+       proto_ready_snapshot(ready, "points", "x", NULL, 1, attrs) < 0))
+    return proto_fail(err, "out of memory");
   return 0;
 }
 

@@ -116,13 +116,12 @@ static int configure(void *user, const proto_run_info *info,
 static int init(void *user, const proto_msg *welcome, proto_msg *ready,
                 proto_err *err) {
   (void)welcome;
-  (void)err;
   fem_stub *s = user;
-  proto_msg_add_f8(ready, "surface_x0", s->n_nodes, 3, s->x0);
-  proto_msg_add_i4(ready, "surface_tri", s->n_tris, 3, s->tri);
-  cJSON *series = cJSON_AddObjectToObject(proto_msg_header(ready), "series");
   const char *cols[] = {"t", "force_x", "force_y", "force_z", "n_nodes"};
-  cJSON_AddItemToObject(series, "series", cJSON_CreateStringArray(cols, 5));
+  if (proto_msg_add_f8(ready, "surface_x0", s->n_nodes, 3, s->x0) < 0 ||
+      proto_msg_add_i4(ready, "surface_tri", s->n_tris, 3, s->tri) < 0 ||
+      proto_ready_series(ready, "series", 5, cols) < 0)
+    return proto_fail(err, "cannot build the ready message");
   return 0;
 }
 
