@@ -171,6 +171,11 @@ static int cmd_green(int argc, char **argv, proto_err *err) {
   grn_material_default(&mat);
   grn_dyn_opts o;
   grn_dyn_opts_default(&o);
+  /* The thesis' Q = 256 (5 ms at 51.2 kHz) stops before the appendix-B layer
+   * has crept to its static value: the time sum then misses the static
+   * coefficient by 1.24 %. 512 samples bring that to 0.53 % (1024: 0.02 %),
+   * so the tool's own 1 % check passes with its defaults. */
+  o.Q = 512;
   grn_grid g = {20, 20, 1e-3, 1e-3};
   double h = 0.01, E = -1;
   const char *out = "green.h5", *out_point = NULL, *model = "dynamic", *table = NULL;
@@ -290,7 +295,7 @@ static void usage(void) {
       "                           [--release-force 0.6] [--no-poly]\n"
       "       cosim_green green   [--model dynamic|layer|love] [--elements 20[x20]]\n"
       "                           [--size 1e-3] [--thickness 0.01] [--E E] [--nu 0.499]\n"
-      "                           [--rho 1300] [--table f_E_eta.txt] [--Q 256] [--rate 51200]\n"
+      "                           [--rho 1300] [--table f_E_eta.txt] [--Q 512] [--rate 51200]\n"
       "                           [--out green.h5] [--out-point green_point.h5]\n"
       "                           [--oversample 4] [--period-factor 4] [--pad N]\n"
       "Files: green/FORMATS.md. Defaults: seed 002 appendix B tread layer.\n",
