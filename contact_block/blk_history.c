@@ -2,8 +2,10 @@
  * at the next step to all past forces. The layer is translation-invariant,
  * so g depends on the element offset only: the spatial sum is a 2-D linear
  * convolution, done with FFTs on a zero-padded 2nx × 2ny grid (Hockney), and
- * the time sum is a product sum over a ring of past force spectra. The
- * direct double sum is kept as the reference (solver.history = "direct"). */
+ * the time sum runs per spatial frequency over a ring of past force spectra:
+ * the latest lags directly, older ones block-wise with FFTs in time (levels
+ * of a non-uniformly partitioned convolution). The direct double sum is kept
+ * as the reference (solver.history = "direct"). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -39,80 +41,113 @@ static void place_kernel(const blk_model *m, const blk_history *h, int k, double
 }
 
 
-/* Sets up the partitioned time convolution when g is long enough (Qh > 3B). */
-static int partition_init(blk_history *h, proto_err *err) {
-  const int B = h->Qh < 512 ? 32 : 64; /* ≈ 2√Q balances head and tail work */
-  if (h->Qh <= 3 * B) return 0;
+/* One level of the partitioned time convolution: block B, segments s = 1..S
+ * covering the lags s·B+1 .. s·B+B (capped at k_end), convolved once per
+ * block of B steps with FFTs of length 2B (uniformly partitioned
+ * overlap-save). Everything is time-major, [2B][nq]: a window is a copy of
+ * 2B rows of the force-spectrum ring, FFTW transforms the nq bins as a
+ * strided batch, and the product sum runs over contiguous bin rows. With a
+ * real ĝ (even kernel) a segment is real in time, its spectrum Hermitian, and
+ * only the bins 0..B are kept (hl = B+1). */
+static int level_init(blk_history *h, blk_level *lv, int B, int k_end, proto_err *err) {
   const int nq = h->nq, L = 2 * B;
-  h->B = B;
-  h->S = (h->Qh - 1 - B + B - 1) / B; /* segments covering lags B+1 .. Qh−1 */
+  lv->B = B;
+  lv->S = (k_end - B + B - 1) / B;
+  lv->hl = h->ghat_re ? B + 1 : L;
   const size_t seg = (size_t)nq * L;
-  h->seg_hat = fftw_malloc((size_t)h->S * seg * sizeof(fftw_complex));
-  h->fdl = fftw_malloc((size_t)h->S * seg * sizeof(fftw_complex));
-  h->win = fftw_malloc(seg * sizeof(fftw_complex));
-  h->tail = fftw_malloc((size_t)B * nq * sizeof(fftw_complex));
-  if (!h->seg_hat || !h->fdl || !h->win || !h->tail) return proto_fail(err, "out of memory");
+  lv->seg_hat = fftw_malloc((size_t)lv->S * nq * lv->hl * sizeof(fftw_complex));
+  lv->fdl = fftw_malloc((size_t)lv->S * seg * sizeof(fftw_complex));
+  lv->win = fftw_malloc(seg * sizeof(fftw_complex));
+  if (!lv->seg_hat || !lv->fdl || !lv->win) return proto_fail(err, "out of memory");
   const int n[1] = {L};
-  h->tfwd = fftw_plan_many_dft(1, n, nq, h->win, NULL, 1, L, h->win, NULL, 1, L,
-                               FFTW_FORWARD, FFTW_ESTIMATE);
-  h->tinv = fftw_plan_many_dft(1, n, nq, h->win, NULL, 1, L, h->win, NULL, 1, L,
-                               FFTW_BACKWARD, FFTW_ESTIMATE);
-  if (!h->tfwd || !h->tinv) return proto_fail(err, "history: FFTW planning failed");
-  /* segment s (1..S): h_s[i] = ĝ_{sB+1+i}(q), i < B, zero-padded to 2B;
-   * the 1/(2B) of the inverse transform is folded in here */
-  for (int s = 1; s <= h->S; s++) {
-    memset(h->win, 0, seg * sizeof(fftw_complex));
-    for (int q = 0; q < nq; q++)
-      for (int i = 0; i < B; i++) {
-        const int k = s * B + 1 + i;
-        if (k >= h->Qh) break;
-        h->win[(size_t)q * L + i][0] = h->ghat[(size_t)k * nq + q][0] / L;
-        h->win[(size_t)q * L + i][1] = h->ghat[(size_t)k * nq + q][1] / L;
+  lv->tfwd = fftw_plan_many_dft(1, n, nq, lv->win, NULL, nq, 1, lv->win, NULL, nq, 1,
+                                FFTW_FORWARD, BLK_FFTW_BLOCK);
+  lv->tinv = fftw_plan_many_dft(1, n, nq, lv->win, NULL, nq, 1, lv->win, NULL, nq, 1,
+                                FFTW_BACKWARD, BLK_FFTW_BLOCK);
+  if (!lv->tfwd || !lv->tinv) return proto_fail(err, "history: FFTW planning failed");
+  /* segment s (1..S): h_s[i] = ĝ_{sB+1+i}, i < B, zero-padded to 2B; the
+   * 1/(2B) of the inverse transform is folded in here. Stored [hl][S][nq]. */
+  for (int s = 1; s <= lv->S; s++) {
+    memset(lv->win, 0, seg * sizeof(fftw_complex));
+    for (int i = 0; i < B && s * B + 1 + i <= k_end; i++) {
+      const fftw_complex *g = h->ghat + (size_t)(s * B + 1 + i) * nq;
+      for (int q = 0; q < nq; q++) {
+        lv->win[(size_t)i * nq + q][0] = g[q][0] / L;
+        lv->win[(size_t)i * nq + q][1] = g[q][1] / L;
       }
-    fftw_execute(h->tfwd);
-    memcpy(h->seg_hat + (size_t)(s - 1) * seg, h->win, seg * sizeof(fftw_complex));
+    }
+    fftw_execute(lv->tfwd);
+    for (int w = 0; w < lv->hl; w++)
+      memcpy(lv->seg_hat + ((size_t)w * lv->S + (s - 1)) * nq, lv->win + (size_t)w * nq,
+             (size_t)nq * sizeof(fftw_complex));
   }
   return 0;
 }
 
+/* Levels (non-uniform partition, Gardner 1995): lags 1..B0 summed directly,
+ * then levels of blocks growing 4×, each covering lags B+1 .. 4B (3
+ * segments), the last one the rest up to Qh−1, opened while more than 3
+ * blocks of the next size are left (measured: opening levels earlier, for
+ * fewer segments, was slower). Each lag costs the head
+ * a product per step; a segment costs about two per step, whatever its
+ * length (plus the level's FFTs and window copy, about as much). */
+static int partition_init(blk_history *h, proto_err *err) {
+  int B = 8;
+  if (h->Qh - 1 <= 3 * B) return 0;
+  h->head = B;
+  while (h->n_lev < BLK_MAX_LEVELS) {
+    const int last = h->n_lev == BLK_MAX_LEVELS - 1 || h->Qh - 1 <= 3 * (4 * B);
+    if (level_init(h, &h->lev[h->n_lev], B, last ? h->Qh - 1 : 4 * B, err)) return -1;
+    h->n_lev++;
+    if (last) break;
+    B *= 4;
+  }
+  return 0;
+}
+
+/* acc[q] += H[q]·W[q] over a row of nq bins (conj: H̄[q]·W[q]). */
+BLK_HOT static void row_mac(const double *restrict H, const double *restrict W,
+                            double *restrict acc, int nq, int conj) {
+  if (conj) {
+    for (int i = 0; i < 2 * nq; i += 2) {
+      acc[i] += H[i] * W[i] + H[i + 1] * W[i + 1];
+      acc[i + 1] += H[i] * W[i + 1] - H[i + 1] * W[i];
+    }
+    return;
+  }
+  for (int i = 0; i < 2 * nq; i += 2) {
+    acc[i] += H[i] * W[i] - H[i + 1] * W[i + 1];
+    acc[i + 1] += H[i] * W[i + 1] + H[i + 1] * W[i];
+  }
+}
+
 /* At a block start (pushed = J·B): the lags > B of the outputs J·B .. J·B+B−1
  * only need inputs up to J·B − 2, all known. Window W_{J−1} = x[(J−2)B−1 ..
- * JB−2] enters the delay line; tail = IFFT(Σ_s Ĥ_s Ŵ_{J−s}), last B samples. */
-static void partition_block(blk_history *h) {
-  const int B = h->B, L = 2 * B, nq = h->nq, S = h->S;
+ * JB−2] enters the delay line; win = IFFT(Σ_s Ĥ_s Ŵ_{J−s}), whose last B rows
+ * are this level's part of the next B outputs. */
+static void level_block(blk_history *h, blk_level *lv) {
+  const int B = lv->B, L = 2 * B, nq = h->nq, S = lv->S, hl = lv->hl;
   const int64_t J = h->pushed / B;
-  const size_t seg = (size_t)nq * L;
-  fftw_complex *W = h->fdl + (size_t)((J - 1) % S) * seg;
+  const size_t seg = (size_t)nq * L, row = (size_t)nq * sizeof(fftw_complex);
+  fftw_complex *W = lv->fdl + (size_t)((J - 1) % S) * seg;
   const int64_t t0 = (J - 2) * B - 1;
   for (int t = 0; t < L; t++) {
     const int64_t x = t0 + t;
-    if (x < 0 || x >= h->pushed) {
-      for (int q = 0; q < nq; q++) W[(size_t)q * L + t][0] = W[(size_t)q * L + t][1] = 0;
-      continue;
-    }
-    const fftw_complex *src = h->F_hat + (size_t)(x % h->Qh) * nq;
-    for (int q = 0; q < nq; q++) {
-      W[(size_t)q * L + t][0] = src[q][0];
-      W[(size_t)q * L + t][1] = src[q][1];
-    }
+    if (x < 0 || x >= h->pushed) memset(W + (size_t)t * nq, 0, row);
+    else memcpy(W + (size_t)t * nq, h->F_hat + (size_t)(x % h->Qh) * nq, row);
   }
-  fftw_execute_dft(h->tfwd, W, W);
-  double *acc = (double *)h->win;
-  memset(acc, 0, seg * sizeof(fftw_complex));
-  for (int s = 1; s <= S && J - s >= 0; s++) {
-    const double *Hs = (const double *)(h->seg_hat + (size_t)(s - 1) * seg);
-    const double *Ws = (const double *)(h->fdl + (size_t)((J - s) % S) * seg);
-    for (size_t i = 0; i < 2 * seg; i += 2) {
-      acc[i] += Hs[i] * Ws[i] - Hs[i + 1] * Ws[i + 1];
-      acc[i + 1] += Hs[i] * Ws[i + 1] + Hs[i + 1] * Ws[i];
-    }
+  fftw_execute_dft(lv->tfwd, W, W);
+  for (int w = 0; w < L; w++) { /* frequency by frequency: acc row stays in L1 */
+    double *acc = (double *)(lv->win + (size_t)w * nq);
+    memset(acc, 0, row);
+    /* Hermitian segments: H(L−ω) = conj H(ω) */
+    const int wh = w < hl ? w : L - w, conj = w >= hl;
+    for (int s = 1; s <= S && J - s >= 0; s++)
+      row_mac((const double *)(lv->seg_hat + ((size_t)wh * S + (s - 1)) * nq),
+              (const double *)(lv->fdl + (size_t)((J - s) % S) * seg + (size_t)w * nq),
+              acc, nq, conj);
   }
-  fftw_execute(h->tinv);
-  for (int j = 0; j < B; j++)
-    for (int q = 0; q < nq; q++) {
-      h->tail[(size_t)j * nq + q][0] = h->win[(size_t)q * L + B + j][0];
-      h->tail[(size_t)j * nq + q][1] = h->win[(size_t)q * L + B + j][1];
-    }
+  fftw_execute(lv->tinv);
 }
 
 int blk_history_init(const blk_model *m, blk_history *h, proto_err *err) {
@@ -137,8 +172,8 @@ int blk_history_init(const blk_model *m, blk_history *h, proto_err *err) {
   h->nnz = calloc((size_t)h->Qh, sizeof(int));
   if (!h->pad || !h->ghat || !h->F_hat || !h->acc || !h->nnz)
     return proto_fail(err, "out of memory");
-  h->fwd = fftw_plan_dft_r2c_2d(h->Ny, h->Nx, h->pad, h->acc, FFTW_ESTIMATE);
-  h->inv = fftw_plan_dft_c2r_2d(h->Ny, h->Nx, h->acc, h->pad, FFTW_ESTIMATE);
+  h->fwd = fftw_plan_dft_r2c_2d(h->Ny, h->Nx, h->pad, h->acc, BLK_FFTW_STEP);
+  h->inv = fftw_plan_dft_c2r_2d(h->Ny, h->Nx, h->acc, h->pad, BLK_FFTW_STEP);
   if (!h->fwd || !h->inv) return proto_fail(err, "history: FFTW planning failed");
   /* spectra of g_k, scaled by Δt / (Nx Ny) (FFTW's unnormalised inverse) */
   const double scale = h->dt / ((double)h->Nx * h->Ny);
@@ -162,6 +197,13 @@ int blk_history_init(const blk_model *m, blk_history *h, proto_err *err) {
     for (size_t i = 0; i < (size_t)h->Qh * h->nq; i++) h->ghat_re[i] = h->ghat[i][0];
   }
   if (partition_init(h, err)) return -1;
+  if (h->ghat_re) { /* the lags summed directly, each real ĝ twice (Re, Im) */
+    const int nk = h->n_lev ? h->head + 1 : h->Qh;
+    h->ghat_re2 = malloc((size_t)nk * 2 * h->nq * sizeof(double));
+    if (!h->ghat_re2) return proto_fail(err, "out of memory");
+    for (size_t i = 0; i < (size_t)nk * h->nq; i++)
+      h->ghat_re2[2 * i] = h->ghat_re2[2 * i + 1] = h->ghat_re[i];
+  }
   blk_history_reset(m, h);
   return 0;
 }
@@ -173,13 +215,16 @@ void blk_history_free(blk_history *h) {
   fftw_free(h->ghat);
   fftw_free(h->F_hat);
   fftw_free(h->acc);
-  if (h->tfwd) fftw_destroy_plan(h->tfwd);
-  if (h->tinv) fftw_destroy_plan(h->tinv);
-  fftw_free(h->seg_hat);
-  fftw_free(h->fdl);
-  fftw_free(h->win);
-  fftw_free(h->tail);
+  for (int l = 0; l < BLK_MAX_LEVELS; l++) {
+    blk_level *lv = &h->lev[l];
+    if (lv->tfwd) fftw_destroy_plan(lv->tfwd);
+    if (lv->tinv) fftw_destroy_plan(lv->tinv);
+    fftw_free(lv->seg_hat);
+    fftw_free(lv->fdl);
+    fftw_free(lv->win);
+  }
   free(h->ghat_re);
+  free(h->ghat_re2);
   free(h->F_ring);
   free(h->nnz);
   memset(h, 0, sizeof *h);
@@ -190,8 +235,11 @@ void blk_history_reset(const blk_model *m, blk_history *h) {
   if (h->F_ring) memset(h->F_ring, 0, (size_t)h->Qh * m->M * sizeof(double));
   if (h->F_hat) memset(h->F_hat, 0, (size_t)h->Qh * h->nq * sizeof(fftw_complex));
   if (h->nnz) memset(h->nnz, 0, (size_t)h->Qh * sizeof(int));
-  if (h->fdl) memset(h->fdl, 0, (size_t)h->S * h->nq * 2 * h->B * sizeof(fftw_complex));
-  if (h->tail) memset(h->tail, 0, (size_t)h->B * h->nq * sizeof(fftw_complex));
+  for (int l = 0; l < h->n_lev; l++) {
+    const blk_level *lv = &h->lev[l];
+    memset(lv->fdl, 0, (size_t)lv->S * h->nq * 2 * lv->B * sizeof(fftw_complex));
+    memset(lv->win, 0, (size_t)2 * lv->B * h->nq * sizeof(fftw_complex));
+  }
 }
 
 static void push_direct(const blk_model *m, blk_history *h, const double *F,
@@ -226,7 +274,7 @@ static void push_direct(const blk_model *m, blk_history *h, const double *F,
   }
 }
 
-static void push_fft(const blk_model *m, blk_history *h, const double *F, double *d_old) {
+BLK_HOT static void push_fft(const blk_model *m, blk_history *h, const double *F, double *d_old) {
   const int Qh = h->Qh, nq = h->nq, nx = m->nx, ny = m->ny;
   const int slot = (int)(h->pushed % Qh);
   fftw_complex *Fs = h->F_hat + (size_t)slot * nq;
@@ -244,26 +292,26 @@ static void push_fft(const blk_model *m, blk_history *h, const double *F, double
   h->pushed++;
   double *acc = (double *)h->acc;
   int any = 0;
-  int head = Qh; /* lags summed directly: all, or 1..B with the partitioned tail */
-  if (h->B) {
-    if (h->pushed % h->B == 0) partition_block(h);
-    memcpy(acc, h->tail + (size_t)(h->pushed % h->B) * nq, (size_t)nq * sizeof(fftw_complex));
-    head = h->B + 1;
-    any = h->pushed > h->B;
-  } else {
-    memset(acc, 0, (size_t)nq * sizeof(fftw_complex));
+  int head = Qh; /* lags summed directly: all, or 1..B0 with the partitioned rest */
+  memset(acc, 0, (size_t)nq * sizeof(fftw_complex));
+  for (int l = 0; l < h->n_lev; l++) {
+    blk_level *lv = &h->lev[l];
+    if (h->pushed % lv->B == 0) level_block(h, lv);
+    const double *t = (const double *)(lv->win + (size_t)(lv->B + h->pushed % lv->B) * nq);
+    for (int q = 0; q < 2 * nq; q++) acc[q] += t[q];
+  }
+  if (h->n_lev) {
+    head = h->head + 1;
+    any = h->pushed > h->head;
   }
   for (int k = 1; k < head && k <= h->pushed; k++) {
     const int s = (int)((h->pushed - k) % Qh);
     if (!h->nnz[s]) continue;
     any = 1;
     const double *a = (const double *)(h->F_hat + (size_t)s * nq);
-    if (h->ghat_re) {
-      const double *g = h->ghat_re + (size_t)k * nq;
-      for (int q = 0; q < nq; q++) {
-        acc[2 * q] += g[q] * a[2 * q];
-        acc[2 * q + 1] += g[q] * a[2 * q + 1];
-      }
+    if (h->ghat_re2) { /* real ĝ stored twice per bin: a plain streaming loop */
+      const double *g = h->ghat_re2 + (size_t)k * 2 * nq;
+      for (int q = 0; q < 2 * nq; q++) acc[q] += g[q] * a[q];
       continue;
     }
     const double *g = (const double *)(h->ghat + (size_t)k * nq);

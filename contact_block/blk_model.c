@@ -200,10 +200,22 @@ void blk_spring_eval(const blk_model *m, int e, double d, double *F, double *k) 
     *k = kk[K - 1];
     return;
   }
-  int lo = 0, hi = K - 1;
-  while (hi - lo > 1) {
-    int mid = (lo + hi) / 2;
-    if (kd[mid] <= d) lo = mid; else hi = mid;
+  /* the knot interval kd[lo] <= d < kd[lo+1] (unique: knots increase):
+   * guessed as for equally spaced knots (the synthetic tables), checked,
+   * else bisection */
+  int lo = (int)(d / kd[K - 1] * (K - 1)), hi;
+  if (lo > K - 2) lo = K - 2;
+  if (lo + 1 < K - 1 && kd[lo + 1] <= d) lo++;
+  else if (lo > 0 && kd[lo] > d) lo--;
+  if (kd[lo] <= d && d < kd[lo + 1]) {
+    hi = lo + 1;
+  } else {
+    lo = 0;
+    hi = K - 1;
+    while (hi - lo > 1) {
+      int mid = (lo + hi) / 2;
+      if (kd[mid] <= d) lo = mid; else hi = mid;
+    }
   }
   /* cubic Hermite on [d_lo, d_hi] (green/FORMATS.md) */
   const double h = kd[hi] - kd[lo], t = (d - kd[lo]) / h, t2 = t * t, t3 = t2 * t;

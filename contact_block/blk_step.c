@@ -12,7 +12,7 @@
 
 /* Dot product with four partial sums (the compiler may not reassociate a
  * single floating-point sum; this gives it independent chains). */
-static double dot(const double *a, const double *b, int n) {
+static inline double dot(const double *a, const double *b, int n) {
   double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
   int k = 0;
   for (; k + 4 <= n; k += 4) {
@@ -27,7 +27,7 @@ static double dot(const double *a, const double *b, int n) {
 
 /* In-place Cholesky of the leading n×n of A (row stride ld, lower triangle
  * used), row-oriented: row i needs only rows < i. 0 or -1 (not SPD). */
-static int cholesky(double *A, int n, int ld) {
+BLK_HOT static int cholesky(double *A, int n, int ld) {
   for (int i = 0; i < n; i++) {
     double *Ai = A + (size_t)i * ld;
     for (int j = 0; j < i; j++) {
@@ -41,7 +41,7 @@ static int cholesky(double *A, int n, int ld) {
   return 0;
 }
 
-static void cholesky_solve(const double *L, int n, int ld, double *x) {
+BLK_HOT static void cholesky_solve(const double *L, int n, int ld, double *x) {
   for (int i = 0; i < n; i++) {
     const double *Li = L + (size_t)i * ld;
     x[i] = (x[i] - dot(Li, x, i)) / Li[i];
@@ -56,7 +56,7 @@ static void cholesky_solve(const double *L, int n, int ld, double *x) {
 
 /* LU with partial pivoting and solve (fallback for a non-symmetric or
  * indefinite g(0)); -1 if singular. */
-static int lu_solve(double *A, int n, int ld, int *piv, double *x) {
+BLK_HOT static int lu_solve(double *A, int n, int ld, int *piv, double *x) {
   for (int j = 0; j < n; j++) {
     int p = j;
     for (int i = j + 1; i < n; i++)
@@ -89,6 +89,37 @@ static int lu_solve(double *A, int n, int ld, int *piv, double *x) {
   return 0;
 }
 
+/* y −= Σ_a f[a] · (column idx[a] of C), a ascending, columns read from the
+ * offset kernel: row j of column p is a contiguous run of nx kernel values
+ * (fits L1, unlike C). Same products in the same order as the dense columns
+ * (C[i][p] = kern[…] exactly). */
+static inline void columns_sub_nx(const double *kern, int nx, int ny, int nox, int n,
+                                  const int *idx, const double *f, double *restrict y) {
+  for (int a = 0; a < n; a++) {
+    const int p = idx[a], pi = p % nx, pj = p / nx;
+    const double fa = f[a];
+    for (int j = 0; j < ny; j++) {
+      const double *restrict kr = kern + (size_t)(j - pj + ny - 1) * nox + (nx - 1 - pi);
+      double *restrict yj = y + (size_t)j * nx;
+      for (int i = 0; i < nx; i++) yj[i] -= kr[i] * fa;
+    }
+  }
+}
+
+/* The short rows vectorise far better with nx known at compile time:
+ * specialised for common block widths (the thesis' 20), generic otherwise. */
+BLK_HOT static void columns_sub(const blk_model *m, const double *kern, int n, const int *idx,
+                                const double *f, double *y) {
+  switch (m->nx) {
+  case 10: columns_sub_nx(kern, 10, m->ny, m->nox, n, idx, f, y); break;
+  case 16: columns_sub_nx(kern, 16, m->ny, m->nox, n, idx, f, y); break;
+  case 20: columns_sub_nx(kern, 20, m->ny, m->nox, n, idx, f, y); break;
+  case 32: columns_sub_nx(kern, 32, m->ny, m->nox, n, idx, f, y); break;
+  case 40: columns_sub_nx(kern, 40, m->ny, m->nox, n, idx, f, y); break;
+  default: columns_sub_nx(kern, m->nx, m->ny, m->nox, n, idx, f, y);
+  }
+}
+
 /* --------------------------------------------------------------- state */
 
 int blk_state_create(const blk_model *m, blk_state *s, proto_err *err) {
@@ -116,6 +147,9 @@ int blk_state_create(const blk_model *m, blk_state *s, proto_err *err) {
   w->piv = calloc(M, sizeof(int));
   w->fact_act = calloc(M, sizeof(int));
   w->fact_sk = calloc(M, sizeof(double));
+  w->col_idx = calloc(M, sizeof(int));
+  w->col_f = calloc(M, sizeof(double));
+  if (!w->col_idx || !w->col_f) return proto_fail(err, "out of memory");
   if (!w->fact_act || !w->fact_sk) return proto_fail(err, "out of memory");
   w->C = malloc(M * M * sizeof(double));
   w->A = malloc(M * M * sizeof(double));
@@ -139,12 +173,11 @@ int blk_state_create(const blk_model *m, blk_state *s, proto_err *err) {
         w->symmetric = 0;
         break;
       }
-  w->Ct = w->C;
-  if (!w->symmetric) {
-    if (!(w->Ct = malloc(M * M * sizeof(double)))) return proto_fail(err, "out of memory");
-    for (size_t i = 0; i < M; i++)
-      for (size_t p = 0; p < M; p++) w->Ct[p * M + i] = w->C[i * M + p];
-  }
+  w->kern = malloc((size_t)m->nox * m->noy * sizeof(double));
+  if (!w->kern) return proto_fail(err, "out of memory");
+  for (int dj = 0; dj < m->noy; dj++) /* the values of C, as the loop above */
+    for (int di = 0; di < m->nox; di++)
+      w->kern[(size_t)dj * m->nox + di] = scale * g0[(size_t)dj * m->nox + di];
   if (blk_history_init(m, &w->hist, err)) return -1;
   blk_state_reset(m, s);
   return 0;
@@ -156,9 +189,9 @@ void blk_state_free(blk_state *s) {
     blk_history_free(&w->hist);
     free(w->b); free(w->r); free(w->delta); free(w->d_try); free(w->F_try);
     free(w->k_try); free(w->CF); free(w->sk); free(w->y);
-    if (w->Ct != w->C) free(w->Ct);
+    free(w->kern);
     free(w->held); free(w->act); free(w->piv); free(w->C); free(w->A);
-    free(w->fact_act); free(w->fact_sk);
+    free(w->fact_act); free(w->fact_sk); free(w->col_idx); free(w->col_f);
     free(w);
   }
   free(s->d_rs);
@@ -209,12 +242,13 @@ static double residual(const blk_model *m, blk_work *w, const double *d, const d
                        double *r, double *rmax) {
   const int M = m->M;
   memcpy(w->CF, w->b, (size_t)M * sizeof(double));
-  for (int p = 0; p < M; p++) {
-    if (F[p] == 0.0) continue;
-    const double f = F[p];
-    const double *Cp = w->Ct + (size_t)p * M; /* column p of C */
-    for (int i = 0; i < M; i++) w->CF[i] -= Cp[i] * f;
-  }
+  int n = 0; /* the loaded elements */
+  for (int p = 0; p < M; p++)
+    if (F[p] != 0.0) {
+      w->col_idx[n] = p;
+      w->col_f[n++] = F[p];
+    }
+  columns_sub(m, w->kern, n, w->col_idx, w->col_f, w->CF);
   double phi = 0, mx = 0;
   for (int i = 0; i < M; i++) {
     r[i] = w->CF[i] - d[i];
@@ -281,12 +315,8 @@ static int newton_direction(const blk_model *m, blk_work *w, const double *k,
   }
   /* Δ = r − C K Δ_A for every element (the active ones reproduce y) */
   for (int i = 0; i < M; i++) w->delta[i] = w->r[i];
-  for (int a = 0; a < P; a++) {
-    const int p = w->act[a];
-    const double f = keff[p] * w->y[a];
-    const double *Cp = w->Ct + (size_t)p * M;
-    for (int i = 0; i < M; i++) w->delta[i] -= Cp[i] * f;
-  }
+  for (int a = 0; a < P; a++) w->col_f[a] = keff[w->act[a]] * w->y[a];
+  columns_sub(m, w->kern, P, w->act, w->col_f, w->delta);
   for (int a = 0; a < P; a++) w->delta[w->act[a]] = w->y[a];
   return 0;
 }

@@ -130,9 +130,10 @@ int main(int argc, char **argv) {
     Fmin = fmin(Fmin, s.total_force);
     double k_max = 0; /* stiffest spring in contact (N/m), for the K_crit argument */
     for (int e = 0; e < m.M; e++) {
+      if (s.force[e] == 0.0) continue; /* out of contact */
       double Fe, ke;
       blk_spring_eval(&m, e, fabs(s.d_rs[e]), &Fe, &ke);
-      if (s.force[e] != 0.0 && ke > k_max) k_max = ke;
+      if (ke > k_max) k_max = ke;
     }
     if (out)
       fprintf(out, "%ld,%.9e,%.9e,%.9e,%d,%d,%d,%.3e,%d,%.4e\n", n, t, d, s.total_force,
