@@ -54,15 +54,11 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
     s->x[3 * e + 1] = (e / m->nx + 0.5) * m->dy;
     s->x[3 * e + 2] = m->z_road[e];
   }
-  cJSON *h = proto_msg_header(ready);
-  cJSON *series = cJSON_AddObjectToObject(h, "series");
-  cJSON_AddItemToObject(series, "series", cJSON_CreateStringArray(columns, NCOL));
-  cJSON *snap = cJSON_AddObjectToObject(h, "snapshot");
-  cJSON_AddStringToObject(snap, "kind", "points");
-  cJSON_AddStringToObject(snap, "geometry", "x");
-  cJSON_AddNullToObject(snap, "cells");
   const char *attrs[] = {"element_force", "d_rs", "d_el"};
-  cJSON_AddItemToObject(snap, "attributes", cJSON_CreateStringArray(attrs, 3));
+  if (proto_ready_series(ready, "series", NCOL, columns) < 0 ||
+      proto_ready_snapshot(ready, "points", "x", NULL, 3, attrs) < 0)
+    return proto_fail(err, "out of memory");
+  cJSON *h = proto_msg_header(ready);
   cJSON_AddNumberToObject(h, "elements", m->M);
   cJSON_AddStringToObject(h, "green_model", m->green_model);
   cJSON_AddStringToObject(h, "sampling", m->sampling);
