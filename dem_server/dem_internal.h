@@ -25,8 +25,13 @@ struct dem_work {
   /* half neighbour list in CSR by slot (j > i), with per-pair history and the
    * per-pair results that the deterministic gather sums */
   int *nl_start, *nl_j;
-  double *nl_shear, *pair_f, *pair_roll; /* [cap*3]: spring, F on i, rolling torque on i */
-  double *pair_c; /* [cap*4]: n × F_t and δ/2 (torque on i is −(r_i − δ/2) n × F_t) */
+  double *nl_shear, *pair_roll; /* [cap*3]: spring, rolling torque on i */
+  /* [cap*6] per touching pair: F on i, then (r_j − δ/2) n × F_t (the torque on
+   * j is minus that); stale for open pairs, which the gather skips by pair_touch */
+  double *pair_ft;
+  uint8_t *pair_touch; /* [cap] 1 = pair touched at the last force evaluation (or
+                        * may hold a spring after a rebuild): open pairs whose flag
+                        * is 0 have a zero spring, so neither gather nor reset reads them */
   double *pair_u;                                 /* [n] elastic energy of i's own pairs */
   int cap;
   int *old_start, *old_j;
@@ -41,8 +46,9 @@ struct dem_work {
   double cell_lo[3], cell_size;
   int cell_dim[3];
   /* plane walls: per plane p and slot i */
-  double *wall_shear;          /* [n*n_planes*3], grain-major */
+  double *wall_shear;          /* [n_planes][n][3], plane-major: a floor's springs are dense */
   uint64_t *plane_mask;        /* [n] planes within r + skin at the last rebuild */
+  uint64_t *plane_touch;       /* [n] planes whose spring may be non-zero (touched last time) */
   double *wall_part;           /* [chunks*n_planes*3] per-chunk wall totals */
   double *ke_part;             /* [chunks] per-chunk kinetic energy */
   double *mass, *inertia;      /* [n] (inertia 0 for non-rotating grains) */
@@ -63,6 +69,11 @@ struct dem_work {
   int *pair_contacts; /* [n] */
   double *ratio;      /* [n] max overlap ratio of i's contacts */
 };
+
+/* Spring of grain slot i on plane p. */
+static inline double *dem_wall_shear(const struct dem_work *w, int n, int i, int p) {
+  return &w->wall_shear[((size_t)p * n + i) * 3];
+}
 
 /* ---- vectors ---- */
 static inline double dem_dot(const double *a, const double *b) {
@@ -98,22 +109,46 @@ static inline __attribute__((always_inline)) double dem_hertz(const dem_pair_law
   for (int k = 0; k < 3; k++) shear[k] += vt[k] * dt; /* eq. 20 */
   const double rsht = dem_dot(shear, n);               /* project into the tangent plane */
   for (int k = 0; k < 3; k++) shear[k] -= rsht * n[k];
-  double Ft[3] = {-kt * shear[0], -kt * shear[1], -kt * shear[2]};
   const double shr2 = dem_dot(shear, shear);
   const double Ft_friction = l->mu * fabs(Fn);
-  if (kt * kt * shr2 > Ft_friction * Ft_friction) { /* sliding: Coulomb, spring reset, no damping */
-    if (shr2 > 0) {
-      const double ratio = Ft_friction / (kt * sqrt(shr2)), ikt = 1.0 / kt;
-      for (int k = 0; k < 3; k++) { Ft[k] *= ratio; shear[k] = -Ft[k] * ikt; }
-    } else {
-      Ft[0] = Ft[1] = Ft[2] = 0;
-    }
-  } else { /* sticking: spring + dashpot (eq. 24, 27) */
-    for (int k = 0; k < 3; k++) Ft[k] -= gammat * vt[k];
+  /* sliding (|kt s| > μ|Fn|): Coulomb, spring reset to −F_t/kt, no damping;
+   * sticking: spring + dashpot (eq. 24, 27). Both computed and selected, so
+   * that batches of contacts vectorise (dem_force.c); a select is exact. */
+  const int slide = kt * kt * shr2 > Ft_friction * Ft_friction, spring = shr2 > 0;
+  const int reset = slide & spring;
+  const double ratio = Ft_friction / (kt * sqrt(shr2)), ikt = 1.0 / kt;
+  double Ft[3];
+  for (int k = 0; k < 3; k++) {
+    const double e = -kt * shear[k], g = e * ratio;
+    Ft[k] = slide ? (spring ? g : 0) : e - gammat * vt[k];
+    shear[k] = reset ? -g * ikt : shear[k];
   }
   for (int k = 0; k < 3; k++) F[k] = Fn * n[k] + Ft[k];
   dem_cross(n, Ft, c);
   return Fn;
+}
+
+/* q ← exp(ω dt / 2) ⊗ q. For the usual small angles h = |ω| dt/2 < 1e-3,
+ * cos h and sin h by their series (truncation below h⁶/720 ≈ 1e-21, and
+ * |dq|² = 1 + O(h⁶)): no libm call, no renormalisation in the hot loop —
+ * dem_renormalise() runs at neighbour-list rebuilds. */
+static inline void dem_rotate_quaternion(double *q, const double *o, double dt) {
+  const double w2 = dem_dot(o, o), h2 = 0.25 * w2 * dt * dt;
+  double ch, sn; /* cos h, sin(h)/|ω| */
+  if (__builtin_expect(h2 < 1e-6, 1)) {
+    ch = 1 - h2 * (0.5 - h2 * (1.0 / 24));
+    sn = 0.5 * dt * (1 - h2 * (1.0 / 6 - h2 * (1.0 / 120)));
+  } else {
+    const double wm = sqrt(w2), h = 0.5 * wm * dt;
+    ch = cos(h);
+    sn = sin(h) / wm;
+  }
+  const double d1 = o[0] * sn, d2 = o[1] * sn, d3 = o[2] * sn;
+  const double q0 = q[0], q1 = q[1], q2 = q[2], q3 = q[3];
+  q[0] = ch * q0 - d1 * q1 - d2 * q2 - d3 * q3;
+  q[1] = ch * q1 + d1 * q0 + d2 * q3 - d3 * q2;
+  q[2] = ch * q2 - d1 * q3 + d2 * q0 + d3 * q1;
+  q[3] = ch * q3 + d1 * q2 - d2 * q1 + d3 * q0;
 }
 
 /* LIGGGHTS `rolling_friction cdt`: torque −μ_r |F_n| R* ω̂_rel on i. */
@@ -142,6 +177,10 @@ void dem_bvh_update(dem_bvh *b, const double *x, const int32_t *tri, int n_tri);
 void dem_closest_on_triangle(const double *p, const double *a, const double *b,
                              const double *c, double *q, double *zeta);
 /* dem_force.c */
-void dem_compute_forces(const dem_model *m, dem_state *s);
+/* Contact forces and torques of the current positions. kick != 0 (dem_step):
+ * then also the second half of the Verlet step of each grain, chunk by chunk
+ * while its forces are in cache: q rotated by ω^{n+1/2} dt, v += dt/2 (F/m + g),
+ * ω += dt/2 T/I, and the kinetic energy per chunk into ke_part. */
+void dem_compute_forces(const dem_model *m, dem_state *s, int kick);
 
 #endif

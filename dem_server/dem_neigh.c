@@ -19,6 +19,7 @@ int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->old_of = calloc(n, sizeof(int));
   w->x_ref = calloc(3 * n, sizeof(double));
   w->plane_mask = calloc(n, sizeof(uint64_t));
+  w->plane_touch = calloc(n, sizeof(uint64_t));
   w->cell_of = calloc(n, sizeof(int));
   w->pair_u = calloc(n, sizeof(double));
   w->pair_contacts = calloc(n, sizeof(int));
@@ -27,14 +28,14 @@ int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->nl_j = malloc(sizeof(int) * (size_t)w->cap);
   w->rev_k = malloc(sizeof(int) * (size_t)w->cap);
   w->nl_shear = calloc(3 * (size_t)w->cap, sizeof(double));
-  w->pair_f = malloc(3 * sizeof(double) * (size_t)w->cap);
-  w->pair_c = malloc(4 * sizeof(double) * (size_t)w->cap);
+  w->pair_ft = malloc(6 * sizeof(double) * (size_t)w->cap);
+  w->pair_touch = calloc((size_t)w->cap, 1);
   if (m->has_rolling) w->pair_roll = malloc(3 * sizeof(double) * (size_t)w->cap);
   w->old_j = malloc(sizeof(int) * (size_t)w->old_cap);
   w->old_shear = malloc(3 * sizeof(double) * (size_t)w->old_cap);
   if (!w->nl_start || !w->old_start || !w->rev_start || !w->rev_fill || !w->old_of ||
-      !w->x_ref || !w->plane_mask || !w->cell_of || !w->pair_u || !w->pair_contacts || !w->ratio || !w->nl_j ||
-      !w->rev_k || !w->nl_shear || !w->pair_f || !w->pair_c || !w->old_j || !w->old_shear ||
+      !w->x_ref || !w->plane_mask || !w->plane_touch || !w->cell_of || !w->pair_u || !w->pair_contacts || !w->ratio || !w->nl_j ||
+      !w->rev_k || !w->nl_shear || !w->pair_ft || !w->pair_touch || !w->old_j || !w->old_shear ||
       (m->has_rolling && !w->pair_roll))
     return proto_fail(err, "out of memory for the neighbour list of %d grains", s->n);
   return 0;
@@ -42,9 +43,9 @@ int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
 
 void dem_neigh_free(struct dem_work *w) {
   free(w->nl_start); free(w->old_start); free(w->rev_start); free(w->rev_fill);
-  free(w->old_of); free(w->x_ref); free(w->plane_mask); free(w->cell_of); free(w->cell_start);
+  free(w->old_of); free(w->x_ref); free(w->plane_mask); free(w->plane_touch); free(w->cell_of); free(w->cell_start);
   free(w->pair_u); free(w->pair_contacts); free(w->ratio);
-  free(w->nl_j); free(w->rev_k); free(w->nl_shear); free(w->pair_f); free(w->pair_c);
+  free(w->nl_j); free(w->rev_k); free(w->nl_shear); free(w->pair_ft); free(w->pair_touch);
   free(w->pair_roll); free(w->old_j); free(w->old_shear);
 }
 
@@ -74,7 +75,7 @@ static void permute_grains(const dem_model *m, dem_state *s) {
   perm_d(w->mass, 1, o, n, tmp); perm_d(w->inertia, 1, o, n, tmp);
   perm_i32(s->material, o, n, w->itmp); perm_i32(s->id, o, n, w->itmp);
   perm_u8(s->fix_rotation, o, n, w->itmp);
-  if (m->n_planes > 0) perm_d(w->wall_shear, 3 * m->n_planes, o, n, w->tmp);
+  for (int p = 0; p < m->n_planes; p++) perm_d(dem_wall_shear(w, n, 0, p), 3, o, n, w->tmp);
   if (m->n_meshes > 0) {
     const int K = DEM_MESH_SLOTS;
     for (int k = 0; k < K; k++) {
@@ -197,7 +198,7 @@ static int ensure_cap(const dem_model *m, struct dem_work *w, int need, proto_er
   if (need <= w->cap) return 0;
   int cap = need + need / 4 + 64; /* rare: only when the list outgrows its capacity */
   if (!GROW(w->nl_j, cap, int) || !GROW(w->rev_k, cap, int) || !GROW(w->nl_shear, 3 * cap, double) ||
-      !GROW(w->pair_f, 3 * cap, double) || !GROW(w->pair_c, 4 * cap, double) ||
+      !GROW(w->pair_ft, 6 * cap, double) || !GROW(w->pair_touch, cap, uint8_t) ||
       (m->has_rolling && !GROW(w->pair_roll, 3 * cap, double)))
     return proto_fail(err, "out of memory for %d neighbour pairs", need);
   w->cap = cap;
@@ -230,8 +231,11 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
 #pragma omp parallel for schedule(dynamic, 256) num_threads(w->nthreads)
   for (int i = 0; i < n; i++) {
     list_row(m, s, i, &w->nl_j[w->nl_start[i]]);
-    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++)
-      carry_history(w, i, w->nl_j[k], &w->nl_shear[3 * k]);
+    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) {
+      double *sh = &w->nl_shear[3 * k];
+      carry_history(w, i, w->nl_j[k], sh);
+      w->pair_touch[k] = sh[0] != 0 || sh[1] != 0 || sh[2] != 0; /* a spring to reset if open */
+    }
   }
   w->have_old = 1;
   /* reverse index: for each slot, the pairs where it is the partner */
@@ -244,14 +248,20 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
   /* planes a grain can touch before the next rebuild (it moves < skin/2);
    * the springs of the others are cleared */
   for (int i = 0; i < n; i++) {
-    uint64_t mask = 0;
+    uint64_t mask = 0, touch = 0;
     for (int p = 0; p < m->n_planes; p++) {
       const dem_plane *pl = &m->planes[p];
+      double *sh = dem_wall_shear(w, n, i, p);
       double d[3] = {s->x[3 * i] - pl->point[0], s->x[3 * i + 1] - pl->point[1], s->x[3 * i + 2] - pl->point[2]};
-      if (dem_dot(d, pl->normal) < s->radius[i] + m->skin) mask |= (uint64_t)1 << p;
-      else memset(&w->wall_shear[((size_t)i * m->n_planes + p) * 3], 0, 3 * sizeof(double));
+      if (dem_dot(d, pl->normal) < s->radius[i] + m->skin) {
+        mask |= (uint64_t)1 << p;
+        if (sh[0] != 0 || sh[1] != 0 || sh[2] != 0) touch |= (uint64_t)1 << p;
+      } else {
+        memset(sh, 0, 3 * sizeof(double));
+      }
     }
     w->plane_mask[i] = mask;
+    w->plane_touch[i] = touch;
   }
   /* quaternions: the hot loop does not renormalise (|dq| = 1 + O(h⁶)); here */
   for (int i = 0; i < n; i++) {

@@ -107,7 +107,7 @@ int dem_state_init(const dem_model *m, dem_state *s, proto_err *err) {
   if (dem_neigh_alloc(m, s, err) || dem_mesh_alloc(m, s, err) || dem_neigh_rebuild(m, s, err) ||
       check_initial(m, s, err))
     goto fail;
-  dem_compute_forces(m, s);
+  dem_compute_forces(m, s, 0);
   for (int i = 0; i < s->n; i++) {
     const double *v = &s->v[3 * i], *o = &s->omega[3 * i];
     double mass = 1.0 / s->inv_mass[i], I = s->inv_inertia[i] > 0 ? 1.0 / s->inv_inertia[i] : 0;
@@ -132,29 +132,6 @@ void dem_state_free(dem_state *s) {
   free(s->radius); free(s->inv_mass); free(s->inv_inertia); free(s->material); free(s->id);
   free(s->fix_rotation); free(s->wall_force);
   memset(s, 0, sizeof *s);
-}
-
-/* q ← exp(ω dt / 2) ⊗ q. For the usual small angles h = |ω| dt/2 < 1e-3,
- * cos h and sin h by their series (truncation below h⁶/720 ≈ 1e-21, and
- * |dq|² = 1 + O(h⁶)): no libm call, no renormalisation in the hot loop —
- * dem_renormalise() runs at neighbour-list rebuilds. */
-static inline void rotate_quaternion(double *q, const double *o, double dt) {
-  const double w2 = dem_dot(o, o), h2 = 0.25 * w2 * dt * dt;
-  double ch, sn; /* cos h, sin(h)/|ω| */
-  if (__builtin_expect(h2 < 1e-6, 1)) {
-    ch = 1 - h2 * (0.5 - h2 * (1.0 / 24));
-    sn = 0.5 * dt * (1 - h2 * (1.0 / 6 - h2 * (1.0 / 120)));
-  } else {
-    const double wm = sqrt(w2), h = 0.5 * wm * dt;
-    ch = cos(h);
-    sn = sin(h) / wm;
-  }
-  const double d1 = o[0] * sn, d2 = o[1] * sn, d3 = o[2] * sn;
-  const double q0 = q[0], q1 = q[1], q2 = q[2], q3 = q[3];
-  q[0] = ch * q0 - d1 * q1 - d2 * q2 - d3 * q3;
-  q[1] = ch * q1 + d1 * q0 + d2 * q3 - d3 * q2;
-  q[2] = ch * q2 - d1 * q3 + d2 * q0 + d3 * q1;
-  q[3] = ch * q3 + d1 * q2 - d2 * q1 + d3 * q0;
 }
 
 /* Where a run went wrong: NaN, grains jumping more than their radius per
@@ -186,9 +163,10 @@ static int check_health(const dem_model *m, const dem_state *s, double max_jump,
  *   1. v += dt/2 (F/m + g), ω += dt/2 T/I, x += dt v, with the checks that
  *      need no extra pass (jump per step, skin);
  *   2. (new forces) q ← rotation by ω^{n+1/2} dt, v += dt/2 (F/m + g),
- *      ω += dt/2 T/I and the kinetic energy,
- *      summed per fixed chunk of grains so the total does not depend on the
- *      number of threads. */
+ *      ω += dt/2 T/I and the kinetic energy, done by dem_compute_forces()
+ *      per chunk of grains right after their forces (dem_force.c kick_chunk),
+ *      summed per fixed chunk so the total does not depend on the number of
+ *      threads. */
 int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
   const double dt = m->dt, half = 0.5 * dt, lim2 = 0.25 * m->skin * m->skin;
@@ -217,26 +195,8 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
     return check_health(m, s, 2.0, err);
   }
   if (rebuild && dem_neigh_rebuild(m, s, err)) return -1;
-  dem_compute_forces(m, s);
+  dem_compute_forces(m, s, 1); /* and the second half kick */
   const int nchunk = (s->n + DEM_CHUNK - 1) / DEM_CHUNK;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads)
-  for (int c = 0; c < nchunk; c++) {
-    const int end = (c + 1) * DEM_CHUNK < s->n ? (c + 1) * DEM_CHUNK : s->n;
-    double ke = 0;
-    for (int i = c * DEM_CHUNK; i < end; i++) {
-      double *v = &s->v[3 * i], *o = &s->omega[3 * i];
-      const double *f = &s->force[3 * i], *t = &s->torque[3 * i];
-      const double im = s->inv_mass[i], ii = s->inv_inertia[i];
-      /* orientation over the step with the mid-step ω (still ω^{n+1/2} here) */
-      if (ii > 0) rotate_quaternion(&s->q[4 * i], o, dt);
-      for (int a = 0; a < 3; a++) {
-        v[a] += half * (f[a] * im + g[a]);
-        o[a] += half * t[a] * ii;
-      }
-      ke += 0.5 * (w->mass[i] * dem_dot(v, v) + w->inertia[i] * dem_dot(o, o));
-    }
-    w->ke_part[c] = ke;
-  }
   double ke = 0;
   for (int c = 0; c < nchunk; c++) ke += w->ke_part[c];
   s->kinetic_energy = ke;
