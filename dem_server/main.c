@@ -75,9 +75,12 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   if (!a->wall_row || !a->snap_x || !a->snap_v || !a->snap_w || !a->snap_r)
     return proto_fail(err, "out of memory");
   dem_gather(&a->state, a->state.radius, 1, a->snap_r);
+  const char *attrs[] = {"v", "omega", "r"};
+  if (proto_ready_series(ready, "series", 6, SERIES) < 0 ||
+      proto_ready_snapshot(ready, "points", "x", NULL, 3, attrs) < 0)
+    return proto_fail(err, "out of memory");
   cJSON *h = proto_msg_header(ready);
-  cJSON *series = cJSON_AddObjectToObject(h, "series");
-  cJSON_AddItemToObject(series, "series", cJSON_CreateStringArray(SERIES, 6));
+  cJSON *series = cJSON_GetObjectItemCaseSensitive(h, "series");
   cJSON *wf = cJSON_AddArrayToObject(series, "wall_forces");
   cJSON_AddItemToArray(wf, cJSON_CreateString("t"));
   for (int w = 0; w < m->n_walls; w++)
@@ -86,12 +89,6 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
       snprintf(name, sizeof name, "wall%d_F%c", w, "xyz"[k]);
       cJSON_AddItemToArray(wf, cJSON_CreateString(name));
     }
-  cJSON *snap = cJSON_AddObjectToObject(h, "snapshot");
-  cJSON_AddStringToObject(snap, "kind", "points");
-  cJSON_AddStringToObject(snap, "geometry", "x");
-  cJSON_AddNullToObject(snap, "cells");
-  const char *attrs[] = {"v", "omega", "r"};
-  cJSON_AddItemToObject(snap, "attributes", cJSON_CreateStringArray(attrs, 3));
   cJSON_AddNumberToObject(h, "dem_dt", m->dt);
   cJSON_AddNumberToObject(h, "rayleigh_time", m->rayleigh_time);
   cJSON_AddNumberToObject(h, "grains", m->n_grains);
@@ -100,12 +97,14 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   return 0;
 }
 
-/* The per-step summary on the bus ("<name>.series"), for live monitors. */
+/* The per-step summary on the bus, with its column names, for live monitors
+ * that have no results.h5 at hand ("<name>.summary"; the coupler republishes
+ * the same row as "<name>.series"). */
 static void publish_summary(dem_app *a, proto_peer *peer, int64_t step, double t) {
   proto_msg m = {0};
   char topic[PROTO_NAME_LEN + 8];
-  snprintf(topic, sizeof topic, "%s.series", a->name);
-  proto_msg_reset(&m, topic, "dem.series", step, t);
+  snprintf(topic, sizeof topic, "%s.summary", a->name);
+  proto_msg_reset(&m, topic, "summary", step, t);
   cJSON_AddItemToObject(proto_msg_header(&m), "columns", cJSON_CreateStringArray(SERIES, 6));
   proto_msg_add_f8(&m, "series", 6, 0, a->series);
   proto_peer_publish(peer, &m);
