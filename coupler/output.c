@@ -94,6 +94,18 @@ static out_part *part(cpl_output *o, const char *name) {
   return p;
 }
 
+/* The dataset whose last row the run's summary shows: a participant's
+ * "series", the coupler's "traction" (tyre scenes). */
+static int is_summary(const out_part *p, const char *ds) {
+  return strcmp(ds, strcmp(p->name, "coupler") == 0 ? "traction" : "series") == 0;
+}
+
+static void keep_last(out_part *p, const char *ds, int ncols, const double *row) {
+  if (!is_summary(p, ds)) return;
+  memcpy(p->last, row, sizeof(double) * (size_t)ncols);
+  p->have_last = 1;
+}
+
 static int add_set(cpl_output *o, out_part *p, const char *ds, int ncols,
                    const char *const *cols, proto_err *err) {
   if (p->nsets == MAX_SETS)
@@ -106,7 +118,7 @@ static int add_set(cpl_output *o, out_part *p, const char *ds, int ncols,
   snprintf(set->name, sizeof set->name, "%s", ds);
   set->ncols = ncols;
   p->nsets++;
-  if (strcmp(ds, "series") == 0) {
+  if (is_summary(p, ds)) {
     p->ncols = ncols;
     for (int i = 0; i < ncols; i++)
       snprintf(p->columns[i], sizeof p->columns[i], "%s", cols[i]);
@@ -221,10 +233,7 @@ static int append_series(out_part *p, const proto_msg *done, proto_err *err) {
                           "(the solver blew up; see its log)", p->name, ds, c,
                           strcmp(ds, "series") == 0 ? p->columns[c] : "-",
                           row[c], done->t);
-    if (set == &p->sets[0] || strcmp(ds, "series") == 0) {
-      memcpy(p->last, a->data, sizeof(double) * (size_t)set->ncols);
-      p->have_last = 1;
-    }
+    keep_last(p, ds, set->ncols, a->data);
   }
   return 0;
 }
@@ -289,6 +298,7 @@ int cpl_output_coupler_row(cpl_output *o, const char *dataset, int ncols,
     if (add_set(o, p, dataset, ncols, columns, err) < 0) return -1;
     set = &p->sets[p->nsets - 1];
   }
+  keep_last(p, dataset, ncols, row);
   return proto_series_append(set->series, row, err);
 }
 
@@ -299,7 +309,7 @@ int cpl_output_summary(const cpl_output *o, char *out, size_t cap) {
   out[0] = 0;
   for (int i = 0; i < o->nparts && len < cap; i++) {
     const out_part *p = &o->parts[i];
-    if (!p->have_last || strcmp(p->name, "coupler") == 0) continue;
+    if (!p->have_last) continue;
     len += (size_t)snprintf(out + len, cap - len, "  %s:", p->name);
     for (int c = 0; c < p->ncols && len < cap; c++)
       len += (size_t)snprintf(out + len, cap - len, " %s=%.6g", p->columns[c],
