@@ -303,10 +303,15 @@ static void usage(void) {
 }
 
 int main(int argc, char **argv) {
-  if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
+  if (argc < 2) {
     usage();
-    return argc < 2 ? 2 : 0;
+    return 2;
   }
+  for (int i = 1; i < argc; i++) /* `cosim road --help` too */
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+      usage();
+      return 0;
+    }
   proto_err err = {{0}};
   int rc;
   const char *cmd = argv[1];
