@@ -29,6 +29,8 @@ def run(cmd, **kw):
 
 # ------------------------------------------------------------ impact
 def lig_log(path):
+    """The numeric 7-column rows of a LIGGGHTS log (thermo output of both the
+    impact and the bed inputs)."""
     rows = []
     for line in open(path):
         p = line.split()
@@ -63,18 +65,6 @@ def impact():
 
 
 # ------------------------------------------------------------ beds
-def lig_thermo(path):
-    rows = []
-    for line in open(path):
-        p = line.split()
-        if len(p) == 7 and re.match(r"^\d+$", p[0]):
-            try:
-                rows.append([float(v) for v in p])
-            except ValueError:
-                pass
-    return np.array(rows)
-
-
 def bed_stats(x, r):
     """mean z, bed height (98th percentile of grain tops), coordination from
     positions (pairs closer than r_i + r_j), the same code for both."""
@@ -126,7 +116,7 @@ def beds():
                          "proc_cpu": info["cpu"]}
         x, rr = read_dump(dump)
         e["liggghts"].update(bed_stats(x, rr))
-        th = lig_thermo(lig)
+        th = lig_log(lig)
         np.save(os.path.join(WORK, "ke%d_lig.npy" % n), th)
         if n >= 20000:
             r, info = run([os.path.join(BIN, "bench_dem"), data, "1.0", str(nsettle), str(nrun), "2", "5e-5"])
