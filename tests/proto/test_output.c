@@ -1,5 +1,6 @@
 /* test_output.c — HDF5 series/arrays/attributes and the XDMF companion file:
  * writes through proto_h5_* / proto_xdmf_*, reads back with the HDF5 API. */
+#include "check.h"
 #include "proto/proto.h"
 
 #include <hdf5.h>
@@ -7,16 +8,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
-
-static int failures = 0;
-#define CHECK(cond)                                                        \
-  do {                                                                     \
-    if (!(cond)) {                                                         \
-      fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__,     \
-              #cond);                                                      \
-      failures++;                                                          \
-    }                                                                      \
-  } while (0)
 
 static char dir[64];
 
@@ -267,6 +258,5 @@ int main(void) {
     unlink(xpath);
     rmdir(dir);
   }
-  if (failures) fprintf(stderr, "%d check(s) failed\n", failures);
-  return failures ? 1 : 0;
+  CHECK_DONE();
 }
