@@ -92,8 +92,9 @@ typedef struct dem_model {
   double overlap_tolerance;   /* initial overlap allowed, fraction of the smaller radius */
   double max_overlap_ratio;   /* overlap/radius that stops a run as unstable */
   int unsafe_dt;         /* skip the stability refusal (stress tests only) */
-  int threads;           /* OpenMP threads, 0 = runtime default */
+  int threads;           /* OpenMP threads, 0 = "auto" (dem_threads.c) */
   int has_rolling;
+  int orientation;       /* "orientation": integrate q (spheres need it only for output) */
   int n_grains;
   double *x0, *v0, *omega0, *radius; /* [n*3], [n*3], [n*3], [n] */
   int32_t *material;                 /* [n] */
@@ -107,7 +108,8 @@ typedef struct dem_state {
   int64_t step;
   double t;
   /* per grain (slot order, see id) */
-  double *x, *v, *omega, *q; /* q: quaternion [n*4] (w, x, y, z), body→world */
+  double *x, *v, *omega, *q; /* q: quaternion [n*4] (w, x, y, z), body→world; identity
+                              * unless the model's `orientation` is on */
   double *force, *torque;    /* contact forces/torques (gravity enters the kick as g) */
   double *radius, *inv_mass, *inv_inertia;
   int32_t *material, *id;
@@ -121,6 +123,8 @@ typedef struct dem_state {
   double max_overlap_ratio;/* max overlap / radius */
   double *wall_force;      /* [n_walls*3] force ON each wall, N */
   int64_t rebuilds;
+  int threads;             /* OpenMP threads in use (may change in "auto" mode) */
+  char threads_why[256];   /* how that number was chosen, for the log */
   struct dem_work *work;
 } dem_state;
 

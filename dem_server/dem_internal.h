@@ -5,6 +5,7 @@
 
 #include "dem_server/dem.h"
 #include <math.h>
+#include <omp.h>
 
 /* Binary bounding-volume tree over a mesh's triangles (seed 000 §4.2). Nodes in
  * pre-order (children after parents) so a refit is one reverse sweep. */
@@ -15,34 +16,57 @@ typedef struct dem_bvh {
   double area_built;    /* sum of box surface areas right after the build */
 } dem_bvh;
 
+/* Grains per chunk: the fixed partition of the slots that the force sums
+ * follow (dem_force.c), so results do not depend on the number of threads. */
+#define DEM_CHUNK 512
+#define DEM_MAX_THREADS 64
+
+/* Per-chunk totals of a force evaluation, one cache line each. */
+typedef struct dem_chunk_sum {
+  double u, ke, ratio;
+  int64_t pair_contacts, wall_contacts, mesh_contacts;
+  char pad[16];
+} dem_chunk_sum;
+
 /* Contact features of a sphere–triangle contact (seed 000 fig. 10). */
-#define DEM_CHUNK 512 /* grains per chunk of deterministic partial sums */
 
 enum { DEM_FEAT_VERTEX = 1, DEM_FEAT_EDGE = 2, DEM_FEAT_FACE = 3 };
 
+/* Load measurement of "threads": "auto" (dem_threads.c). */
+typedef struct dem_thread_probe {
+  int on, cores, reserved, cap, up_votes;
+  double win_t0, busy0, self0, in_step, step_t0;
+} dem_thread_probe;
+
 struct dem_work {
   int nthreads;
-  /* half neighbour list in CSR by slot (j > i), with per-pair history and the
-   * per-pair results that the deterministic gather sums */
+  dem_thread_probe probe;
+  /* half neighbour list in CSR by slot (j > i, ascending), with per-pair
+   * history and the shares that cross into a later chunk (dem_force.c) */
   int *nl_start, *nl_j;
-  double *nl_shear, *pair_roll; /* [cap*3]: spring, rolling torque on i */
-  /* [cap*6] per touching pair: F on i, then (r_j − δ/2) n × F_t (the torque on
-   * j is minus that); stale for open pairs, which the gather skips by pair_touch */
+  double *nl_shear, *pair_roll; /* [cap*3]: spring, rolling torque on i (crossing pairs) */
+  /* [cap*6] per touching pair crossing into a later chunk: F on i, then
+   * (r_j − δ/2) n × F_t (the torque on j is minus that) */
   double *pair_ft;
   uint8_t *pair_touch; /* [cap] 1 = pair touched at the last force evaluation (or
                         * may hold a spring after a rebuild): open pairs whose flag
                         * is 0 have a zero spring, so neither gather nor reset reads them */
-  double *pair_u;                                 /* [n] elastic energy of i's own pairs */
-  int cap;
-  int *old_start, *old_j;
+  size_t cap, pair_cap; /* capacity of nl_j/nl_shear, of rev_k/pair_ft/pair_touch/pair_roll */
+  int *old_start, *old_j; /* the previous list (swapped with nl_* at a rebuild) */
   double *old_shear;
-  int old_cap, have_old;
-  int *rev_start, *rev_k, *rev_fill; /* pairs in which a slot is the partner j */
+  size_t old_cap;
+  int have_old;
+  int *rev_start, *rev_k, *rev_fill; /* pairs from earlier chunks in which a slot is j */
   int *old_of;                       /* new slot -> old slot during a rebuild */
   double *x_ref;                     /* positions at the last rebuild */
+  void *perm_tmp[DEM_MAX_THREADS];   /* per-thread scratch of the re-sorting */
+  int nchunk;                        /* chunks of DEM_CHUNK slots */
+  int **cbuf, *cbuf_cap;             /* [nchunk] a chunk's new rows during a rebuild */
+  dem_chunk_sum *chunk;              /* [chunks] */
+  int64_t pair_contacts;             /* grain–grain contacts at the last evaluation */
   /* cells */
-  int *cell_start, *cell_of;
-  int cell_cap;
+  int *cell_start, *cell_of, *cell_rank; /* cell_start by Morton rank; rank of each cell */
+  int cell_cap, rank_dim[3];
   double cell_lo[3], cell_size;
   int cell_dim[3];
   /* plane walls: per plane p and slot i */
@@ -50,10 +74,7 @@ struct dem_work {
   uint64_t *plane_mask;        /* [n] planes within r + skin at the last rebuild */
   uint64_t *plane_touch;       /* [n] planes whose spring may be non-zero (touched last time) */
   double *wall_part;           /* [chunks*n_planes*3] per-chunk wall totals */
-  double *ke_part;             /* [chunks] per-chunk kinetic energy */
   double *mass, *inertia;      /* [n] (inertia 0 for non-rotating grains) */
-  double *wall_u;              /* [n] elastic energy in wall contacts */
-  uint8_t *wall_contacts;      /* [n] number of wall contacts of i */
   /* meshes: contact slots per grain (history carried by feature key, or by
    * normal when a contact moves across an edge onto the next triangle) */
   int64_t *mc_key;  /* [n*K], 0 = free */
@@ -62,12 +83,7 @@ struct dem_work {
   double *mc_shear, *mc_normal, *mc_zeta, *mc_force; /* [n*K*3] */
   double *mesh_f, *mesh_t; /* [n*3] force/torque on grain from meshes */
   dem_bvh bvh[DEM_MAX_MESHES];
-  /* scratch for permutations */
-  double *tmp;   /* [n*4] */
-  int64_t *itmp; /* [n*K] */
-  /* per-grain diagnostics */
-  int *pair_contacts; /* [n] */
-  double *ratio;      /* [n] max overlap ratio of i's contacts */
+  double *ratio; /* [n] max overlap ratio of i's contacts (i's own pairs, walls, meshes) */
   /* dem_state_export/import scratch (dem_state_io.c) */
   int64_t io_counters[8];
   double io_scalars[8];
@@ -163,6 +179,10 @@ static inline void dem_rolling(const dem_pair_law *l, double Fn, double rstar,
   for (int k = 0; k < 3; k++) torque_i[k] = s * w_rel[k];
 }
 
+/* dem_threads.c: the thread count ("threads": "auto" follows other load) */
+int dem_threads_init(const dem_model *m, dem_state *s, proto_err *err);
+void dem_threads_begin(dem_state *s);
+void dem_threads_end(dem_state *s);
 /* dem_neigh.c */
 int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_neigh_free(struct dem_work *w);
@@ -177,7 +197,8 @@ void dem_grain_constants(const dem_model *m, dem_state *s, int i, int g);
 int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_mesh_free(const dem_model *m, dem_state *s);
 void dem_mesh_move(const dem_model *m, dem_state *s, double dt);
-void dem_mesh_forces(const dem_model *m, dem_state *s);
+int dem_mesh_grain(const dem_model *m, dem_state *s, int i, double *u);
+void dem_mesh_reactions(const dem_model *m, dem_state *s);
 int dem_bvh_build(dem_bvh *b, const double *x, const int32_t *tri, int n_tri);
 void dem_bvh_refit(dem_bvh *b, const double *x, const int32_t *tri);
 void dem_bvh_free(dem_bvh *b);
@@ -187,10 +208,11 @@ void dem_bvh_update(dem_bvh *b, const double *x, const int32_t *tri, int n_tri);
 void dem_closest_on_triangle(const double *p, const double *a, const double *b,
                              const double *c, double *q, double *zeta);
 /* dem_force.c */
-/* Contact forces and torques of the current positions. kick != 0 (dem_step):
- * then also the second half of the Verlet step of each grain, chunk by chunk
- * while its forces are in cache: q rotated by ω^{n+1/2} dt, v += dt/2 (F/m + g),
- * ω += dt/2 T/I, and the kinetic energy per chunk into ke_part. */
+/* Contact forces and torques of the current positions, and the summary
+ * (contacts, overlap, elastic energy). kick != 0 (dem_step): then also the
+ * second half of the Verlet step of each grain, chunk by chunk while its
+ * forces are in cache: q rotated by ω^{n+1/2} dt, v += dt/2 (F/m + g),
+ * ω += dt/2 T/I, and the kinetic energy. */
 void dem_compute_forces(const dem_model *m, dem_state *s, int kick);
 
 #endif

@@ -381,7 +381,10 @@ static void find_history(const int64_t *okey, const int8_t *omesh, const double 
   memcpy(shear, &oshear[3 * best], 3 * sizeof(double));
 }
 
-static void grain_mesh(const dem_model *m, dem_state *s, int i, int *ncontacts, double *ratio) {
+/* Mesh contacts of grain i: force and torque into mesh_f/mesh_t, contact
+ * slots (history), its overlap ratio; elastic energy added to *u. Returns
+ * the number of contacts. */
+int dem_mesh_grain(const dem_model *m, dem_state *s, int i, double *u) {
   struct dem_work *w = s->work;
   const int K = DEM_MESH_SLOTS;
   cand c[MAX_CAND];
@@ -436,37 +439,35 @@ static void grain_mesh(const dem_model *m, dem_state *s, int i, int *ncontacts, 
     memcpy(&w->mc_normal[3 * (base + k)], n, sizeof n);
     memcpy(&w->mc_zeta[3 * (base + k)], c[k].zeta, sizeof c[k].zeta);
     memcpy(&w->mc_force[3 * (base + k)], F, sizeof F);
-    w->wall_u[i] += up;
-    if (delta / r > *ratio) *ratio = delta / r;
+    *u += up;
+    if (delta / r > w->ratio[i]) w->ratio[i] = delta / r;
   }
-  *ncontacts += nc;
+  return nc;
 }
 
-/* Mesh forces on every grain (parallel, per grain), then the reactions onto
- * the nodes by ζ (seed 000 eq. 42) in a serial, fixed-order sweep. */
-void dem_mesh_forces(const dem_model *m, dem_state *s) {
-  if (m->n_meshes == 0) return;
+/* The reactions onto the nodes by ζ (seed 000 eq. 42) and the force on each
+ * mesh wall: a serial sweep in slot order over the chunks that have mesh
+ * contacts (dem_force.c counts them per chunk). */
+void dem_mesh_reactions(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
-#pragma omp parallel for schedule(dynamic, 128) num_threads(w->nthreads)
-  for (int i = 0; i < s->n; i++) {
-    int nc = 0;
-    grain_mesh(m, s, i, &nc, &w->ratio[i]);
-    w->wall_contacts[i] = (uint8_t)(w->wall_contacts[i] + nc);
-  }
   for (int mi = 0; mi < m->n_meshes; mi++)
     memset(s->mesh_force[mi], 0, sizeof(double) * 3 * (size_t)m->meshes[mi].n_nodes);
-  const int K = DEM_MESH_SLOTS;
-  for (int i = 0; i < s->n; i++)
-    for (int k = 0; k < K; k++) {
-      size_t sl = (size_t)i * K + k;
-      if (w->mc_key[sl] == 0) continue;
-      int mi = w->mc_mesh[sl];
-      const int32_t *tn = &m->meshes[mi].tri[3 * w->mc_tri[sl]];
-      double *nf = s->mesh_force[mi];
-      const double *F = &w->mc_force[3 * sl], *z = &w->mc_zeta[3 * sl];
-      for (int a = 0; a < 3; a++)
-        for (int d = 0; d < 3; d++) nf[3 * tn[a] + d] -= z[a] * F[d];
-      double *wf = &s->wall_force[3 * m->meshes[mi].wall];
-      for (int d = 0; d < 3; d++) wf[d] -= F[d];
-    }
+  const int K = DEM_MESH_SLOTS, nchunk = (s->n + DEM_CHUNK - 1) / DEM_CHUNK;
+  for (int c = 0; c < nchunk; c++) {
+    if (w->chunk[c].mesh_contacts == 0) continue;
+    const int end = (c + 1) * DEM_CHUNK < s->n ? (c + 1) * DEM_CHUNK : s->n;
+    for (int i = c * DEM_CHUNK; i < end; i++)
+      for (int k = 0; k < K; k++) {
+        size_t sl = (size_t)i * K + k;
+        if (w->mc_key[sl] == 0) continue;
+        int mi = w->mc_mesh[sl];
+        const int32_t *tn = &m->meshes[mi].tri[3 * w->mc_tri[sl]];
+        double *nf = s->mesh_force[mi];
+        const double *F = &w->mc_force[3 * sl], *z = &w->mc_zeta[3 * sl];
+        for (int a = 0; a < 3; a++)
+          for (int d = 0; d < 3; d++) nf[3 * tn[a] + d] -= z[a] * F[d];
+        double *wf = &s->wall_force[3 * m->meshes[mi].wall];
+        for (int d = 0; d < 3; d++) wf[d] -= F[d];
+      }
+  }
 }

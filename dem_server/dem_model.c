@@ -263,6 +263,20 @@ static int read_wall(dem_model *m, proto_cfg *c, int i, void *ctx) {
   return proto_cfg_end(c);
 }
 
+/* "threads": "auto" (or 0), or a count >= 1. */
+static int read_threads(proto_cfg *c, int64_t *out) {
+  const cJSON *t = proto_cfg_raw(c, "threads", PROTO_OPTIONAL);
+  if (!t) return 0;
+  if (cJSON_IsString(t) && !strcmp(t->valuestring, "auto")) return 0;
+  if (cJSON_IsNumber(t) && t->valuedouble >= 0 && t->valuedouble <= 1024 && t->valuedouble == floor(t->valuedouble)) {
+    *out = (int64_t)t->valuedouble;
+    return 0;
+  }
+  char p[320];
+  proto_cfg_subpath(c, "threads", -1, p, sizeof p);
+  return proto_fail(c->err, "%s: expected \"auto\" or a number of threads in [0, 1024] (0 = auto)", p);
+}
+
 int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, proto_err *err) {
   memset(m, 0, sizeof *m);
   snprintf(m->key_path, sizeof m->key_path, "%s", path);
@@ -284,7 +298,7 @@ int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, pr
       if (m->law[a][b].mu_roll > 0) m->has_rolling = 1;
     }
   int64_t threads = 0, surf = 0;
-  int unsafe = 0;
+  int unsafe = 0, orientation = 0;
   m->overlap_tolerance = 0.01;
   m->max_overlap_ratio = 0.5;
   ex->dt_fraction = 0.1;
@@ -295,14 +309,16 @@ int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, pr
       proto_cfg_num(&c, "skin", PROTO_OPTIONAL, 0.0, 1.0, &ex->skin) ||
       proto_cfg_num(&c, "overlap_tolerance", PROTO_OPTIONAL, 0.0, 1.0, &m->overlap_tolerance) ||
       proto_cfg_num(&c, "max_overlap_ratio", PROTO_OPTIONAL, 1e-6, 1.0, &m->max_overlap_ratio) ||
-      proto_cfg_int(&c, "threads", PROTO_OPTIONAL, 0, 1024, &threads) ||
+      read_threads(&c, &threads) ||
       proto_cfg_int(&c, "surface_material", PROTO_OPTIONAL, 0, m->n_materials - 1, &surf) ||
-      proto_cfg_bool(&c, "unsafe_dt", PROTO_OPTIONAL, &unsafe))
+      proto_cfg_bool(&c, "unsafe_dt", PROTO_OPTIONAL, &unsafe) ||
+      proto_cfg_bool(&c, "orientation", PROTO_OPTIONAL, &orientation))
     goto fail;
   memcpy(m->gravity, g, sizeof g);
   m->threads = (int)threads;
   m->surface_material = (int)surf;
   m->unsafe_dt = unsafe;
+  m->orientation = orientation;
   if (each_object(m, &c, "walls", PROTO_OPTIONAL, read_wall, NULL, err) < 0) goto fail;
   if (read_particles(m, &c, ex, err) || proto_cfg_end(&c)) goto fail;
   if (m->n_grains == 0) {

@@ -3,7 +3,6 @@
  * of eq. 9's Euler angles, which are singular at sin φ2 = 0). */
 #include "dem_server/dem_internal.h"
 
-#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -13,9 +12,7 @@ static int alloc_state(const dem_model *m, dem_state *s, proto_err *err) {
   s->work = calloc(1, sizeof *s->work);
   if (!s->work) return proto_fail(err, "out of memory");
   struct dem_work *w = s->work;
-  /* default: all threads for big scenes; one for small ones, where fork/join
-   * costs more than it saves (and a loaded machine makes it far worse) */
-  w->nthreads = m->threads > 0 ? m->threads : (m->n_grains >= 4096 ? omp_get_max_threads() : 1);
+  if (dem_threads_init(m, s, err)) return -1;
   s->x = malloc(3 * n * sizeof(double));
   s->v = malloc(3 * n * sizeof(double));
   s->omega = malloc(3 * n * sizeof(double));
@@ -33,17 +30,11 @@ static int alloc_state(const dem_model *m, dem_state *s, proto_err *err) {
   w->wall_shear = calloc(np, sizeof(double));
   w->mass = malloc(n * sizeof(double));
   w->inertia = malloc(n * sizeof(double));
-  w->ke_part = calloc(n / DEM_CHUNK + 1, sizeof(double));
+  w->chunk = calloc(n / DEM_CHUNK + 1, sizeof(dem_chunk_sum));
   w->wall_part = calloc(3 * (size_t)(m->n_planes + 1) * (n / DEM_CHUNK + 1), sizeof(double));
-  w->wall_u = calloc(n, sizeof(double));
-  w->wall_contacts = calloc(n, 1);
-  size_t cols = 3 * DEM_MESH_SLOTS > 3 * (size_t)m->n_planes ? 3 * DEM_MESH_SLOTS : 3 * (size_t)m->n_planes;
-  w->tmp = malloc(cols * n * sizeof(double) + 1); /* widest per-grain record permuted */
-  w->itmp = malloc(n * sizeof(int64_t) * DEM_MESH_SLOTS);
   if (!s->x || !s->v || !s->omega || !s->q || !s->force || !s->torque || !s->radius ||
       !s->inv_mass || !s->inv_inertia || !s->material || !s->id || !s->fix_rotation ||
-      !s->wall_force || !w->wall_shear || !w->wall_part || !w->ke_part || !w->mass || !w->inertia || !w->wall_u || !w->wall_contacts ||
-      !w->tmp || !w->itmp)
+      !s->wall_force || !w->wall_shear || !w->wall_part || !w->chunk || !w->mass || !w->inertia)
     return proto_fail(err, "out of memory for %d grains", m->n_grains);
   return 0;
 }
@@ -128,8 +119,8 @@ void dem_state_free(dem_state *s) {
     struct dem_work *w = s->work;
     dem_neigh_free(w);
     dem_mesh_free(NULL, s);
-    free(w->wall_shear); free(w->wall_part); free(w->ke_part); free(w->mass); free(w->inertia); free(w->wall_u); free(w->wall_contacts);
-    free(w->tmp); free(w->itmp); free(w->io_mesh);
+    free(w->wall_shear); free(w->wall_part); free(w->chunk); free(w->mass); free(w->inertia);
+    free(w->io_mesh);
     free(w);
   }
   free(s->x); free(s->v); free(s->omega); free(s->q); free(s->force); free(s->torque);
@@ -176,6 +167,7 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   const double dt = m->dt, half = 0.5 * dt, lim2 = 0.25 * m->skin * m->skin;
   const double *g = m->gravity;
   int rebuild = 0, jumped = 0;
+  dem_threads_begin(s);
 #pragma omp parallel for schedule(dynamic, 512) reduction(| : rebuild, jumped) num_threads(w->nthreads)
   for (int i = 0; i < s->n; i++) {
     double *x = &s->x[3 * i], *v = &s->v[3 * i], *o = &s->omega[3 * i];
@@ -200,10 +192,7 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   }
   if (rebuild && dem_neigh_rebuild(m, s, err)) return -1;
   dem_compute_forces(m, s, 1); /* and the second half kick */
-  const int nchunk = (s->n + DEM_CHUNK - 1) / DEM_CHUNK;
-  double ke = 0;
-  for (int c = 0; c < nchunk; c++) ke += w->ke_part[c];
-  s->kinetic_energy = ke;
+  dem_threads_end(s);
   return check_health(m, s, 0.0, err);
 }
 
@@ -229,9 +218,7 @@ void dem_gather(const dem_state *s, const double *slot_data, int cols, double *o
 
 double dem_coordination(const dem_model *m, const dem_state *s) {
   (void)m;
-  int64_t c = 0;
-  for (int i = 0; i < s->n; i++) c += s->work->pair_contacts[i];
-  return s->n ? 2.0 * (double)c / s->n : 0;
+  return s->n ? 2.0 * (double)s->work->pair_contacts / s->n : 0;
 }
 
 int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain, int64_t max_steps,

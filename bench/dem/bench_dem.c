@@ -84,7 +84,7 @@ int main(int argc, char **argv) {
   }
   m.rayleigh_time = dem_model_rayleigh(&m);
   if (dem_model_set_dt(&m, 0, &err) || dem_state_init(&m, &s, &err)) { fprintf(stderr, "%s\n", err.msg); return 1; }
-  printf("dt = %.4g s = %.4g Rayleigh times\n", m.dt, m.dt / m.rayleigh_time);
+  printf("dt = %.4g s = %.4g Rayleigh times\nthreads: %s\n", m.dt, m.dt / m.rayleigh_time, s.threads_why);
   FILE *ke = argc > 7 && strcmp(argv[7], "-") ? fopen(argv[7], "w") : NULL;
   double t0 = omp_get_wtime(), c0 = cpu_now();
   for (long k = 1; k <= nsettle + nrun; k++) {
@@ -96,7 +96,9 @@ int main(int argc, char **argv) {
       c0 = c1;
       s.rebuilds = 0;
     }
+    const int threads_before = s.threads;
     if (dem_step(&m, &s, &err)) { fprintf(stderr, "%s\n", err.msg); return 1; }
+    if (s.threads != threads_before) printf("step %ld: %s\n", k, s.threads_why);
     if (ke && k % 100 == 0) {
       double ktr = 0, zmax = 0;
       for (int i = 0; i < s.n; i++) {
@@ -114,8 +116,9 @@ int main(int argc, char **argv) {
   for (int i = 0; i < s.n; i++) zsum += s.x[3 * i + 2];
   printf("run %ld steps: %.3f s wall %.3f s cpu  %.3g p-steps/s (wall)  rebuilds %lld\n", nrun, t1 - t0, c1 - c0,
          (double)m.n_grains * nrun / (t1 - t0), (long long)s.rebuilds);
+  printf("threads at the end: %s\n", s.threads_why);
   printf("N %d threads %d KE %.9g contacts %lld coordination %.4f mean_z %.6g maxrss_kb %ld\n",
-         m.n_grains, threads, s.kinetic_energy, (long long)s.contacts, dem_coordination(&m, &s),
+         m.n_grains, s.threads, s.kinetic_energy, (long long)s.contacts, dem_coordination(&m, &s),
          zsum / s.n, ru.ru_maxrss);
   if (ke) fclose(ke);
   if (argc > 8 && dem_bed_save(&m, &s, argv[8], &err)) fprintf(stderr, "%s\n", err.msg);
