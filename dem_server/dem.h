@@ -22,6 +22,10 @@
 #define DEM_MAX_PLANES 64
 #define DEM_MAX_MESHES 8
 #define DEM_MESH_SLOTS 6 /* mesh contacts kept per grain */
+/* "sleep" defaults: at rest below 2 mm/s for 20 ms, 5 cm from moving meshes */
+#define DEM_SLEEP_VELOCITY 2e-3
+#define DEM_SLEEP_TIME 0.02
+#define DEM_SLEEP_DISTANCE 0.05
 
 typedef struct dem_material {
   double density, E, nu, G; /* G = E/(2(1+nu)) unless given */
@@ -30,13 +34,16 @@ typedef struct dem_material {
   double rolling_friction;  /* μ_r of LIGGGHTS `rolling_friction cdt`, 0 = off */
 } dem_material;
 
-/* Per material pair, LIGGGHTS' effective values (notes §1.1). */
+/* Per material pair, LIGGGHTS' effective values (notes §1.1). Restitution,
+ * friction and rolling friction: the mean of the two materials', or the
+ * config's "pairs" entry for that pair (LIGGGHTS' peratomtypepair tables). */
 typedef struct dem_pair_law {
   double Estar; /* Y* = 1/((1-ν1²)/E1 + (1-ν2²)/E2), seed 000 eq. 21 */
   double Gstar; /* 1/(2(2-ν1)(1+ν1)/E1 + 2(2-ν2)(1+ν2)/E2), eq. 26 with G = E/(2(1+ν)) */
   double beta;  /* ln e / sqrt(ln² e + π²) (≤ 0) */
   double mu, mu_roll;
   double damp_n, damp_t; /* −2√(5/6) β √(2Y*), −2√(5/6) β √(8G*): γ = damp·√(√(R*δ) m*) */
+  int clamp;             /* F_n never attractive (LIGGGHTS `limitForce on`): the model's limit_force */
 } dem_pair_law;
 
 typedef enum dem_wall_kind { DEM_WALL_PLANE, DEM_WALL_BOX, DEM_WALL_MESH } dem_wall_kind;
@@ -63,6 +70,16 @@ typedef struct dem_mesh {
   int material, wall;
   int coupled;       /* node positions/velocities set each step (FEM surface) */
 } dem_mesh;
+
+/* "sleep" (dem_sleep.c): a grain slower than `velocity` (also |ω| r) for
+ * `time` and farther than `distance` from every moving mesh's box stops
+ * (not integrated; its contacts with other sleeping grains frozen); it wakes
+ * when a grain faster than `velocity` or a mesh (box within `distance`)
+ * comes to it. */
+typedef struct dem_sleep_config {
+  int on;
+  double velocity, time, distance;
+} dem_sleep_config;
 
 /* Config values kept as given (the derived ones live in dem_model). */
 typedef struct dem_model_config {
@@ -94,7 +111,9 @@ typedef struct dem_model {
   int unsafe_dt;         /* skip the stability refusal (stress tests only) */
   int threads;           /* OpenMP threads, 0 = "auto" (dem_threads.c) */
   int has_rolling;
+  int limit_force;       /* "limit_force": F_n = max(F_n, 0) (damping never pulls) */
   int orientation;       /* "orientation": integrate q (spheres need it only for output) */
+  dem_sleep_config sleep; /* "sleep": grains at rest far from moving meshes stop */
   int n_grains;
   double *x0, *v0, *omega0, *radius; /* [n*3], [n*3], [n*3], [n] */
   int32_t *material;                 /* [n] */
@@ -119,7 +138,9 @@ typedef struct dem_state {
   /* per-step summary */
   double kinetic_energy;   /* translational + rotational, J */
   double elastic_energy;   /* normal Hertz energy stored in contacts, J */
-  int64_t contacts;        /* grain–grain + grain–wall contacts */
+  int64_t contacts;        /* grain–grain + grain–wall contacts (evaluated ones: not those
+                            * between sleeping grains) */
+  int64_t sleeping;        /* grains asleep ("sleep" on) */
   double max_overlap_ratio;/* max overlap / radius */
   double *wall_force;      /* [n_walls*3] force ON each wall, N */
   int64_t rebuilds;

@@ -74,6 +74,37 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
   b->n = q;
 }
 
+/* screen_block with sleeping grains ("sleep" on): pairs of two sleeping
+ * grains are frozen (neither evaluated nor reset); a sleeping grain touched
+ * by an awake one moving faster than the sleep velocity is woken. */
+static void screen_block_sleep(const dem_model *m, const dem_state *s, struct dem_work *w, int i, int k0,
+                               int k1, pair_batch *restrict b) {
+  const double *restrict x = s->x, *restrict rad = s->radius;
+  const uint8_t *restrict sl = w->asleep;
+  const double vs2 = m->sleep.velocity * m->sleep.velocity;
+  const double xi0 = x[3 * i], xi1 = x[3 * i + 1], xi2 = x[3 * i + 2], ri = rad[i];
+  const int si = sl[i];
+  int q = b->n;
+  for (int k = k0; k < k1; k++) {
+    const int j = w->nl_j[k];
+    if (si & sl[j]) continue;
+    const double d0 = xi0 - x[3 * j], d1 = xi1 - x[3 * j + 1], d2 = xi2 - x[3 * j + 2];
+    const double rj = rad[j], rsum = ri + rj;
+    const int touch = d0 * d0 + d1 * d1 + d2 * d2 < rsum * rsum;
+    if ((touch ^ 1) & w->pair_touch[k]) memset(&w->nl_shear[3 * k], 0, 3 * sizeof(double));
+    w->pair_touch[k] = (uint8_t)touch;
+    if (touch && (si | sl[j])) {
+      const int mover = si ? j : i;
+      if (dem_dot(&s->v[3 * mover], &s->v[3 * mover]) > vs2) dem_wake(w, si ? i : j);
+    }
+    b->j[q] = j; b->k[q] = k;
+    b->d[0][q] = d0; b->d[1][q] = d1; b->d[2][q] = d2;
+    b->rj[q] = rj;
+    q += touch;
+  }
+  b->n = q;
+}
+
 /* The rest of the inputs of entries q0.. (all of row i). */
 static void batch_fill(const dem_model *m, const dem_state *s, pair_batch *restrict b, int i, int q0,
                        int one_law) {
@@ -97,7 +128,7 @@ static void batch_fill(const dem_model *m, const dem_state *s, pair_batch *restr
 /* Pair geometry (eq. 10–18) and contact law of a batch, as one branch-free
  * loop the compiler vectorises (IEEE results as in scalar code). */
 __attribute__((target_clones("avx2", "default")))
-static void batch_hertz(pair_batch *restrict b, double dt) {
+static void batch_hertz(pair_batch *restrict b, double dt, int clamp) {
   const int nb = b->n;
   for (int q = 0; q < nb; q++) {
     const double d0 = b->d[0][q], d1 = b->d[1][q], d2 = b->d[2][q];
@@ -117,7 +148,7 @@ static void batch_hertz(pair_batch *restrict b, double dt) {
     const double vc0 = b->dv[0][q] + (n1 * w2 - n2 * w1), vc1 = b->dv[1][q] + (n2 * w0 - n0 * w2),
                  vc2 = b->dv[2][q] + (n0 * w1 - n1 * w0);
     const dem_pair_law l = {.Estar = b->Estar[q], .Gstar = b->Gstar[q], .mu = b->mu[q],
-                            .damp_n = b->damp_n[q], .damp_t = b->damp_t[q]};
+                            .damp_n = b->damp_n[q], .damp_t = b->damp_t[q], .clamp = clamp};
     const double n[3] = {n0, n1, n2}, vc[3] = {vc0, vc1, vc2};
     double sh[3] = {b->sh[0][q], b->sh[1][q], b->sh[2][q]}, F[3], c[3], up;
     const double Fn = dem_hertz(&l, delta, rstar, mstar, n, vc, dt, sh, F, c, &up);
@@ -131,59 +162,77 @@ static void batch_hertz(pair_batch *restrict b, double dt) {
   }
 }
 
-static void row_finish(dem_state *s, const row_sum *r, dem_chunk_sum *sum) {
-  memcpy(&s->force[3 * r->i], r->f, sizeof r->f);
-  memcpy(&s->torque[3 * r->i], r->t, sizeof r->t);
+/* Grain i's own-pair sums become its force and torque (rows run in
+ * descending i, so nothing was added to i yet). */
+static inline void row_finish(dem_state *s, const row_sum *r, dem_chunk_sum *sum) {
+  double *f = &s->force[3 * r->i], *t = &s->torque[3 * r->i];
+  f[0] = r->f[0]; f[1] = r->f[1]; f[2] = r->f[2];
+  t[0] = r->t[0]; t[1] = r->t[1]; t[2] = r->t[2];
   s->work->ratio[r->i] = r->ratio;
   sum->u += r->u;
   sum->pair_contacts += r->cnt;
 }
 
+/* A row without touching pairs (most grains in flight). */
+static inline void row_empty(dem_state *s, int i) {
+  double *f = &s->force[3 * i], *t = &s->torque[3 * i];
+  f[0] = f[1] = f[2] = t[0] = t[1] = t[2] = 0;
+  s->work->ratio[i] = 0;
+}
+
 /* Evaluates the batch and sums it in order: torque on i −(r_i − δ/2) n × F_t,
  * on j −(r_j − δ/2) n × F_t; j's share is added at once when j is in this
  * chunk (j < hi; its own sum is in place: rows run in descending i), else
- * stored for the partner's sweep (gather_chunk). */
+ * stored for the partner's sweep (gather_chunk). The running row sum is in
+ * scalars (a struct on the stack costs store-forwarding stalls). */
 static void batch_flush(const dem_model *m, dem_state *s, pair_batch *b, row_sum *r, int hi,
                         dem_chunk_sum *sum) {
   struct dem_work *w = s->work;
   double *restrict shear = w->nl_shear, *restrict force = s->force, *restrict torque = s->torque;
-  row_sum cur = *r; /* in registers: the stores below cannot alias it */
-  batch_hertz(b, m->dt);
+  double *restrict pft = w->pair_ft;
+  const int rolling = m->has_rolling;
+  int ci = r->i, cnt = r->cnt;
+  double f0 = r->f[0], f1 = r->f[1], f2 = r->f[2], t0 = r->t[0], t1 = r->t[1], t2 = r->t[2];
+  double u = r->u, ratio = r->ratio;
+  batch_hertz(b, m->dt, m->limit_force);
   for (int q = 0; q < b->n; q++) {
     const int i = b->i[q], k = b->k[q], j = b->j[q];
-    if (i != cur.i) {
-      if (cur.i >= 0) row_finish(s, &cur, sum);
-      cur = (row_sum){.i = i};
+    if (i != ci) {
+      if (ci >= 0) row_finish(s, &(row_sum){ci, cnt, {f0, f1, f2}, {t0, t1, t2}, u, ratio}, sum);
+      ci = i;
+      cnt = 0;
+      f0 = f1 = f2 = t0 = t1 = t2 = u = ratio = 0;
     }
-    for (int a = 0; a < 3; a++) {
-      shear[3 * k + a] = b->sh[a][q];
-      cur.f[a] += b->F[a][q];
-      cur.t[a] -= b->ci[a][q];
-    }
+    const double F0 = b->F[0][q], F1 = b->F[1][q], F2 = b->F[2][q];
+    shear[3 * k] = b->sh[0][q]; shear[3 * k + 1] = b->sh[1][q]; shear[3 * k + 2] = b->sh[2][q];
+    f0 += F0; f1 += F1; f2 += F2;
+    t0 -= b->ci[0][q]; t1 -= b->ci[1][q]; t2 -= b->ci[2][q];
     double roll[3] = {0, 0, 0};
-    const int rolls = m->has_rolling && m->law[s->material[i]][s->material[j]].mu_roll > 0;
-    if (rolls) {
-      const double *oi = &s->omega[3 * i], *oj = &s->omega[3 * j];
-      const double wrel[3] = {oi[0] - oj[0], oi[1] - oj[1], oi[2] - oj[2]};
-      dem_rolling(&m->law[s->material[i]][s->material[j]], b->Fn[q], b->rstar[q], wrel, roll);
-      for (int a = 0; a < 3; a++) cur.t[a] += roll[a];
+    int rolls = 0;
+    if (rolling) {
+      const dem_pair_law *l = &m->law[s->material[i]][s->material[j]];
+      if ((rolls = l->mu_roll > 0)) {
+        const double *oi = &s->omega[3 * i], *oj = &s->omega[3 * j];
+        const double wrel[3] = {oi[0] - oj[0], oi[1] - oj[1], oi[2] - oj[2]};
+        dem_rolling(l, b->Fn[q], b->rstar[q], wrel, roll);
+        t0 += roll[0]; t1 += roll[1]; t2 += roll[2];
+      }
     }
     if (j < hi) {
-      for (int a = 0; a < 3; a++) {
-        force[3 * j + a] -= b->F[a][q];
-        torque[3 * j + a] -= b->cj[a][q];
-      }
-      if (rolls)
-        for (int a = 0; a < 3; a++) torque[3 * j + a] -= roll[a];
+      double *fj = &force[3 * j], *tj = &torque[3 * j];
+      fj[0] -= F0; fj[1] -= F1; fj[2] -= F2;
+      tj[0] -= b->cj[0][q]; tj[1] -= b->cj[1][q]; tj[2] -= b->cj[2][q];
+      if (rolls) { tj[0] -= roll[0]; tj[1] -= roll[1]; tj[2] -= roll[2]; }
     } else {
-      for (int a = 0; a < 3; a++) { w->pair_ft[6 * k + a] = b->F[a][q]; w->pair_ft[6 * k + 3 + a] = b->cj[a][q]; }
-      if (m->has_rolling) memcpy(&w->pair_roll[3 * k], roll, sizeof roll);
+      double *p = &pft[6 * k];
+      p[0] = F0; p[1] = F1; p[2] = F2; p[3] = b->cj[0][q]; p[4] = b->cj[1][q]; p[5] = b->cj[2][q];
+      if (rolling) memcpy(&w->pair_roll[3 * k], roll, sizeof roll);
     }
-    cur.u += b->up[q];
-    cur.cnt++;
-    cur.ratio = b->rr[q] > cur.ratio ? b->rr[q] : cur.ratio;
+    u += b->up[q];
+    cnt++;
+    ratio = b->rr[q] > ratio ? b->rr[q] : ratio;
   }
-  *r = cur;
+  *r = (row_sum){ci, cnt, {f0, f1, f2}, {t0, t1, t2}, u, ratio};
   b->n = 0;
 }
 
@@ -207,11 +256,12 @@ static void pair_rows(const dem_model *m, dem_state *s, int lo, int hi, dem_chun
       const int k1 = kend - k0 > DEM_ROW_BLOCK ? k0 + DEM_ROW_BLOCK : kend;
       if (b.n + (k1 - k0) > DEM_BATCH) batch_flush(m, s, &b, &r, hi, sum);
       const int q0 = b.n;
-      screen_block(s, w, i, k0, k1, &b);
+      if (w->asleep) screen_block_sleep(m, s, w, i, k0, k1, &b);
+      else screen_block(s, w, i, k0, k1, &b);
       batch_fill(m, s, &b, i, q0, one_law);
       found += b.n - q0;
     }
-    if (!found) row_finish(s, &(row_sum){.i = i}, sum); /* no share into i is pending */
+    if (!found) row_empty(s, i); /* no share into i is pending */
   }
   batch_flush(m, s, &b, &r, hi, sum);
   if (r.i >= 0) row_finish(s, &r, sum);
@@ -228,7 +278,7 @@ typedef struct wall_batch {
 } wall_batch;
 
 __attribute__((target_clones("avx2", "default")))
-static void batch_wall_hertz(wall_batch *restrict b, double dt) {
+static void batch_wall_hertz(wall_batch *restrict b, double dt, int clamp) {
   const int nb = b->n;
   for (int q = 0; q < nb; q++) {
     const double delta = b->delta[q], r = b->r[q];
@@ -239,7 +289,7 @@ static void batch_wall_hertz(wall_batch *restrict b, double dt) {
     dem_cross(o, n, wxn);
     for (int a = 0; a < 3; a++) vc[a] = b->v[a][q] - cr * wxn[a];
     const dem_pair_law l = {.Estar = b->Estar[q], .Gstar = b->Gstar[q], .mu = b->mu[q],
-                            .damp_n = b->damp_n[q], .damp_t = b->damp_t[q]};
+                            .damp_n = b->damp_n[q], .damp_t = b->damp_t[q], .clamp = clamp};
     double sh[3] = {b->sh[0][q], b->sh[1][q], b->sh[2][q]}, F[3], c[3], up;
     b->Fn[q] = dem_hertz(&l, delta, r, b->mass[q], n, vc, dt, sh, F, c, &up);
     for (int a = 0; a < 3; a++) { b->sh[a][q] = sh[a]; b->F[a][q] = F[a]; b->c[a][q] = c[a]; }
@@ -252,7 +302,7 @@ static void batch_wall_hertz(wall_batch *restrict b, double dt) {
  * pair sums) and to the chunk's plane totals, in batch order. */
 static void wall_flush(const dem_model *m, dem_state *s, wall_batch *b, double *part, dem_chunk_sum *sum) {
   struct dem_work *w = s->work;
-  batch_wall_hertz(b, m->dt);
+  batch_wall_hertz(b, m->dt, m->limit_force);
   for (int q = 0; q < b->n; q++) {
     const int i = b->i[q], p = b->p[q];
     double *f = &s->force[3 * i], *t = &s->torque[3 * i];
@@ -322,7 +372,9 @@ static double kick_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
   if (m->orientation) /* over the step with the mid-step ω (still ω^{n+1/2} here) */
     for (int i = lo; i < hi; i++)
       if (s->inv_inertia[i] > 0) dem_rotate_quaternion(&s->q[4 * i], &s->omega[3 * i], dt);
+  const uint8_t *asleep = w->asleep;
   for (int i = lo; i < hi; i++) {
+    if (asleep && asleep[i]) continue;
     double *v = &s->v[3 * i], *o = &s->omega[3 * i];
     const double *f = &s->force[3 * i], *t = &s->torque[3 * i];
     const double im = s->inv_mass[i], ii = s->inv_inertia[i];
@@ -347,7 +399,9 @@ static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
   b.n = 0;
   if (m->n_materials == 1) /* one law for every contact */
     for (int q = 0; q < DEM_BATCH; q++) wall_law_set(&b, q, &m->law[0][0]);
+  const uint8_t *asleep = w->asleep;
   for (int i = lo; i < hi; i++) {
+    if (asleep && asleep[i]) continue; /* frozen: no forces needed */
     /* shares of pairs (i', i) from earlier chunks, descending i' (reverse
      * index order); open pairs add nothing and are skipped */
     const int q0 = w->rev_start[i], q1 = w->rev_start[i + 1];
@@ -380,6 +434,7 @@ static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
         s->torque[3 * i + a] += w->mesh_t[3 * i + a];
       }
   if (kick) sum->ke = kick_chunk(m, s, lo, hi);
+  if (asleep && kick) dem_sleep_chunk(m, s, (lo / DEM_CHUNK), lo, hi);
 }
 
 void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {
@@ -414,6 +469,11 @@ void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {
     ratio = cs[c].ratio > ratio ? cs[c].ratio : ratio;
   }
   if (m->n_meshes > 0) dem_mesh_reactions(m, s);
+  if (w->asleep) {
+    int64_t awake = 0;
+    for (int c = 0; c < nchunk; c++) awake += w->chunk_awake[c];
+    s->sleeping = n - awake;
+  }
   s->contacts = contacts;
   w->pair_contacts = pairs;
   s->max_overlap_ratio = ratio;

@@ -20,6 +20,7 @@ typedef struct dem_bvh {
  * follow (dem_force.c), so results do not depend on the number of threads. */
 #define DEM_CHUNK 512
 #define DEM_MAX_THREADS 64
+#define DEM_TRI_BITS 24 /* triangles per mesh < 2^24 (candidate keys) */
 
 /* Per-chunk totals of a force evaluation, one cache line each. */
 typedef struct dem_chunk_sum {
@@ -83,7 +84,19 @@ struct dem_work {
   double *mc_shear, *mc_normal, *mc_zeta, *mc_force; /* [n*K*3] */
   double *mesh_f, *mesh_t; /* [n*3] force/torque on grain from meshes */
   dem_bvh bvh[DEM_MAX_MESHES];
+  /* mesh contact candidates per slot (CSR): key mesh << DEM_TRI_BITS | triangle */
+  int *ml_start;
+  int32_t *ml_key;
+  size_t ml_cap;
+  int32_t **ml_cbuf;
+  int *ml_cbuf_cap;               /* [nchunk] a chunk's lists during a build */
+  double *mesh_xref[DEM_MAX_MESHES]; /* node positions when the lists were built */
   double *ratio; /* [n] max overlap ratio of i's contacts (i's own pairs, walls, meshes) */
+  /* sleeping grains (dem_sleep.c) */
+  uint8_t *asleep, *wake; /* [n] asleep; woken by a moving partner this step */
+  int32_t *rest;          /* [n] steps at rest */
+  int *chunk_awake;       /* [nchunk] awake grains per chunk */
+  uint8_t mesh_moving[DEM_MAX_MESHES];
   /* dem_state_export/import scratch (dem_state_io.c) */
   int64_t io_counters[8];
   double io_scalars[8];
@@ -123,7 +136,8 @@ static inline __attribute__((always_inline)) double dem_hertz(const dem_pair_law
   const double q = sqrt(sqrt_rd * mstar);
   const double gamman = l->damp_n * q, gammat = l->damp_t * q;
   const double vn = dem_dot(vc, n);
-  const double Fn = kn * delta - gamman * vn; /* eq. 22: damping opposes vn */
+  const double Fn0 = kn * delta - gamman * vn; /* eq. 22: damping opposes vn */
+  const double Fn = l->clamp && Fn0 < 0 ? 0.0 : Fn0; /* "limit_force": never attractive */
   *u = 0.4 * kn * delta * delta;
   const double vt[3] = {vc[0] - vn * n[0], vc[1] - vn * n[1], vc[2] - vn * n[2]};
   for (int k = 0; k < 3; k++) shear[k] += vt[k] * dt; /* eq. 20 */
@@ -183,6 +197,15 @@ static inline void dem_rolling(const dem_pair_law *l, double Fn, double rstar,
 int dem_threads_init(const dem_model *m, dem_state *s, proto_err *err);
 void dem_threads_begin(dem_state *s);
 void dem_threads_end(dem_state *s);
+/* dem_sleep.c */
+int dem_sleep_alloc(const dem_model *m, dem_state *s, proto_err *err);
+void dem_sleep_free(struct dem_work *w);
+/* After the kick of grains lo..hi−1 (chunk c): wake the woken and those a
+ * moving mesh approaches, put to sleep those at rest long enough; counts. */
+void dem_sleep_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi);
+void dem_sleep_count(const dem_model *m, dem_state *s);
+/* A sleeping grain touched by a grain moving faster than the threshold. */
+static inline void dem_wake(struct dem_work *w, int i) { __atomic_store_n(&w->wake[i], 1, __ATOMIC_RELAXED); }
 /* dem_neigh.c */
 int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_neigh_free(struct dem_work *w);
@@ -197,6 +220,9 @@ void dem_grain_constants(const dem_model *m, dem_state *s, int i, int g);
 int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_mesh_free(const dem_model *m, dem_state *s);
 void dem_mesh_move(const dem_model *m, dem_state *s, double dt);
+/* Candidate lists: build; rebuild if a node moved more than skin/2 since. */
+int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err);
+int dem_mesh_lists_check(const dem_model *m, dem_state *s, proto_err *err);
 int dem_mesh_grain(const dem_model *m, dem_state *s, int i, double *u);
 void dem_mesh_reactions(const dem_model *m, dem_state *s);
 int dem_bvh_build(dem_bvh *b, const double *x, const int32_t *tri, int n_tri);

@@ -12,7 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define PERM_MAX_TASKS (16 + DEM_MAX_PLANES)
+#define PERM_MAX_TASKS (20 + DEM_MAX_PLANES)
 #define PERM_MAX_REC (3 * DEM_MESH_SLOTS * sizeof(double))
 
 /* realloc that keeps the old block on failure */
@@ -126,6 +126,10 @@ static int perm_tasks(const dem_model *m, dem_state *s, perm_task *t) {
   t[c++] = (perm_task){s->material, sizeof(int32_t)};
   t[c++] = (perm_task){s->id, sizeof(int32_t)};
   t[c++] = (perm_task){s->fix_rotation, 1};
+  if (m->sleep.on) {
+    t[c++] = (perm_task){w->asleep, 1};
+    t[c++] = (perm_task){w->rest, sizeof(int32_t)};
+  }
   for (int p = 0; p < m->n_planes; p++) t[c++] = (perm_task){dem_wall_shear(w, s->n, 0, p), 3 * d};
   if (m->n_meshes > 0) {
     t[c++] = (perm_task){w->mc_key, K * sizeof(int64_t)};
@@ -244,54 +248,96 @@ static void sort_by_cell(dem_state *s, int ncell) {
   w->cell_start[0] = 0;
 }
 
-/* The candidate partners j > i of slot i within reach (r_i + r_j + skin),
- * appended to out (room for `room`), in increasing j; returns their count or
- * −1 when out is too small. */
-static int list_row(const dem_model *m, const dem_state *s, int i, int *restrict out, int room) {
-  const struct dem_work *w = s->work;
-  const double *restrict x = s->x, *restrict rad = s->radius;
-  const double xi0 = x[3 * i], xi1 = x[3 * i + 1], xi2 = x[3 * i + 2], ri = rad[i] + m->skin;
-  int c[3], cnt = 0;
-  c[0] = cell_coord(w, xi0, 0); c[1] = cell_coord(w, xi1, 1); c[2] = cell_coord(w, xi2, 2);
-  for (int z = c[2] > 0 ? c[2] - 1 : 0; z <= c[2] + 1 && z < w->cell_dim[2]; z++)
-    for (int y = c[1] > 0 ? c[1] - 1 : 0; y <= c[1] + 1 && y < w->cell_dim[1]; y++)
-      for (int xx = c[0] > 0 ? c[0] - 1 : 0; xx <= c[0] + 1 && xx < w->cell_dim[0]; xx++) {
-        const int r = w->cell_rank[cell_index(w, xx, y, z)];
-        int j0 = w->cell_start[r];
-        const int j1 = w->cell_start[r + 1];
-        if (j0 <= i) j0 = i + 1; /* earlier slots (a cell before i's in Morton order): none */
-        if (cnt + (j1 - j0) > room) return -1;
-        for (int j = j0; j < j1; j++) { /* branch-free: write, count the hits */
-          const double d0 = x[3 * j] - xi0, d1 = x[3 * j + 1] - xi1, d2 = x[3 * j + 2] - xi2;
-          const double cut = ri + rad[j];
-          out[cnt] = j;
-          cnt += d0 * d0 + d1 * d1 + d2 * d2 < cut * cut;
-        }
+/* Candidates of one cell: the slots of its neighbour cells that come at or
+ * after it in Morton order (earlier cells hold only smaller slots), in
+ * increasing slot order, with positions and radii as structure of arrays so
+ * that the distance tests of each row vectorise. */
+typedef struct cand_set {
+  int n, cap;
+  int *j;
+  double *x, *y, *z, *r;
+  uint8_t *hit;
+} cand_set;
+
+static void cand_bind(cand_set *c, void *mem, int n) {
+  /* mem: PERM_MAX_REC * n bytes (the thread's re-sorting scratch, idle now) */
+  c->n = 0;
+  c->cap = n;
+  c->x = mem;
+  c->y = c->x + n;
+  c->z = c->y + n;
+  c->r = c->z + n;
+  c->j = (int *)(c->r + n);
+  c->hit = (uint8_t *)(c->j + n);
+}
+
+static void cell_candidates(const struct dem_work *w, const dem_state *s, int rank, const int *cc, cand_set *c) {
+  int lo[27], hi[27], nr = 0;
+  for (int z = cc[2] > 0 ? cc[2] - 1 : 0; z <= cc[2] + 1 && z < w->cell_dim[2]; z++)
+    for (int y = cc[1] > 0 ? cc[1] - 1 : 0; y <= cc[1] + 1 && y < w->cell_dim[1]; y++)
+      for (int x = cc[0] > 0 ? cc[0] - 1 : 0; x <= cc[0] + 1 && x < w->cell_dim[0]; x++) {
+        const int r = w->cell_rank[cell_index(w, x, y, z)];
+        if (r < rank || w->cell_start[r] == w->cell_start[r + 1]) continue;
+        int q = nr++; /* ranges in increasing start (insertion; disjoint) */
+        for (; q > 0 && lo[q - 1] > w->cell_start[r]; q--) { lo[q] = lo[q - 1]; hi[q] = hi[q - 1]; }
+        lo[q] = w->cell_start[r];
+        hi[q] = w->cell_start[r + 1];
       }
-  for (int a = 1; a < cnt; a++) { /* increasing j (rows are short) */
-    const int v = out[a];
-    int q = a;
-    for (; q > 0 && out[q - 1] > v; q--) out[q] = out[q - 1];
-    out[q] = v;
+  c->n = 0;
+  for (int q = 0; q < nr; q++)
+    for (int j = lo[q]; j < hi[q]; j++) {
+      const int k = c->n++;
+      c->j[k] = j;
+      c->x[k] = s->x[3 * j]; c->y[k] = s->x[3 * j + 1]; c->z[k] = s->x[3 * j + 2];
+      c->r[k] = s->radius[j];
+    }
+}
+
+/* Partners j > i of slot i within reach (r_i + r_j + skin) among the cell's
+ * candidates, into out in increasing j; returns the count, −1 if out is
+ * shorter than the candidates. */
+static int list_row(const dem_model *m, const dem_state *s, int i, cand_set *restrict c, int *restrict out,
+                    int room) {
+  const double xi0 = s->x[3 * i], xi1 = s->x[3 * i + 1], xi2 = s->x[3 * i + 2], ri = s->radius[i] + m->skin;
+  int q0 = 0;
+  while (q0 < c->n && c->j[q0] <= i) q0++;
+  if (c->n - q0 > room) return -1;
+  const double *restrict cx = c->x, *restrict cy = c->y, *restrict cz = c->z, *restrict cr = c->r;
+  uint8_t *restrict hit = c->hit;
+  for (int q = q0; q < c->n; q++) { /* vectorised */
+    const double d0 = cx[q] - xi0, d1 = cy[q] - xi1, d2 = cz[q] - xi2, cut = ri + cr[q];
+    hit[q] = d0 * d0 + d1 * d1 + d2 * d2 < cut * cut;
+  }
+  int cnt = 0;
+  for (int q = q0; q < c->n; q++) {
+    out[cnt] = c->j[q];
+    cnt += hit[q];
   }
   return cnt;
 }
 
 /* Rows lo..hi−1 into the chunk's buffer (grown if needed: rare, at the
  * first rebuilds); row lengths into nl_start[i + 1]. */
-static int list_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi) {
+static int list_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi, void *scratch) {
   struct dem_work *w = s->work;
-  const int row_room = 27 * 64; /* any row fits once the buffer has this much free */
-  int used = 0;
+  cand_set cs;
+  cand_bind(&cs, scratch, s->n);
+  int used = 0, rank = w->cell_of[w->old_of[lo]]; /* cell_of: rank by old slot */
   for (int i = lo; i < hi; i++) {
+    if (i == lo || i >= w->cell_start[rank + 1]) { /* a new cell: its candidates */
+      while (i >= w->cell_start[rank + 1]) rank++;
+      int cc[3];
+      for (int k = 0; k < 3; k++) cc[k] = cell_coord(w, s->x[3 * i + k], k);
+      cell_candidates(w, s, rank, cc, &cs);
+    }
     for (;;) {
-      int room = w->cbuf_cap[c] - used, got = room > 0 ? list_row(m, s, i, w->cbuf[c] + used, room) : -1;
+      int room = w->cbuf_cap[c] - used, got = list_row(m, s, i, &cs, w->cbuf[c] + used, room);
       if (got >= 0) {
         w->nl_start[i + 1] = got;
         used += got;
         break;
       }
-      const int cap = 2 * w->cbuf_cap[c] + row_room + (hi - lo) * 8;
+      const int cap = 2 * w->cbuf_cap[c] + cs.n + (hi - lo) * 8;
       int *nb = realloc(w->cbuf[c], sizeof(int) * (size_t)cap);
       if (!nb) return -1;
       w->cbuf[c] = nb;
@@ -356,7 +402,8 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
   int oom = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads) reduction(| : oom)
   for (int c = 0; c < nchunk; c++)
-    oom |= list_chunk(m, s, c, c * DEM_CHUNK, (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n) != 0;
+    oom |= list_chunk(m, s, c, c * DEM_CHUNK, (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n,
+                      w->perm_tmp[omp_get_thread_num()]) != 0;
   if (oom) return proto_fail(err, "out of memory for the neighbour list of %d grains", n);
   w->nl_start[0] = 0;
   for (int i = 0; i < n; i++) w->nl_start[i + 1] += w->nl_start[i];
@@ -396,6 +443,7 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
   }
   w->have_old = 1;
   dem_neigh_reverse(s);
+  dem_sleep_count(m, s); /* chunks hold other grains now */
   s->rebuilds++;
-  return 0;
+  return m->n_meshes > 0 ? dem_mesh_lists(m, s, err) : 0;
 }

@@ -99,7 +99,8 @@ int dem_state_init(const dem_model *m, dem_state *s, proto_err *err) {
     dem_grain_constants(m, s, i, i);
     if (m->fix_rotation[i]) memset(&s->omega[3 * i], 0, 3 * sizeof(double));
   }
-  if (dem_neigh_alloc(m, s, err) || dem_mesh_alloc(m, s, err) || dem_neigh_rebuild(m, s, err) ||
+  if (dem_neigh_alloc(m, s, err) || dem_mesh_alloc(m, s, err) || dem_sleep_alloc(m, s, err) ||
+      dem_neigh_rebuild(m, s, err) ||
       check_initial(m, s, err))
     goto fail;
   dem_compute_forces(m, s, 0);
@@ -119,6 +120,7 @@ void dem_state_free(dem_state *s) {
     struct dem_work *w = s->work;
     dem_neigh_free(w);
     dem_mesh_free(NULL, s);
+    dem_sleep_free(w);
     free(w->wall_shear); free(w->wall_part); free(w->chunk); free(w->mass); free(w->inertia);
     free(w->io_mesh);
     free(w);
@@ -168,20 +170,27 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   const double *g = m->gravity;
   int rebuild = 0, jumped = 0;
   dem_threads_begin(s);
-#pragma omp parallel for schedule(dynamic, 512) reduction(| : rebuild, jumped) num_threads(w->nthreads)
-  for (int i = 0; i < s->n; i++) {
-    double *x = &s->x[3 * i], *v = &s->v[3 * i], *o = &s->omega[3 * i];
-    const double *f = &s->force[3 * i], *t = &s->torque[3 * i], *xr = &w->x_ref[3 * i];
-    const double im = s->inv_mass[i], ii = s->inv_inertia[i], r = s->radius[i];
-    double d2 = 0;
-    for (int a = 0; a < 3; a++) {
-      v[a] += half * (f[a] * im + g[a]);
-      o[a] += half * t[a] * ii;
-      x[a] += dt * v[a];
-      d2 += (x[a] - xr[a]) * (x[a] - xr[a]);
+  const uint8_t *asleep = w->asleep; /* NULL unless "sleep" is on */
+  const int n = s->n;
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : rebuild, jumped) num_threads(w->nthreads)
+  for (int c = 0; c < w->nchunk; c++) {
+    if (asleep && w->chunk_awake[c] == 0) continue;
+    const int hi = (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n;
+    for (int i = c * DEM_CHUNK; i < hi; i++) {
+      if (asleep && asleep[i]) continue;
+      double *x = &s->x[3 * i], *v = &s->v[3 * i], *o = &s->omega[3 * i];
+      const double *f = &s->force[3 * i], *t = &s->torque[3 * i], *xr = &w->x_ref[3 * i];
+      const double im = s->inv_mass[i], ii = s->inv_inertia[i], r = s->radius[i];
+      double d2 = 0;
+      for (int a = 0; a < 3; a++) {
+        v[a] += half * (f[a] * im + g[a]);
+        o[a] += half * t[a] * ii;
+        x[a] += dt * v[a];
+        d2 += (x[a] - xr[a]) * (x[a] - xr[a]);
+      }
+      rebuild |= d2 > lim2;
+      jumped |= !(dem_dot(v, v) * dt * dt <= r * r); /* moved more than its radius, or NaN */
     }
-    rebuild |= d2 > lim2;
-    jumped |= !(dem_dot(v, v) * dt * dt <= r * r); /* moved more than its radius, or NaN */
   }
   dem_mesh_move(m, s, dt);
   s->t += dt;
@@ -190,7 +199,7 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
     s->kinetic_energy = NAN;
     return check_health(m, s, 2.0, err);
   }
-  if (rebuild && dem_neigh_rebuild(m, s, err)) return -1;
+  if (rebuild ? dem_neigh_rebuild(m, s, err) : (m->n_meshes > 0 && dem_mesh_lists_check(m, s, err))) return -1;
   dem_compute_forces(m, s, 1); /* and the second half kick */
   dem_threads_end(s);
   return check_health(m, s, 0.0, err);
@@ -207,8 +216,7 @@ void dem_mesh_set_nodes(const dem_model *m, dem_state *s, int mesh, const double
                         const double *v) {
   const dem_mesh *me = &m->meshes[mesh];
   memcpy(s->mesh_x[mesh], x, sizeof(double) * 3 * (size_t)me->n_nodes);
-  memcpy(s->mesh_v[mesh], v, sizeof(double) * 3 * (size_t)me->n_nodes);
-  dem_bvh_update(&s->work->bvh[mesh], s->mesh_x[mesh], me->tri, me->n_tri);
+  memcpy(s->mesh_v[mesh], v, sizeof(double) * 3 * (size_t)me->n_nodes); /* lists: checked at the next step */
 }
 
 void dem_gather(const dem_state *s, const double *slot_data, int cols, double *out) {

@@ -17,7 +17,7 @@
 _Static_assert(sizeof(int) == 4, "neighbour-list indices travel as i4");
 
 #define IO_FORMAT 1 /* bump when the set or meaning of the arrays changes */
-enum { IO_C_FORMAT, IO_C_MODEL, IO_C_STEP, IO_C_REBUILDS, IO_C_CONTACTS, IO_NCOUNTERS };
+enum { IO_C_FORMAT, IO_C_MODEL, IO_C_STEP, IO_C_REBUILDS, IO_C_CONTACTS, IO_C_SLEEPING, IO_NCOUNTERS };
 enum { IO_S_T, IO_S_KE, IO_S_ELASTIC, IO_S_OVERLAP, IO_NSCALARS };
 #define IO_MAX 32 /* the arrays of one export (PROTO_MAX_ARRAYS) */
 
@@ -84,6 +84,10 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
     add(e, &c, "state.mesh_v", PROTO_F8, w->io_mesh + 3 * nodes, 2, nodes, 3, 0);
     add(e, &c, "state.mesh_force", PROTO_F8, w->io_mesh + 6 * nodes, 2, nodes, 3, 0);
   }
+  if (m->sleep.on) {
+    add(e, &c, "state.asleep", PROTO_U1, w->asleep, 1, n, 0, 0);
+    add(e, &c, "state.rest", PROTO_I4, w->rest, 1, n, 0, 0);
+  }
   return c;
 }
 
@@ -121,6 +125,7 @@ static int64_t model_fingerprint(const dem_model *m) {
     h = fnv(h, &me->material, sizeof me->material);
   }
   h = fnv(h, &m->skin, sizeof m->skin);
+  h = fnv(h, &m->sleep.on, sizeof m->sleep.on); /* the set of arrays */
   return (int64_t)h;
 }
 
@@ -141,6 +146,7 @@ int dem_state_export(const dem_model *m, const dem_state *cs, proto_msg *out, pr
   w->io_counters[IO_C_STEP] = s->step;
   w->io_counters[IO_C_REBUILDS] = s->rebuilds;
   w->io_counters[IO_C_CONTACTS] = s->contacts;
+  w->io_counters[IO_C_SLEEPING] = s->sleeping;
   w->io_scalars[IO_S_T] = s->t;
   w->io_scalars[IO_S_KE] = s->kinetic_energy;
   w->io_scalars[IO_S_ELASTIC] = s->elastic_energy;
@@ -181,7 +187,8 @@ static int check_contents(const dem_model *m, dem_state *s, const void *const *s
                           int ne, proto_err *err) {
   const int n = s->n;
   const int32_t *id = NULL, *start = NULL, *nj = NULL;
-  const uint8_t *touch = NULL, *mesh = NULL;
+  const uint8_t *touch = NULL, *mesh = NULL, *asleep = NULL;
+  const int32_t *rest = NULL;
   const int64_t *key = NULL, *mask = NULL, *ptouch = NULL, *cnt = NULL;
   int64_t npairs = 0;
   for (int k = 0; k < ne; k++) {
@@ -195,6 +202,8 @@ static int check_contents(const dem_model *m, dem_state *s, const void *const *s
     else if (!strcmp(nm, "state.plane_mask")) mask = src[k];
     else if (!strcmp(nm, "state.plane_touch")) ptouch = src[k];
     else if (!strcmp(nm, "state.counters")) cnt = src[k];
+    else if (!strcmp(nm, "state.asleep")) asleep = src[k];
+    else if (!strcmp(nm, "state.rest")) rest = src[k];
   }
   int *seen = s->work->old_of; /* scratch outside a rebuild */
   memset(seen, 0, sizeof(int) * (size_t)n);
@@ -224,6 +233,10 @@ static int check_contents(const dem_model *m, dem_state *s, const void *const *s
     if (key[k] != 0 && mesh[k] >= m->n_meshes)
       return proto_fail(err, "state import: 'state.mc_mesh'[%lld] = %d, only %d meshes", (long long)k,
                         (int)mesh[k], m->n_meshes);
+  for (int i = 0; asleep && i < n; i++)
+    if (asleep[i] > 1 || rest[i] < 0)
+      return proto_fail(err, "state import: 'state.asleep'/'state.rest'[%d] = %d/%d (expected 0/1, >= 0)", i,
+                        (int)asleep[i], (int)rest[i]);
   if (cnt[IO_C_STEP] < 0 || cnt[IO_C_REBUILDS] < 0)
     return proto_fail(err, "state import: 'state.counters' has a negative step or rebuild count");
   return 0;
@@ -270,14 +283,18 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   s->step = cnt[IO_C_STEP];
   s->rebuilds = cnt[IO_C_REBUILDS];
   s->contacts = cnt[IO_C_CONTACTS];
+  s->sleeping = cnt[IO_C_SLEEPING];
   s->t = w->io_scalars[IO_S_T];
   s->kinetic_energy = w->io_scalars[IO_S_KE];
   s->elastic_energy = w->io_scalars[IO_S_ELASTIC];
   s->max_overlap_ratio = w->io_scalars[IO_S_OVERLAP];
   /* what follows from the slot order: the grains' constants and the reverse
-   * pair index; the meshes' BVH (contact order does not depend on its shape) */
+   * pair index; the meshes' BVH and candidate lists (the contacts and their
+   * order do not depend on them) */
   for (int i = 0; i < n; i++) dem_grain_constants(m, s, i, s->id[i]);
   dem_neigh_reverse(s);
+  dem_sleep_count(m, s);
+  if (w->wake) memset(w->wake, 0, (size_t)n);
   w->have_old = 1;
   const int64_t nodes = total_nodes(m);
   int64_t off = 0;
@@ -291,5 +308,5 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
     if (dem_bvh_build(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri))
       return proto_fail(err, "state import: out of memory for the BVH of mesh %d", mi);
   }
-  return 0;
+  return m->n_meshes > 0 ? dem_mesh_lists(m, s, err) : 0;
 }

@@ -1,6 +1,6 @@
 /* bench_dem — times dem_step on a settling bed read from a LAMMPS/LIGGGHTS data
  * file (the same initial state both codes get) or generated, single scene.
- * usage: bench_dem DATA|BED.h5|--bed=SCALE L NSETTLE NRUN THREADS [DT] [KEFILE|-] [SAVE.h5]
+ * usage: bench_dem DATA|BED.h5|--bed=SCALE L|LXxLY NSETTLE NRUN THREADS [DT] [KEFILE|-] [SAVE.h5]
  * Prints wall time of the settling and the timed phases, KE and contacts. */
 #include "dem_server/dem.h"
 
@@ -55,6 +55,8 @@ int main(int argc, char **argv) {
     return 2;
   }
   const double L = atof(argv[2]);
+  const char *by = strchr(argv[2], 'x'); /* "LXxLY": a rectangular box */
+  const double Ly = by ? atof(by + 1) : L;
   const long nsettle = atol(argv[3]), nrun = atol(argv[4]);
   const int threads = atoi(argv[5]);
   const double dt = argc > 6 ? atof(argv[6]) : 5e-5;
@@ -64,7 +66,7 @@ int main(int argc, char **argv) {
            "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.6}],"
            "\"threads\":%d,\"dt\":%.17g,\"skin\":0.002,\"overlap_tolerance\":0.05,\"unsafe_dt\":true,"
            "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,100],\"open_top\":true}],"
-           "\"particles\":[{\"x\":[0.01,0.01,0.01],\"r\":0.001}]}", threads, dt, L, L);
+           "\"particles\":[{\"x\":[0.01,0.01,0.01],\"r\":0.001}]}", threads, dt, L, Ly);
   proto_err err;
   dem_model m;
   dem_state s;
@@ -74,7 +76,8 @@ int main(int argc, char **argv) {
   if (strncmp(argv[1], "--bed=", 6) == 0) {
     dem_bed_spec b;
     dem_bed_paper(&b, atof(argv[1] + 6));
-    b.size[0] = b.size[1] = L;
+    b.size[0] = L;
+    b.size[1] = Ly;
     if (dem_bed_place(&m, &b, &err)) { fprintf(stderr, "%s\n", err.msg); return 1; }
   } else if (strstr(argv[1], ".h5")) {
     if (dem_bed_load(&m, argv[1], &err)) { fprintf(stderr, "%s\n", err.msg); return 1; }

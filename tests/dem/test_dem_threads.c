@@ -34,7 +34,7 @@ static void run(int threads, int steps, double *out, dem_model *m, dem_state *s)
 }
 
 int main(void) {
-  const int steps = 1500, variants[] = {1, 2, 4, -1};
+  const int steps = 1000, variants[] = {1, 2, 4, -1};
   dem_model m[4];
   dem_state s[4];
   double *out[4];
@@ -55,7 +55,7 @@ int main(void) {
            s[v].kinetic_energy, (long long)s[v].contacts, (long long)s[v].rebuilds, s[v].wall_force[3]);
   }
   CHECK(n > 4 * DEM_CHUNK, "too few grains for several chunks per thread");
-  CHECK(s[0].rebuilds > 10 && s[0].contacts > n && fabs(s[0].wall_force[3]) > 0.1,
+  CHECK(s[0].rebuilds > 10 && s[0].contacts > n / 2 && fabs(s[0].wall_force[3]) > 0.1,
         "scene too quiet to test anything (plate force %g)", s[0].wall_force[3]);
   for (int v = 1; v < 4; v++) {
     CHECK(memcmp(out[0], out[v], sizeof(double) * 13 * n) == 0, "x, v, ω or q differ: 1 thread vs variant %d", v);
