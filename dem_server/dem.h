@@ -107,6 +107,8 @@ typedef struct dem_model {
   double rayleigh_time;  /* over the smallest grain, notes §2 */
   double skin;           /* neighbour-list skin (m) */
   double overlap_tolerance;   /* initial overlap allowed, fraction of the smaller radius */
+  double bed_max_overlap;     /* a bed file saved by dem_bed_save records its largest overlap
+                               * (a settled bed has them): accepted up to that too, 0 = none */
   double max_overlap_ratio;   /* overlap/radius that stops a run as unstable */
   int unsafe_dt;         /* skip the stability refusal (stress tests only) */
   int threads;           /* OpenMP threads, 0 = "auto" (dem_threads.c) */
@@ -224,7 +226,10 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err);
 /* Runs until the kinetic energy per grain is below ke_per_grain or max_steps. */
 int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain,
                int64_t max_steps, proto_err *err);
-/* HDF5 beds: datasets x [n,3], v [n,3], omega [n,3], r [n], material [n] (i4). */
+/* HDF5 beds: datasets x [n,3], v [n,3], omega [n,3], r [n], material [n] (i4),
+ * max_overlap [1]: the largest overlap (grain pairs: of the smaller radius;
+ * walls: of the radius) of the state saved, which loading accepts (a settled
+ * bed is compressed by its weight); a file without it gets overlap_tolerance. */
 int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto_err *err);
 int dem_bed_load(dem_model *m, const char *path, proto_err *err);
 

@@ -214,6 +214,9 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err);
 int dem_neigh_reserve(const dem_model *m, dem_state *s, int npairs, proto_err *err);
 /* The reverse pair index (rev_start, rev_k) of the current list. */
 void dem_neigh_reverse(dem_state *s);
+/* dem_state.c: the largest overlap (fraction of the smaller radius; walls:
+ * of the radius) over the neighbour list and the planes. */
+double dem_worst_overlap(const dem_model *m, const dem_state *s);
 /* dem_state.c: slot i holds model grain g: radius, mass, inertia, material. */
 void dem_grain_constants(const dem_model *m, dem_state *s, int i, int g);
 /* dem_mesh.c */

@@ -71,6 +71,7 @@ int dem_model_alloc_grains(dem_model *m, int n, proto_err *err) {
   free(m->x0); free(m->v0); free(m->omega0); free(m->radius);
   free(m->material); free(m->fix_rotation);
   m->n_grains = n;
+  m->bed_max_overlap = 0; /* new grains: nothing recorded */
   size_t k = n > 0 ? (size_t)n : 1;
   m->x0 = calloc(k * 3, sizeof(double));
   m->v0 = calloc(k * 3, sizeof(double));

@@ -3,6 +3,7 @@
  * of eq. 9's Euler angles, which are singular at sin φ2 = 0). */
 #include "dem_server/dem_internal.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -39,35 +40,59 @@ static int alloc_state(const dem_model *m, dem_state *s, proto_err *err) {
   return 0;
 }
 
+/* Overlap of slots i, j as a fraction of the smaller radius; of slot i and
+ * plane p (distance of the centre below r) as a fraction of r. */
+static double pair_overlap(const dem_state *s, int i, int j) {
+  const double d[3] = {s->x[3 * i] - s->x[3 * j], s->x[3 * i + 1] - s->x[3 * j + 1], s->x[3 * i + 2] - s->x[3 * j + 2]};
+  const double rmin = s->radius[i] < s->radius[j] ? s->radius[i] : s->radius[j];
+  return (s->radius[i] + s->radius[j] - sqrt(dem_dot(d, d))) / rmin;
+}
+
+static double plane_distance(const dem_plane *pl, const double *x) {
+  const double d[3] = {x[0] - pl->point[0], x[1] - pl->point[1], x[2] - pl->point[2]};
+  return dem_dot(d, pl->normal);
+}
+
+double dem_worst_overlap(const dem_model *m, const dem_state *s) {
+  const struct dem_work *w = s->work;
+  double worst = 0;
+  for (int i = 0; i < s->n; i++) {
+    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) worst = fmax(worst, pair_overlap(s, i, w->nl_j[k]));
+    for (int p = 0; p < m->n_planes; p++)
+      worst = fmax(worst, (s->radius[i] - plane_distance(&m->planes[p], &s->x[3 * i])) / s->radius[i]);
+  }
+  return worst;
+}
+
+/* Overlaps beyond the tolerance (overlap_tolerance, or what a bed file saved
+ * from a run recorded: a settled bed has its own), grains behind a wall. */
 static int check_initial(const dem_model *m, const dem_state *s, proto_err *err) {
   const struct dem_work *w = s->work;
+  const double tol = fmax(m->overlap_tolerance, m->bed_max_overlap);
+  char why[160];
+  snprintf(why, sizeof why, "overlap_tolerance %.3g%s", m->overlap_tolerance,
+           m->bed_max_overlap > 0 ? "; the bed file records a largest overlap of " : "");
+  if (m->bed_max_overlap > 0) snprintf(why + strlen(why), sizeof why - strlen(why), "%.6g", m->bed_max_overlap);
   for (int i = 0; i < s->n; i++) {
     for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) {
-      int j = w->nl_j[k];
-      double d[3] = {s->x[3 * i] - s->x[3 * j], s->x[3 * i + 1] - s->x[3 * j + 1],
-                     s->x[3 * i + 2] - s->x[3 * j + 2]};
-      double rmin = s->radius[i] < s->radius[j] ? s->radius[i] : s->radius[j];
-      double delta = s->radius[i] + s->radius[j] - sqrt(dem_dot(d, d));
-      if (delta > m->overlap_tolerance * rmin) {
+      const int j = w->nl_j[k];
+      const double ratio = pair_overlap(s, i, j);
+      if (ratio > tol) {
         int a = s->id[i] < s->id[j] ? s->id[i] : s->id[j], b = s->id[i] ^ s->id[j] ^ a;
+        const double rmin = s->radius[i] < s->radius[j] ? s->radius[i] : s->radius[j];
         return proto_fail(err, "%s.particles: grains %d and %d overlap by %.3g m = %.3g of the smaller "
-                          "radius (overlap_tolerance %.3g)", m->key_path, a, b, delta, delta / rmin,
-                          m->overlap_tolerance);
+                          "radius (%s)", m->key_path, a, b, ratio * rmin, ratio, why);
       }
     }
     for (int p = 0; p < m->n_planes; p++) {
       const dem_plane *pl = &m->planes[p];
-      double d[3] = {s->x[3 * i] - pl->point[0], s->x[3 * i + 1] - pl->point[1],
-                     s->x[3 * i + 2] - pl->point[2]};
-      double dist = dem_dot(d, pl->normal), r = s->radius[i];
-      const double *x = &s->x[3 * i];
+      const double *x = &s->x[3 * i], dist = plane_distance(pl, x), r = s->radius[i];
       if (dist < 0)
         return proto_fail(err, "%s.particles: grain %d at (%g, %g, %g) is outside the domain (behind "
                           "walls[%d])", m->key_path, (int)s->id[i], x[0], x[1], x[2], pl->wall);
-      if (r - dist > m->overlap_tolerance * r)
-        return proto_fail(err, "%s.particles: grain %d overlaps walls[%d] by %.3g of its radius "
-                          "(overlap_tolerance %.3g)", m->key_path, (int)s->id[i], pl->wall, (r - dist) / r,
-                          m->overlap_tolerance);
+      if ((r - dist) / r > tol)
+        return proto_fail(err, "%s.particles: grain %d overlaps walls[%d] by %.3g of its radius (%s)",
+                          m->key_path, (int)s->id[i], pl->wall, (r - dist) / r, why);
     }
   }
   return 0;
