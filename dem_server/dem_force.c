@@ -77,17 +77,18 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
 /* screen_block with sleeping grains ("sleep" on): pairs of two sleeping
  * grains are frozen (neither evaluated nor reset); a sleeping grain touched
  * by an awake one moving faster than the sleep velocity is woken. */
-static void screen_block_sleep(const dem_model *m, const dem_state *s, struct dem_work *w, int i, int k0,
-                               int k1, pair_batch *restrict b) {
+static int screen_block_sleep(const dem_model *m, const dem_state *s, struct dem_work *w, int i, int k0,
+                              int k1, pair_batch *restrict b) {
   const double *restrict x = s->x, *restrict rad = s->radius;
   const uint8_t *restrict sl = w->asleep;
   const double vs2 = m->sleep.velocity * m->sleep.velocity;
   const double xi0 = x[3 * i], xi1 = x[3 * i + 1], xi2 = x[3 * i + 2], ri = rad[i];
   const int si = sl[i];
-  int q = b->n;
+  int q = b->n, live = 0;
   for (int k = k0; k < k1; k++) {
     const int j = w->nl_j[k];
     if (si & sl[j]) continue;
+    live++;
     const double d0 = xi0 - x[3 * j], d1 = xi1 - x[3 * j + 1], d2 = xi2 - x[3 * j + 2];
     const double rj = rad[j], rsum = ri + rj;
     const int touch = d0 * d0 + d1 * d1 + d2 * d2 < rsum * rsum;
@@ -103,6 +104,7 @@ static void screen_block_sleep(const dem_model *m, const dem_state *s, struct de
     q += touch;
   }
   b->n = q;
+  return live; /* pairs not frozen */
 }
 
 /* The rest of the inputs of entries q0.. (all of row i). */
@@ -249,22 +251,32 @@ static void pair_rows(const dem_model *m, dem_state *s, int lo, int hi, dem_chun
   b.n = 0;
   if (one_law)
     for (int q = 0; q < DEM_BATCH; q++) law_set(&b, q, &m->law[0][0]);
+  const int c = lo / DEM_CHUNK;
+  uint8_t *frozen = w->row_frozen; /* NULL unless "sleep" is on */
+  if (frozen && w->chunk_frozen[c]) return; /* all asleep, and so are all partners: nothing changes */
+  int live_rows = 0;
   for (int i = hi - 1; i >= lo; i--) {
+    if (frozen && frozen[i]) continue; /* i and its partners asleep (until one wakes: dem_sleep.c) */
     const int kbeg = w->nl_start[i], kend = w->nl_start[i + 1];
-    int found = 0;
+    int found = 0, live = 0;
     for (int k0 = kbeg; k0 < kend; k0 += DEM_ROW_BLOCK) {
       const int k1 = kend - k0 > DEM_ROW_BLOCK ? k0 + DEM_ROW_BLOCK : kend;
       if (b.n + (k1 - k0) > DEM_BATCH) batch_flush(m, s, &b, &r, hi, sum);
       const int q0 = b.n;
-      if (w->asleep) screen_block_sleep(m, s, w, i, k0, k1, &b);
+      if (frozen) live += screen_block_sleep(m, s, w, i, k0, k1, &b);
       else screen_block(s, w, i, k0, k1, &b);
       batch_fill(m, s, &b, i, q0, one_law);
       found += b.n - q0;
     }
     if (!found) row_empty(s, i); /* no share into i is pending */
+    if (frozen) {
+      frozen[i] = w->asleep[i] && live == 0;
+      live_rows += !frozen[i];
+    }
   }
   batch_flush(m, s, &b, &r, hi, sum);
   if (r.i >= 0) row_finish(s, &r, sum);
+  if (frozen) w->chunk_frozen[c] = live_rows == 0 && w->chunk_awake[c] == 0;
 }
 
 /* Plane contacts (wall: R* = r_i, m* = m_i, no wall motion), batched like the
@@ -426,10 +438,11 @@ static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
     plane_screen(m, s, i, &b, part, sum);
   }
   wall_flush(m, s, &b, part, sum);
-  for (int i = lo; i < hi; i++) sum->ratio = w->ratio[i] > sum->ratio ? w->ratio[i] : sum->ratio;
+  for (int i = lo; i < hi; i++)
+    if (!(asleep && asleep[i])) sum->ratio = w->ratio[i] > sum->ratio ? w->ratio[i] : sum->ratio;
   if (m->n_meshes > 0) /* gravity is added as an acceleration in the kick */
     for (int i = lo; i < hi; i++)
-      for (int a = 0; a < 3; a++) {
+      for (int a = 0; a < 3 && !(asleep && asleep[i]); a++) {
         s->force[3 * i + a] += w->mesh_f[3 * i + a];
         s->torque[3 * i + a] += w->mesh_t[3 * i + a];
       }

@@ -91,12 +91,21 @@ struct dem_work {
   int32_t **ml_cbuf;
   int *ml_cbuf_cap;               /* [nchunk] a chunk's lists during a build */
   double *mesh_xref[DEM_MAX_MESHES]; /* node positions when the lists were built */
+  int lists_dirty;                /* a mesh started moving: rebuild the lists (and "near") */
   double *ratio; /* [n] max overlap ratio of i's contacts (i's own pairs, walls, meshes) */
   /* sleeping grains (dem_sleep.c) */
   uint8_t *asleep, *wake; /* [n] asleep; woken by a moving partner this step */
   int32_t *rest;          /* [n] steps at rest */
   int *chunk_awake;       /* [nchunk] awake grains per chunk */
-  uint8_t mesh_moving[DEM_MAX_MESHES];
+  uint8_t *near;          /* [n] within `distance` of a moving mesh (at the last list build) */
+  uint8_t *chunk_frozen;  /* [nchunk] every row frozen */
+  uint8_t *row_frozen;    /* [n] asleep and so are all partners of its row */
+  int *prow_start, *prow, prow_cap; /* rows in which a slot is a partner */
+  int *ng_start, *ng_of, ng_cap, ng_ncap, ng_xcap; /* moving meshes' points binned by cell */
+  double *ng_x, ng_lo[3], ng_size;
+  int ng_dim[3];
+  uint8_t mesh_moving[DEM_MAX_MESHES]; /* some node velocity is not zero */
+  uint8_t mesh_set[DEM_MAX_MESHES];    /* nodes set since the last list build */
   /* dem_state_export/import scratch (dem_state_io.c) */
   int64_t io_counters[8];
   double io_scalars[8];
@@ -204,6 +213,10 @@ void dem_sleep_free(struct dem_work *w);
  * moving mesh approaches, put to sleep those at rest long enough; counts. */
 void dem_sleep_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi);
 void dem_sleep_count(const dem_model *m, dem_state *s);
+/* The rows in which each slot is a partner (after each list rebuild/import). */
+int dem_sleep_partners(const dem_model *m, dem_state *s, proto_err *err);
+/* Which grains are near a moving mesh (called with each mesh list build). */
+int dem_sleep_near(const dem_model *m, dem_state *s, proto_err *err);
 /* A sleeping grain touched by a grain moving faster than the threshold. */
 static inline void dem_wake(struct dem_work *w, int i) { __atomic_store_n(&w->wake[i], 1, __ATOMIC_RELAXED); }
 /* dem_neigh.c */
@@ -223,8 +236,11 @@ void dem_grain_constants(const dem_model *m, dem_state *s, int i, int g);
 int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_mesh_free(const dem_model *m, dem_state *s);
 void dem_mesh_move(const dem_model *m, dem_state *s, double dt);
+void dem_mesh_velocities_changed(const dem_model *m, dem_state *s, int mesh);
 /* Candidate lists: build; rebuild if a node moved more than skin/2 since. */
 int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err);
+/* Only the lists, keeping the rebuild schedule (state import). */
+int dem_mesh_lists_build(const dem_model *m, dem_state *s, proto_err *err);
 int dem_mesh_lists_check(const dem_model *m, dem_state *s, proto_err *err);
 int dem_mesh_grain(const dem_model *m, dem_state *s, int i, double *u);
 void dem_mesh_reactions(const dem_model *m, dem_state *s);

@@ -189,6 +189,7 @@ int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
       return proto_fail(err, "out of memory for mesh %d", mi);
     memcpy(s->mesh_x[mi], me->x0, bytes);
     for (int a = 0; a < me->n_nodes; a++) memcpy(&s->mesh_v[mi][3 * a], me->velocity, 3 * sizeof(double));
+    dem_mesh_velocities_changed(m, s, mi);
     if (dem_bvh_build(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri))
       return proto_fail(err, "out of memory for the BVH of mesh %d", mi);
   }
@@ -241,13 +242,19 @@ void dem_mesh_move(const dem_model *m, dem_state *s, double dt) {
     const dem_mesh *me = &m->meshes[mi];
     double *x = s->mesh_x[mi];
     const double *v = s->mesh_v[mi];
-    int moving = 0;
-    for (int a = 0; a < 3 * me->n_nodes; a++) {
-      x[a] += v[a] * dt;
-      moving |= v[a] != 0;
-    }
-    s->work->mesh_moving[mi] = (uint8_t)moving; /* a moving boundary (dem_sleep.c) */
+    if (!s->work->mesh_moving[mi]) continue; /* all velocities zero */
+    for (int a = 0; a < 3 * me->n_nodes; a++) x[a] += v[a] * dt;
   }
+}
+
+/* A mesh moves if any node velocity is not zero; one that starts moving
+ * needs its lists (and the sleep "near" flags) redone. */
+void dem_mesh_velocities_changed(const dem_model *m, dem_state *s, int mi) {
+  const double *v = s->mesh_v[mi];
+  int moving = 0;
+  for (int a = 0; a < 3 * m->meshes[mi].n_nodes && !moving; a++) moving = v[a] != 0;
+  if (moving && !s->work->mesh_moving[mi]) s->work->lists_dirty = 1;
+  s->work->mesh_moving[mi] = (uint8_t)moving;
 }
 
 void dem_bvh_update(dem_bvh *b, const double *x, const int32_t *tri, int n_tri) {
@@ -394,13 +401,13 @@ static int lists_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi) 
   return 0;
 }
 
-int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err) {
+/* The lists of every grain from the current positions (refits the BVHs). */
+int dem_mesh_lists_build(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
   const int n = s->n, nchunk = w->nchunk;
   for (int mi = 0; mi < m->n_meshes; mi++) {
     const dem_mesh *me = &m->meshes[mi];
     dem_bvh_update(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri);
-    memcpy(w->mesh_xref[mi], s->mesh_x[mi], sizeof(double) * 3 * (size_t)me->n_nodes);
   }
   int oom = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads) reduction(| : oom)
@@ -424,9 +431,24 @@ int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err) {
   return 0;
 }
 
+/* Rebuild: the lists, the node positions they are valid around, and which
+ * grains are near a moving mesh (dem_sleep.c). */
+int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err) {
+  struct dem_work *w = s->work;
+  if (dem_mesh_lists_build(m, s, err)) return -1;
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    memcpy(w->mesh_xref[mi], s->mesh_x[mi], sizeof(double) * 3 * (size_t)m->meshes[mi].n_nodes);
+    w->mesh_set[mi] = 0;
+  }
+  w->lists_dirty = 0;
+  return dem_sleep_near(m, s, err);
+}
+
 int dem_mesh_lists_check(const dem_model *m, dem_state *s, proto_err *err) {
   const double lim2 = 0.25 * m->skin * m->skin;
+  if (s->work->lists_dirty) return dem_mesh_lists(m, s, err);
   for (int mi = 0; mi < m->n_meshes; mi++) {
+    if (!s->work->mesh_moving[mi] && !s->work->mesh_set[mi]) continue; /* not moved since the build */
     const double *x = s->mesh_x[mi], *x0 = s->work->mesh_xref[mi];
     double worst = 0;
     for (int a = 0; a < m->meshes[mi].n_nodes; a++) {

@@ -445,5 +445,6 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
   dem_neigh_reverse(s);
   dem_sleep_count(m, s); /* chunks hold other grains now */
   s->rebuilds++;
+  if (dem_sleep_partners(m, s, err)) return -1;
   return m->n_meshes > 0 ? dem_mesh_lists(m, s, err) : 0;
 }

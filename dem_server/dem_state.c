@@ -241,7 +241,9 @@ void dem_mesh_set_nodes(const dem_model *m, dem_state *s, int mesh, const double
                         const double *v) {
   const dem_mesh *me = &m->meshes[mesh];
   memcpy(s->mesh_x[mesh], x, sizeof(double) * 3 * (size_t)me->n_nodes);
-  memcpy(s->mesh_v[mesh], v, sizeof(double) * 3 * (size_t)me->n_nodes); /* lists: checked at the next step */
+  memcpy(s->mesh_v[mesh], v, sizeof(double) * 3 * (size_t)me->n_nodes);
+  s->work->mesh_set[mesh] = 1; /* lists: checked at the next step */
+  dem_mesh_velocities_changed(m, s, mesh);
 }
 
 void dem_gather(const dem_state *s, const double *slot_data, int cols, double *out) {

@@ -64,7 +64,7 @@ int main(int argc, char **argv) {
   /* the notes §3.1 scene: E = 5e6, nu = 0.3, e = 0.5, mu = 0.6, rho = 2600; skin 2 mm; L x L box */
   snprintf(json, sizeof json,
            "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.6}],"
-           "\"threads\":%d,\"dt\":%.17g,\"skin\":0.002,\"overlap_tolerance\":0.05,\"unsafe_dt\":true,"
+           "\"threads\":%d,\"dt\":%.17g,\"skin\":0.002,\"overlap_tolerance\":0.1,\"unsafe_dt\":true,"
            "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,100],\"open_top\":true}],"
            "\"particles\":[{\"x\":[0.01,0.01,0.01],\"r\":0.001}]}", threads, dt, L, Ly);
   proto_err err;

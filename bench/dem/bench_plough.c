@@ -3,7 +3,7 @@
  * bench/results/dem.md. Phase 1: the wheel goes down at VDESC for NDESC steps;
  * phase 2: it moves at VX along x for NMOVE steps, turning at OMEGA about its
  * axis (y); its nodes are set every COUPLE steps as a coupled surface is.
- * usage: bench_plough BED.h5 MESH.txt L NDESC VDESC NMOVE VX OMEGA THREADS [SLEEP [COUPLE [OUT.h5]]]
+ * usage: bench_plough BED.h5 MESH.txt L|LXxLY NDESC VDESC NMOVE VX OMEGA THREADS [SLEEP [COUPLE [OUT.h5]]]
  * SLEEP: 0 off, 1 on with defaults, or a sleep velocity (m/s).
  * Prints the wall time of each phase, the mean force of the grains on the
  * wheel over the second half of phase 2 and the sleeping grains. */
@@ -49,6 +49,8 @@ int main(int argc, char **argv) {
     return 2;
   }
   const double L = atof(argv[3]), vdesc = atof(argv[5]), vx = atof(argv[7]), omega = atof(argv[8]);
+  const char *by = strchr(argv[3], 'x'); /* "LXxLY": a rectangular box */
+  const double Ly = by ? atof(by + 1) : L;
   const long ndesc = atol(argv[4]), nmove = atol(argv[6]);
   const int threads = atoi(argv[9]), couple = argc > 11 ? atoi(argv[11]) : 10;
   const double sleep = argc > 10 ? atof(argv[10]) : 0;
@@ -58,9 +60,9 @@ int main(int argc, char **argv) {
   char json[1024];
   snprintf(json, sizeof json,
            "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.6}],"
-           "\"threads\":%d,\"dt\":5e-5,\"skin\":0.002,\"overlap_tolerance\":0.05,\"sleep\":%s,"
+           "\"threads\":%d,\"dt\":5e-5,\"skin\":0.002,\"overlap_tolerance\":0.1,\"sleep\":%s,"
            "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,100],\"open_top\":true}],"
-           "\"particles\":[{\"x\":[0.01,0.01,0.01],\"r\":0.001}]}", threads, sleep_json, L, L);
+           "\"particles\":[{\"x\":[0.01,0.01,0.01],\"r\":0.001}]}", threads, sleep_json, L, Ly);
   proto_err err;
   dem_model m;
   dem_state s;
