@@ -426,7 +426,8 @@ int dem_mesh_lists_build(const dem_model *m, dem_state *s, proto_err *err) {
 #pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads)
   for (int c = 0; c < nchunk; c++) {
     const int lo = c * DEM_CHUNK, hi = (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n;
-    memcpy(&w->ml_key[w->ml_start[lo]], w->ml_cbuf[c], sizeof(int32_t) * (size_t)(w->ml_start[hi] - w->ml_start[lo]));
+    const int len = w->ml_start[hi] - w->ml_start[lo];
+    if (len > 0) memcpy(&w->ml_key[w->ml_start[lo]], w->ml_cbuf[c], sizeof(int32_t) * (size_t)len);
   }
   return 0;
 }

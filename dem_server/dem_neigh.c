@@ -411,7 +411,8 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
 #pragma omp parallel for schedule(dynamic, 256) num_threads(w->nthreads)
   for (int i = 0; i < n; i++) {
     const int c = i / DEM_CHUNK, from = w->nl_start[i] - w->nl_start[c * DEM_CHUNK];
-    memcpy(&w->nl_j[w->nl_start[i]], w->cbuf[c] + from, sizeof(int) * (size_t)(w->nl_start[i + 1] - w->nl_start[i]));
+    const int len = w->nl_start[i + 1] - w->nl_start[i];
+    if (len > 0) memcpy(&w->nl_j[w->nl_start[i]], w->cbuf[c] + from, sizeof(int) * (size_t)len);
     for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) {
       double *sh = &w->nl_shear[3 * k];
       carry_history(w, i, w->nl_j[k], sh);
