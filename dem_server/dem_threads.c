@@ -35,19 +35,26 @@ static double now_s(clockid_t clk) {
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* Busy time of all CPUs (s) from /proc/stat's first line: everything but
- * idle and iowait. < 0 when unreadable. No allocation (called between steps). */
-static double busy_seconds(void) {
-  char buf[512];
+/* /proc/stat into buf (NUL-terminated); 0, or −1 when unreadable. No
+ * allocation (called between steps). */
+static int read_stat(char *buf, size_t cap) {
   int fd = open("/proc/stat", O_RDONLY | O_CLOEXEC);
   if (fd < 0) return -1;
-  ssize_t len = read(fd, buf, sizeof buf - 1);
+  ssize_t len = read(fd, buf, cap - 1);
   close(fd);
   if (len <= 0) return -1;
   buf[len] = 0;
+  return 0;
+}
+
+/* Busy time of all CPUs (s) from /proc/stat's first line: everything but
+ * idle and iowait. < 0 when unreadable. */
+static double busy_seconds(void) {
+  char buf[512];
   unsigned long long v[8] = {0};
-  if (sscanf(buf, "cpu %llu %llu %llu %llu %llu %llu %llu %llu", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5],
-             &v[6], &v[7]) < 4)
+  if (read_stat(buf, sizeof buf) ||
+      sscanf(buf, "cpu %llu %llu %llu %llu %llu %llu %llu %llu", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6],
+             &v[7]) < 4)
     return -1;
   const double busy = (double)(v[0] + v[1] + v[2] + v[5] + v[6] + v[7]); /* user nice system irq softirq steal */
   return busy / (double)sysconf(_SC_CLK_TCK);
@@ -56,12 +63,7 @@ static double busy_seconds(void) {
 /* Runnable threads right now (procs_running in /proc/stat), −1 if unknown. */
 static int procs_running(void) {
   char buf[8192];
-  int fd = open("/proc/stat", O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return -1;
-  ssize_t len = read(fd, buf, sizeof buf - 1);
-  close(fd);
-  if (len <= 0) return -1;
-  buf[len] = 0;
+  if (read_stat(buf, sizeof buf)) return -1;
   const char *p = strstr(buf, "procs_running ");
   return p ? atoi(p + 14) : -1;
 }
