@@ -6,7 +6,9 @@ the same run, on the three scenes of bench/results/dem.md "Every core":
             file for LIGGGHTS): 1000 steps;
   plough    the paper's bed (21 812 grains, 0.6 x 0.3 m, 0.23 m deep, settled)
             with a 24 000-triangle wheel (wheel.py) pressed in and driven
-            through it: 2400 steps down, 2000 steps rolling with 20 % slip.
+            through it: 2400 steps down, 2000 steps rolling with 20 % slip;
+  sleep     (dem_server only) the plough scene rolling one lug period, all
+            grains awake against "sleep": time and the mean force on the wheel.
 Each round runs every configuration once, one after the other (alternated), each
 under the shared benchmark lock; the fastest of ROUNDS rounds is kept, and every
 sample with the load average before it goes to the JSON.
@@ -113,17 +115,34 @@ def plough():
     }
 
 
+def sleep():
+    """The plough scene rolling for one lug period (6000 steps), one thread:
+    all grains awake (coupling every 10 steps; and every 9 and 11 steps, which
+    changes nothing but round-off: the spread of chaos) against "sleep"."""
+    def ours(sleep, couple):
+        def run():
+            out, _ = sh([os.path.join(BIN, "bench_plough"), w("deep.h5"), w("wheel.txt"), "0.6x0.3", "2400", "0.25",
+                         "6000", "0.3", "1.316", "1", sleep, couple])
+            f = re.search(r"mean over the last \d+ steps: (\S+) (\S+) (\S+) N", out).groups()
+            asleep = int(re.search(r"move \d+ steps: .* (\d+) sleeping", out).group(1))
+            return ours_times(out, ["descent", "move"]) + [float(v) for v in f] + [asleep]
+        return run
+    return {"awake_10": ours("0", "10"), "awake_9": ours("0", "9"), "awake_11": ours("0", "11"),
+            "sleep": ours("1", "10"), "sleep_v0.01": ours("0.01", "10")}
+
+
 prepare()
 res_path = os.path.join(OUT, "dem_cores.json")
 res = json.load(open(res_path)) if os.path.exists(res_path) else {}
 for scene in SCENES:
-    runs = {"settling": settling, "settled": settled, "plough": plough}[scene]()
+    runs = {"settling": settling, "settled": settled, "plough": plough, "sleep": sleep}[scene]()
     samples = {k: [] for k in runs}
     for rnd in range(ROUNDS):
         for k, fn in runs.items():
             load = float(open("/proc/loadavg").read().split()[0])
             t = fn()
-            samples[k].append({"phases": t, "total": sum(t), "load": load})
+            ph = t[:2] if scene == "sleep" else t  # sleep: descent, move, force x y z, asleep
+            samples[k].append({"phases": ph, "total": sum(ph), "load": load, "extra": t[2:]})
             print(scene, rnd, k, ["%.3f" % v for v in t], "load %.2f" % load, flush=True)
     best = {k: min(s, key=lambda e: e["total"]) for k, s in samples.items()}
     res[scene] = {"rounds": ROUNDS, "best": best, "samples": samples, "date": time.strftime("%Y-%m-%d %H:%M")}
