@@ -69,6 +69,15 @@ def section(R):
             md.append("| %s | %.3f | %.3f | %.4g | %.4g | %d |" % (k.replace("_", " "), e["phases"][0], e["phases"][1],
                                                                 fx, fz, asleep))
         md.append("")
+    if "threads" in R:
+        sc = R["threads"]["best"]
+        md += ["### Threads against bed size (dem_server, 2000 settling steps)", "",
+               "| grains | 1 thread s | 2 threads s | speed-up |", "|---|---|---|---|"]
+        for n in sorted({int(k[1:].split("_")[0]) for k in sc}):
+            t1, t2 = sc["n%d_1" % n]["total"], sc["n%d_2" % n]["total"]
+            md.append("| %d | %.3f | %.3f | %.2f× |" % (n, t1, t2, t1 / t2))
+        md += ["", "`threads: \"auto\"` takes one thread per 1000 grains at most (dem_threads.c): two threads"
+               " from 2000 grains.", ""]
     md += ["![cores](dem_cores.png)", "", END]
     return md
 

@@ -8,7 +8,8 @@ the same run, on the three scenes of bench/results/dem.md "Every core":
             with a 24 000-triangle wheel (wheel.py) pressed in and driven
             through it: 2400 steps down, 2000 steps rolling with 20 % slip;
   sleep     (dem_server only) the plough scene rolling one lug period, all
-            grains awake against "sleep": time and the mean force on the wheel.
+            grains awake against "sleep": time and the mean force on the wheel;
+  threads   (dem_server only) small beds on 1 and 2 threads.
 Each round runs every configuration once, one after the other (alternated), each
 under the shared benchmark lock; the fastest of ROUNDS rounds is kept, and every
 sample with the load average before it goes to the JSON.
@@ -115,6 +116,22 @@ def plough():
     }
 
 
+def threads():
+    """Small beds (gen_data.py, same density as the 20 000-grain bed): 1 and 2
+    threads, 2000 steps of settling: where 2 threads stop paying (the "auto"
+    threshold of dem_threads.c)."""
+    runs = {}
+    for n in (500, 1000, 2000, 4000):
+        L = "%.4f" % (n / 20000) ** 0.5
+        data = w("bed%d.data" % n)
+        if not os.path.exists(data):
+            subprocess.run([PY, os.path.join(HERE, "gen_data.py"), str(n), L, data, "1"], check=True)
+        for t in ("1", "2"):
+            runs["n%d_%s" % (n, t)] = (lambda d, l, t: lambda: ours_times(
+                sh([os.path.join(BIN, "bench_dem"), d, l, "2000", "1", t, "5e-5"])[0], ["settle"]))(data, L, t)
+    return runs
+
+
 def sleep():
     """The plough scene rolling for one lug period (6000 steps), one thread:
     all grains awake (coupling every 10 steps; and every 9 and 11 steps, which
@@ -135,7 +152,7 @@ prepare()
 res_path = os.path.join(OUT, "dem_cores.json")
 res = json.load(open(res_path)) if os.path.exists(res_path) else {}
 for scene in SCENES:
-    runs = {"settling": settling, "settled": settled, "plough": plough, "sleep": sleep}[scene]()
+    runs = {"settling": settling, "settled": settled, "plough": plough, "sleep": sleep, "threads": threads}[scene]()
     samples = {k: [] for k in runs}
     for rnd in range(ROUNDS):
         for k, fn in runs.items():
