@@ -3,8 +3,10 @@
  * Spheres with Hertz–Mindlin contacts, exactly LIGGGHTS 3.8
  * `pair gran model hertz tangential history` (seed 000 eq. 16–27; the LIGGGHTS
  * Coulomb rule of ../shared/notes/dem.md §1.1), velocity Verlet (eq. 4–5) with
- * quaternion orientation, linked cells + Verlet list with skin, plane/box walls
- * and triangle meshes (closest point, eq. 35; nodal reaction by ζ, eq. 42; BVH).
+ * optional quaternion orientation, linked cells + Verlet list with skin,
+ * plane/box walls and triangle meshes (closest point, eq. 35; nodal reaction
+ * by ζ, eq. 42; BVH and per-grain candidate lists). Any number of OpenMP
+ * threads gives bitwise identical results.
  *
  * Model (the scene, read-only during a run) and state (what changes) are
  * separate, MuJoCo style. Per-grain arrays in the state are structure of arrays
