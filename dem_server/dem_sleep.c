@@ -2,14 +2,14 @@
  * the config; Box2D's sleeping bodies, Chrono's active box around a wheel).
  *
  * A grain sleeps after `time` below `velocity` (|v| and |ω| r) when no moving
- * mesh is within `distance` (its nodes, see dem_sleep_near) and it touches
- * no mesh: its
+ * mesh is within `distance` (see dem_sleep_near) and it touches no mesh: its
  * velocity is set to zero, it is not integrated, its contacts with other
  * sleeping grains are not evaluated (their springs stay as they are) and its
- * plane contacts are frozen. Contacts with awake grains are evaluated as with a
- * fixed grain. It wakes when a touching awake grain is faster than `velocity`
- * or a moving mesh comes within `distance`; it then restarts from rest
- * in equilibrium (force −m g: the first half kick leaves it at rest).
+ * plane contacts are frozen. Contacts with awake grains are evaluated as with
+ * a fixed grain (an awake grain pressing slowly on a sleeping one meets a
+ * wall). It wakes when a touching awake grain is faster than `velocity` or a
+ * moving mesh comes within `distance`; it then restarts from rest in
+ * equilibrium (force −m g: the first half kick leaves it at rest).
  * Decisions use only the state, so results stay bitwise identical for any
  * number of threads. */
 #include "dem_server/dem_internal.h"
