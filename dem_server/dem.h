@@ -180,6 +180,11 @@ int dem_state_init(const dem_model *m, dem_state *s, proto_err *err);
 void dem_state_free(dem_state *s);
 /* One DEM step of m->dt. Fails (with where and why) on NaN, runaway overlap. */
 int dem_step(const dem_model *m, dem_state *s, proto_err *err);
+/* Call first in main(): unless GOMP_SPINCOUNT or OMP_WAIT_POLICY is set,
+ * sets GOMP_SPINCOUNT=10000 and re-executes the program (libgomp reads it
+ * when loaded): threads waiting at a barrier then sleep soon instead of
+ * spinning on a core that another process needs (dem_threads.c). */
+void dem_openmp_env(char **argv);
 /* Advances by `duration` in equal steps of m->dt (duration/m->dt rounded). */
 int dem_advance(const dem_model *m, dem_state *s, double duration, proto_err *err);
 /* Sets coupled mesh nodes: positions at the current time and velocities. */

@@ -28,6 +28,7 @@
 #define DEM_GRAINS_PER_THREAD 1000 /* measured: bench/results/dem.md "Threads" */
 #define DEM_PROBE_WINDOW 0.25      /* s of stepping per load measurement */
 #define DEM_RESERVED_ENV "COSIM_CORES_RESERVED"
+#define DEM_GOMP_SPINCOUNT "10000" /* iterations a waiting thread spins before it sleeps */
 
 static double now_s(clockid_t clk) {
   struct timespec ts;
@@ -160,4 +161,16 @@ void dem_threads_end(dem_state *s) {
              "auto: other processes used %.2f of %d cores while stepping (%d reserved): %d thread%s", others,
              p->cores, p->reserved, n, n > 1 ? "s" : "");
   }
+}
+
+/* libgomp's default wait at a barrier spins 300 000 times before sleeping:
+ * with another process on the cores, the waiting thread burns the core its
+ * partner could run on and every barrier stalls (bench/results/dem.md:
+ * 2 threads of a 20 000-grain bed took 19 s instead of 2.4 s with a short
+ * spin). libgomp reads its settings when it is loaded, so the program sets
+ * a short spin and starts again. */
+void dem_openmp_env(char **argv) {
+  if (getenv("GOMP_SPINCOUNT") || getenv("OMP_WAIT_POLICY")) return; /* chosen by the user */
+  if (setenv("GOMP_SPINCOUNT", DEM_GOMP_SPINCOUNT, 1)) return;
+  execv("/proc/self/exe", argv); /* returns only on failure: then go on as we are */
 }

@@ -178,6 +178,7 @@ static void finish(void *user) {
 }
 
 int main(int argc, char **argv) {
+  dem_openmp_env(argv); /* short barrier spin: the machine may be shared */
   static dem_app app;
   const proto_participant_ops ops = {"dem", configure, init, step, finish};
   return proto_participant_main(argc, argv, &ops, &app);

@@ -50,6 +50,7 @@ static int read_data(const char *path, dem_model *m, proto_err *err) {
 }
 
 int main(int argc, char **argv) {
+  dem_openmp_env(argv); /* short barrier spin: the machine may be shared */
   if (argc < 6) {
     fprintf(stderr, "usage: %s DATA|--bed=SCALE L NSETTLE NRUN THREADS [DT] [KEFILE]\n", argv[0]);
     return 2;

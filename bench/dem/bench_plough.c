@@ -44,6 +44,7 @@ static void place(int nn, const double *x0, const double *c0, const double *c, d
 }
 
 int main(int argc, char **argv) {
+  dem_openmp_env(argv); /* short barrier spin: the machine may be shared */
   if (argc < 10) {
     fprintf(stderr, "usage: %s BED.h5 MESH.txt L NDESC VDESC NMOVE VX OMEGA THREADS [SLEEP [COUPLE [OUT.h5]]]\n", argv[0]);
     return 2;
