@@ -63,12 +63,20 @@ def section(R):
                "the grains on the wheel over the last 3000 steps. `awake 9/11`: all awake with the wheel's nodes",
                "set every 9 or 11 steps instead of 10, which changes the run only by round-off: their spread is",
                "the chaos of the bed, against which `sleep` must be judged.", "",
-               "| run | descent s | rolling s | F_x (traction) N | F_z N | asleep at the end |", "|---|---|---|---|---|---|"]
+               "| run | descent s (CPU s) | rolling s (CPU s) | F_x (traction) N | F_z N | asleep at the end |",
+               "|---|---|---|---|---|---|"]
         for k, e in sc["best"].items():
-            fx, fy, fz, asleep = e["extra"]
-            md.append("| %s | %.3f | %.3f | %.4g | %.4g | %d |" % (k.replace("_", " "), e["phases"][0], e["phases"][1],
-                                                                fx, fz, asleep))
-        md.append("")
+            fx, fy, fz, asleep, cd, cm = e["extra"]
+            md.append("| %s | %.3f (%.3f) | %.3f (%.3f) | %.4g | %.4g | %d |" % (
+                k.replace("_", " "), e["phases"][0], cd, e["phases"][1], cm, fx, fz, asleep))
+        aw = [sc["best"][k]["extra"] for k in ("awake_10", "awake_9", "awake_11")]
+        mx, mz = sum(a[0] for a in aw) / 3, sum(a[2] for a in aw) / 3
+        sl = sc["best"]["sleep"]["extra"]
+        md += ["", "Mean of the three awake runs: F_x %.4g N (runs spread %.1f %%), F_z %.4g N (spread %.1f %%); "
+               "`sleep` (defaults): F_x %+.1f %%, F_z %+.1f %% from that mean; rolling CPU time %.2f× less." % (
+                   mx, 100 * (max(a[0] for a in aw) - min(a[0] for a in aw)) / mx, mz,
+                   100 * (max(a[2] for a in aw) - min(a[2] for a in aw)) / mz, 100 * (sl[0] / mx - 1),
+                   100 * (sl[2] / mz - 1), sc["best"]["awake_10"]["extra"][5] / sl[5]), ""]
     if "threads" in R:
         sc = R["threads"]["best"]
         md += ["### Threads against bed size (dem_server, 2000 settling steps)", "",

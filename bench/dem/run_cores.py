@@ -142,7 +142,9 @@ def sleep():
                          "6000", "0.3", "1.316", "1", sleep, couple])
             f = re.search(r"mean over the last \d+ steps: (\S+) (\S+) (\S+) N", out).groups()
             asleep = int(re.search(r"move \d+ steps: .* (\d+) sleeping", out).group(1))
-            return ours_times(out, ["descent", "move"]) + [float(v) for v in f] + [asleep]
+            cpu = [float(re.search(r"%s \d+ steps: [\d.]+ s wall ([\d.]+) s cpu" % l, out).group(1))
+                   for l in ("descent", "move")]
+            return ours_times(out, ["descent", "move"]) + [float(v) for v in f] + [asleep] + cpu
         return run
     return {"awake_10": ours("0", "10"), "awake_9": ours("0", "9"), "awake_11": ours("0", "11"),
             "sleep": ours("1", "10"), "sleep_v0.01": ours("0.01", "10")}
