@@ -93,7 +93,7 @@ int main(int argc, char **argv) {
   const int mesh = m.n_meshes - 1, wall = m.meshes[mesh].wall;
   printf("%d grains, wheel %d nodes %d triangles; threads: %s\n", m.n_grains, nn, nt, s.threads_why);
   double *x = malloc(sizeof(double) * 3 * nn), *v = malloc(sizeof(double) * 3 * nn);
-  double t0 = omp_get_wtime(), c0 = cpu_now(), sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
+  double t0 = omp_get_wtime(), u0 = cpu_now(), sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
   long navg = 0;
   const long trace = getenv("PLOUGH_TRACE") ? atol(getenv("PLOUGH_TRACE")) : 0; /* print every N steps */
   const double vd[3] = {0, 0, -vdesc}, vm[3] = {vx, 0, 0};
@@ -105,11 +105,11 @@ int main(int argc, char **argv) {
       dem_mesh_set_nodes(&m, &s, mesh, x, v);
     }
     if (k == ndesc) {
-      double t1 = omp_get_wtime(), c1 = cpu_now();
+      double t1 = omp_get_wtime(), u1 = cpu_now();
       printf("descent %ld steps: %.3f s wall %.3f s cpu, %lld rebuilds, %lld contacts, %lld sleeping\n", ndesc,
-             t1 - t0, c1 - c0, (long long)s.rebuilds, (long long)s.contacts, (long long)s.sleeping);
+             t1 - t0, u1 - u0, (long long)s.rebuilds, (long long)s.contacts, (long long)s.sleeping);
       t0 = t1;
-      c0 = c1;
+      u0 = u1;
     }
     if (dem_step(&m, &s, &err)) { fprintf(stderr, "%s\n", err.msg); return 1; }
     if (trace && (k + 1) % trace == 0)
@@ -124,9 +124,9 @@ int main(int argc, char **argv) {
       navg++;
     }
   }
-  double t1 = omp_get_wtime(), c1 = cpu_now();
+  double t1 = omp_get_wtime(), u1 = cpu_now();
   printf("move %ld steps: %.3f s wall %.3f s cpu, %lld rebuilds, %lld contacts, %lld sleeping\n", nmove, t1 - t0,
-         c1 - c0, (long long)s.rebuilds, (long long)s.contacts, (long long)s.sleeping);
+         u1 - u0, (long long)s.rebuilds, (long long)s.contacts, (long long)s.sleeping);
   for (int a = 0; a < 3; a++) sum[a] /= navg > 0 ? navg : 1;
   printf("wheel force (grains on the wheel), mean over the last %ld steps: %.6g %.6g %.6g N  (sd %.4g %.4g %.4g)\n",
          navg, sum[0], sum[1], sum[2], sqrt(fmax(0, sum2[0] / navg - sum[0] * sum[0])),
