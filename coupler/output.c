@@ -304,6 +304,14 @@ int cpl_output_coupler_row(cpl_output *o, const char *dataset, int ncols,
 
 int cpl_output_flush(cpl_output *o) { return o ? proto_h5_flush(o->h5) : 0; }
 
+int cpl_output_endpoints(cpl_output *o, const char *control, const char *bus,
+                         proto_err *err) {
+  return proto_h5_attr_str(o->h5, "/", "control_endpoint", control, err) < 0 ||
+                 proto_h5_attr_str(o->h5, "/", "bus_monitor", bus, err) < 0
+             ? -1
+             : 0;
+}
+
 int cpl_output_summary(const cpl_output *o, char *out, size_t cap) {
   size_t len = 0;
   out[0] = 0;
