@@ -108,6 +108,10 @@ int cpl_check_processes(cpl_scene *s, proto_err *err);
  * coupled surface (at most one fem). roles[i] is process i's role. */
 int cpl_check_roles(const cpl_scene *s, const proto_role *roles, proto_err *err);
 const char *cpl_scheme_name(cpl_scheme s);
+/* The section as a participant sees it (welcome, --check-config): as in the
+ * scene, except that "exec" is one string, the participant (its last
+ * element), whatever launcher prefix the scene gives. Caller frees. */
+cJSON *cpl_section_for_participant(const cpl_process *p);
 
 /* Scenario kinematics. Rim frame at time t: rotation R (row-major 3x3),
  * centre c, angular velocity w, velocity v. `phase` is advanced by

@@ -274,7 +274,7 @@ static int wait_hellos(cpl_runner *r) {
 static void fill_run_header(cpl_runner *r, proto_msg *w, const cpl_process *p) {
   cpl_scene *s = r->scene;
   cJSON *h = proto_msg_header(w);
-  cJSON_AddItemToObject(h, PROTO_H_CONFIG, cJSON_Duplicate(p->section, 1));
+  cJSON_AddItemToObject(h, PROTO_H_CONFIG, cpl_section_for_participant(p));
   cJSON *run = cJSON_AddObjectToObject(h, PROTO_H_RUN);
   cJSON_AddStringToObject(run, "name", s->name);
   cJSON_AddNumberToObject(run, PROTO_H_DT, s->dt);

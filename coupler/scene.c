@@ -362,11 +362,21 @@ int cpl_resolve_exec(cpl_process *p, proto_err *err) {
   return 0;
 }
 
+cJSON *cpl_section_for_participant(const cpl_process *p) {
+  cJSON *sec = cJSON_Duplicate(p->section, 1);
+  if (sec && p->argc > 1)
+    cJSON_ReplaceItemInObjectCaseSensitive(sec, "exec",
+                                           cJSON_CreateString(p->argv[p->argc - 1]));
+  return sec;
+}
+
 /* Runs `participant --check-config - --name NAME` (the last element of exec
  * alone: checking a section needs no launcher) with the section on stdin and
  * returns its verdict; its stderr becomes the error message. */
 static int check_one(const cpl_process *p, proto_err *err) {
-  char *text = cJSON_PrintUnformatted(p->section);
+  cJSON *sec = cpl_section_for_participant(p);
+  char *text = sec ? cJSON_PrintUnformatted(sec) : NULL;
+  cJSON_Delete(sec);
   int in[2], out[2];
   if (!text || pipe(in) < 0 || pipe(out) < 0) {
     free(text);

@@ -108,6 +108,31 @@ def check_common(s, scheme):
     return f
 
 
+def two_beds():
+    """Two processes of role dem on one surface (freely named): the tread
+    gets the sum of their forces, in the order of the scene."""
+    s = scene("two_beds", {
+        "tyre": {"exec": "fem_stub",
+                 "surface": {"plane": {"size": [0.2, 0.16], "n": [4, 4], "z": -0.27}}},
+        "soil": {"exec": "dem_stub", "force_per_node": [-0.1, 0.0, 1.0], "ramp_time": RAMP},
+        "stones": {"exec": "dem_stub", "force_per_node": [0.05, 0.02, 0.5], "ramp_time": 0}},
+        scenario={"kind": "tire_travel", "rim_center": [0, 0, 0.3], "sinkage_velocity": 0.1,
+                  "sinkage_force": LOAD, "slip": 0.05, "omega": 1.8, "radius": 0.272})
+    s["time"] = {"dt": DT, "end": 0.05}
+    rc, out, err = run(s)
+    check(rc == 0, f"two dem processes: run ok ({err[-300:]})")
+    check("soil (dem)" in out and "stones (dem)" in out and "tyre (fem)" in out,
+          f"the schedule names the processes and their roles: {out[:400]}")
+    no_orphans(s, "two beds")
+    f = h5(s)
+    soil, stones, tyre = f["/soil/series"][:], f["/stones/series"][:], f["/tyre/series"][:]
+    check(np.allclose(tyre[:, 1:4], soil[:, 1:4] + stones[:, 1:4], rtol=1e-12, atol=1e-15),
+          "the tread receives the sum of both beds' forces")
+    trac = f["/coupler/traction"][:]
+    check(np.allclose(trac[:, 4], soil[:, 3] + stones[:, 3], rtol=1e-12), "vertical load = both beds")
+
+
+two_beds()
 for scheme in ("serial", "parallel", "implicit"):
     s = run_scheme(scheme)
     f = check_common(s, scheme)
