@@ -17,8 +17,11 @@
  * off its diagonal (R_jj² < filter² |v_j|²). Normal equations square the
  * condition number; the filter bounds it, and the iteration checks its own
  * residuals, so a less exact c costs an iteration, not accuracy.
- * Convergence, per field: |x̃_f − x_f| ≤ tol |x̃_f − base_f| (base: the
- * positions at the step start; zero for forces), or no residual at all. */
+ * Convergence, per field (preCICE's relative and residual-relative
+ * measures, either suffices): |r_f| ≤ tol |x̃_f − base_f| (base: the
+ * positions at the step start; zero for forces), or |r_f| ≤ tol |r_f,0|, the
+ * first residual of the step — for a field that vanishes (the forces when
+ * the grains leave the tread), which the first test cannot pass. */
 #include "run.h"
 
 #include <math.h>
@@ -33,6 +36,8 @@ struct cpl_accel {
   int iter;        /* iterations in this step */
   double *r, *r_prev, *xt, *xt_prev; /* [N] */
   double sumw[CPL_ACCEL_MAX_FIELDS], w2[CPL_ACCEL_MAX_FIELDS]; /* preconditioner */
+  double r0[CPL_ACCEL_MAX_FIELDS]; /* first residual norm of the step, per field */
+  int field_ok[CPL_ACCEL_MAX_FIELDS]; /* field passed its test this iteration */
   double omega, omega_last; /* Aitken */
   int converged;   /* the last cpl_accel_next converged */
   /* IQN-ILS columns: slots of storage, `order` newest first */
@@ -223,8 +228,11 @@ int cpl_accel_next(cpl_accel *a, double *x, const double *xt,
     }
     rn[f] = sqrt(r2);
     total += r2;
-    res[f] = d2 > 0 ? rn[f] / sqrt(d2) : r2 > 0 ? INFINITY : 0;
-    if (!(rn[f] <= a->opt.tolerance * sqrt(d2))) converged = 0;
+    if (a->iter == 0) a->r0[f] = rn[f];
+    const double scale = fmax(sqrt(d2), a->iter > 0 ? a->r0[f] : 0);
+    res[f] = scale > 0 ? rn[f] / scale : r2 > 0 ? INFINITY : 0;
+    a->field_ok[f] = rn[f] <= a->opt.tolerance * scale;
+    if (!a->field_ok[f]) converged = 0;
   }
   a->converged = converged;
   if (converged) return 1;
@@ -260,6 +268,13 @@ int cpl_accel_next(cpl_accel *a, double *x, const double *xt,
     memcpy(a->xt_prev, a->xt, sizeof(double) * (size_t)a->N);
     break;
   }
+  /* a field that has already converged takes its last output as it is:
+   * the others' acceleration must not move it (a force field that is zero
+   * because the grains left stays exactly zero, so the impulses balance
+   * exactly; columns record the inputs actually used, so IQN stays valid) */
+  for (int f = 0; f < a->nf; f++)
+    if (a->field_ok[f])
+      memcpy(x + a->off[f], xt + a->off[f], sizeof(double) * (size_t)a->len[f]);
   memcpy(a->r_prev, a->r, sizeof(double) * (size_t)a->N);
   a->iter++;
   return 0;

@@ -185,6 +185,19 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
   return 0;
 }
 
+/* The whole changing state (rollback of the implicit scheme, checkpoints):
+ * dem_state_export/import. surface_force and wall_row are rebuilt by every
+ * step, the model does not change. */
+static int state_save(void *user, proto_msg *state, proto_err *err) {
+  dem_app *a = user;
+  return dem_state_export(&a->model, &a->state, state, err);
+}
+
+static int state_load(void *user, const proto_msg *state, proto_err *err) {
+  dem_app *a = user;
+  return dem_state_import(&a->model, &a->state, state, err);
+}
+
 static void finish(void *user) {
   dem_app *a = user;
   if (a->have_state) dem_state_free(&a->state);
@@ -195,9 +208,8 @@ static void finish(void *user) {
 
 int main(int argc, char **argv) {
   static dem_app app;
-  /* No state_save/state_load yet (dem_state_export/import, issue 9): the
-   * implicit scheme refuses this participant by name until they exist. */
   const proto_participant_ops ops = {.role = PROTO_ROLE_DEM, .configure = configure, .init = init,
-                                     .step = step, .finish = finish};
+                                     .step = step, .finish = finish, .state_save = state_save,
+                                     .state_load = state_load};
   return proto_participant_main(argc, argv, &ops, &app);
 }
