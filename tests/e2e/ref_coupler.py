@@ -14,12 +14,13 @@ import numpy as np
 import zmq
 
 DTYPES = {"f8": "<f8", "i4": "<i4", "i8": "<i8", "u1": "u1"}
+CODES = {np.dtype("<f8"): "f8", np.dtype("<i4"): "i4", np.dtype("<i8"): "i8", np.dtype("u1"): "u1"}
 
 
 def _send(sock, name, type_, step=0, t=0.0, arrays=(), **extra):
     h = {"v": 1, "type": type_, "step": step, "t": t,
-         "arrays": [{"name": n, "dtype": "f8" if a.dtype == np.float64 else "i4",
-                     "shape": list(a.shape)} for n, a in arrays]}
+         "arrays": [{"name": n, "dtype": CODES[a.dtype], "shape": list(a.shape)}
+                    for n, a in arrays]}
     h.update(extra)
     sock.send_multipart([name.encode(), name.encode(), json.dumps(h).encode()] +
                         [np.ascontiguousarray(a).tobytes() for _, a in arrays])

@@ -7,7 +7,8 @@ the coupler for one participant at a time and checks that
   even after a repeat with other inputs;
 - checkpoint -> state arrays, a step, restore -> the same step again gives
   the same bits (the state arrays are its whole changing state);
-- a participant without state_save/state_load refuses a repeat by name.
+- (in test_bad_input: a participant without state_save/state_load makes
+  the coupler refuse the implicit scheme by name).
 contact_block is taken past blocks of its partitioned history convolution,
 whose delay lines are part of its state."""
 import json
@@ -139,25 +140,19 @@ proc.wait(timeout=30)
 sock.close(linger=0)
 ctx.term()
 
-# dem_server has no state_save/state_load (yet): it says so, and refuses a repeat
+# dem_server: grains pressed by a coupled surface, with sliding contacts
+# and the mesh moving (its contact springs, neighbour lists and the mesh
+# nodes are part of its state)
+xs = np.array([[-0.05, -0.05, 0.0], [0.05, -0.05, 0.0], [-0.05, 0.05, 0.0], [0.05, 0.05, 0.0]])
+ts = np.array([[0, 1, 2], [1, 3, 2]], dtype=np.int32)
+pile = [{"x": [0.012 * i - 0.018, 0.012 * j - 0.018, 0.0055 + 0.0115 * lay], "r": 0.006, "material": 0}
+        for i in range(4) for j in range(4) for lay in range(2)]
 grains = {"exec": "dem_server", "materials": [{"density": 2600, "E": 5e6, "nu": 0.3, "restitution": 0.5,
                                                "friction": 0.5}],
-          "particles": [{"x": [0, 0, 0.1], "r": 0.005, "material": 0}], "gravity": [0, 0, -9.81]}
-ctx, sock, proc, info, d = start("dem_server", grains, 1e-4, 10)
-_send(sock, "p", "welcome", config=grains, run=info)
-_, h, _ = _recv(sock)
-if h.get("rollback") is True:
-    print("dem_server can roll back now: covered by test_grains_slab implicit")
-else:
-    check(h.get("rollback") is False, "dem_server: ready says rollback: false")
-    step(sock, 1, 1e-4, [])
-    _send(sock, "p", "step", 1, 0.0, [], dt=1e-4, output=False, iteration=1)
-    try:
-        _recv(sock)
-        check(False, "dem_server: a repeat must be refused")
-    except RuntimeError as e:
-        check("cannot roll back" in str(e), f"dem_server refuses a repeat by name: {e}")
-proc.wait(timeout=30)
-sock.close(linger=0)
-ctx.term()
+          "particles": pile, "gravity": [0, 0, -9.81], "overlap_tolerance": 0.1,
+          "walls": [{"type": "plane", "point": [0, 0, -0.002], "normal": [0, 0, 1]}]}
+moves = [[("x", xs + [0, 0, 0.0229 - 1e-5 * k - 2e-6 * v]), ("v", np.tile([1e-3 * v, 0, -0.1], (4, 1)))]
+         for k in range(60) for v in (0, 1)]
+exercise("dem_server", "dem_server", grains, 1e-4, lambda k, v: moves[2 * k + v], warmup=12,
+         welcome_arrays=[("surface_x0", xs + [0, 0, 0.0229]), ("surface_tri", ts)])
 done()
