@@ -117,16 +117,19 @@ static int cmd_roles(int argc, char **argv) {
       if ((int)t[i].role != r) continue;
       char shape[64];
       size_t len = (size_t)snprintf(shape, sizeof shape, "[");
-      for (int d = 0; d < t[i].ndim; d++)
-        len += (size_t)snprintf(shape + len, sizeof shape - len, "%s%s", d ? "," : "",
-                                t[i].dims[d] == PROTO_DIM_NODES ? "n"
-                                : t[i].dims[d] == PROTO_DIM_TRIS ? "m"
-                                : t[i].dims[d] == 1 ? "1" : t[i].dims[d] == 3 ? "3" : "?");
+      for (int d = 0; d < t[i].ndim; d++) {
+        const int64_t v = t[i].dims[d];
+        if (v > 0)
+          len += (size_t)snprintf(shape + len, sizeof shape - len, "%s%lld", d ? "," : "",
+                                  (long long)v);
+        else
+          len += (size_t)snprintf(shape + len, sizeof shape - len, "%s%s", d ? "," : "",
+                                  v == PROTO_DIM_NODES ? "n" : "m");
+      }
       snprintf(shape + len, sizeof shape - len, "]");
-      printf("  %-8s %-12s %s %-6s %-6s %s%s\n    %s\n", proto_msg_type(t[i].msg),
+      printf("  %-8s %-12s %s %-6s %-6s%s\n    %s\n", proto_msg_type(t[i].msg),
              t[i].name, proto_dtype_name(t[i].dtype), shape, t[i].units,
-             t[i].when == PROTO_WHEN_SURFACE ? "(with a surface) " : "", "",
-             t[i].meaning);
+             t[i].when == PROTO_WHEN_SURFACE ? " (with a surface)" : "", t[i].meaning);
     }
   }
   return 0;

@@ -3,11 +3,13 @@
  * What lives here, shared by every other part:
  *   1. errors        proto_err: a message buffer every fallible call fills
  *   2. messages      multipart [topic][JSON header][raw array]... (PROTOCOL.md)
- *   3. participants  proto_participant_main(): the handshake/step loop a solver
- *                    process plugs into with three callbacks
- *   4. config        JSON loading with line/column errors and a key reader that
+ *   3. role table    what each role (dem, fem, block) exchanges: array names,
+ *                    dtypes, shapes, meaning; checked by both sides
+ *   4. participants  proto_participant_main(): the handshake/step loop a solver
+ *                    process plugs into with callbacks (step, state save/load)
+ *   5. config        JSON loading with line/column errors and a key reader that
  *                    names the key path in every error and rejects unknown keys
- *   5. output        HDF5 time series / snapshots and the XDMF companion file
+ *   6. output        HDF5 time series / snapshots and the XDMF companion file
  *
  * Nothing here knows any physics. Units are SI unless a comment says otherwise.
  */
