@@ -19,6 +19,7 @@ from common import COSIM, HERE, check, done
 ROOT = os.path.dirname(os.path.dirname(HERE))
 STUB = {"fem_server": "fem_stub", "dem_server": "dem_stub", "contact_block": "block_stub"}
 END = "time.end=0.002"  # 40 steps of the default scene
+SETTLE = "processes.dem.particles.settle_max_steps=300"  # a shorter settling: fast also under ASan
 
 
 def cosim(*args, timeout=300, cwd=None):
@@ -42,7 +43,7 @@ tmp = tempfile.mkdtemp(prefix="cosim-configs-")
 for proc, stub in (("dem", "dem_stub"), ("fem", "fem_stub")):
     out = os.path.join(tmp, f"swap_{proc}")
     p = cosim("run", default, "--set", f"processes.{proc}.exec={stub}", "--set", END,
-              "--set", f"output.dir={out}", "--quiet")
+              "--set", SETTLE, "--set", f"output.dir={out}", "--quiet")
     check(p.returncode == 0, f"README swap processes.{proc}.exec={stub} runs ({p.stderr[-400:]})")
     if p.returncode == 0:
         log = open(os.path.join(out, "logs", f"{proc}.log")).read()
@@ -55,16 +56,16 @@ procs, outs = [], []
 for i in range(2):
     out = os.path.join(tmp, f"twin{i}")
     outs.append(out)
-    procs.append(subprocess.Popen([COSIM, "run", default, "--set", END, "--set", f"output.dir={out}",
-                                   "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                  text=True))
+    procs.append(subprocess.Popen([COSIM, "run", default, "--set", END, "--set", SETTLE,
+                                   "--set", f"output.dir={out}", "--quiet"],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
 # while they run: `cosim monitor OUTPUT_DIR` finds the bus through endpoints.json
 ep_file = os.path.join(outs[0], "endpoints.json")
 for _ in range(600):
     if os.path.exists(ep_file) or procs[0].poll() is not None:
         break
     time.sleep(0.05)
-mon = cosim("monitor", outs[0], "--topic", "coupler.progress", "--count", "1", "--timeout", "60")
+mon = cosim("monitor", outs[0], "--topic", "coupler.progress", "--count", "1", "--timeout", "600")
 results = [p.communicate(timeout=600) for p in procs]
 for i, (p, (out, err)) in enumerate(zip(procs, results)):
     check(p.returncode == 0, f"run {i} of two concurrent default runs finished ({err[-400:]})")

@@ -1,0 +1,308 @@
+#!/usr/bin/python3
+"""Coupling benchmark (bench/results/coupling.md):
+
+  paper  the paper-scale tyre in contact: the settled 21 812-grain bed
+         (bench/dem/paper_bed.json) under the full 165/65 R13 tread
+         (refine 1, 23 808 tets), >= 500 coupled steps in contact; ms per
+         step and its split per process (/coupler/timing) for the serial,
+         parallel and implicit schemes, with 1 or 2 OpenMP threads per
+         process. Runs alternate, the minimum of the repeats is kept.
+  wp     work-precision of the coupling on the small tyre scene
+         (configs/default.json, its bed settled once and loaded from a
+         file): mean T_H, T_R and vertical load over the travel phase,
+         against a reference run (implicit, dt/4), versus wall time, for
+         the three schemes at three coupling steps.
+  report writes bench/results/coupling.md and the PNGs from the JSON.
+
+Usage: run_bench.py BUILD_DIR WORK_DIR [beds] [paper] [wp] [report]
+Times are measured: run it under `flock /tmp/cosim-bench.lock` on a quiet
+machine (the report records the load average)."""
+import json
+import os
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+BUILD, WORK = os.path.abspath(sys.argv[1]), os.path.abspath(sys.argv[2])
+BIN = os.path.join(BUILD, "bin")
+RESULTS = os.path.join(ROOT, "bench", "results")
+RAW = os.path.join(RESULTS, "coupling.json")
+os.makedirs(WORK, exist_ok=True)
+
+GRAIN = {"density": 2600, "E": 5e6, "nu": 0.3, "restitution": 0.5, "friction": 0.6}
+RUBBER = {"density": 1100, "E": 20e6, "nu": 0.45, "restitution": 0.5, "friction": 0.8}
+TREAD_MAT = {"E": 20e6, "nu": 0.45, "density": 1100, "damping": 50}
+
+
+def load_raw():
+    return json.load(open(RAW)) if os.path.exists(RAW) else {}
+
+
+def save_raw(raw):
+    json.dump(raw, open(RAW, "w"), indent=1, sort_keys=True)
+
+
+def cosim_run(scene, name, env=None, timeout=7200):
+    path = os.path.join(WORK, name + ".json")
+    json.dump(scene, open(path, "w"), indent=1)
+    e = dict(os.environ)
+    e.update(env or {})
+    t0 = time.time()
+    p = subprocess.run([os.path.join(BIN, "cosim"), "run", path, "--quiet"], cwd=WORK,
+                       capture_output=True, text=True, timeout=timeout, env=e)
+    if p.returncode != 0:
+        raise RuntimeError(f"{name}: exit {p.returncode}\n{p.stdout[-2000:]}\n{p.stderr[-3000:]}")
+    return time.time() - t0, p.stdout
+
+
+def columns(ds):
+    return [c.decode() if isinstance(c, bytes) else str(c) for c in ds.attrs["columns"]]
+
+
+def load_avg():
+    return open("/proc/loadavg").read().split()[:3]
+
+
+# ------------------------------------------------------------------ beds
+
+def beds():
+    """The paper's bed (21 812 grains, 1 x 1 m) and the small scene's bed,
+    settled once and saved, so every run starts from the same grains."""
+    if not os.path.exists(os.path.join(WORK, "paper_bed.h5")):
+        s = json.load(open(os.path.join(ROOT, "bench", "dem", "paper_bed.json")))
+        s["output"]["dir"] = os.path.join(WORK, "runs", "paper_bed")
+        print("settling the paper bed ...", flush=True)
+        cosim_run(s, "paper_bed")
+    if not os.path.exists(os.path.join(WORK, "small_bed.h5")):
+        s = json.load(open(os.path.join(ROOT, "configs", "default.json")))
+        s["time"]["end"] = s["time"]["dt"]
+        s["output"]["dir"] = os.path.join(WORK, "runs", "small_bed")
+        s["bus"] = {}
+        s["processes"]["dem"]["particles"]["save"] = "small_bed.h5"
+        print("settling the small bed ...", flush=True)
+        cosim_run(s, "small_bed")
+
+
+def bed_top(path):
+    with h5py.File(path, "r") as f:
+        x, r = f["x"][:], f["r"][:]
+    return float((x[:, 2] + r).max())
+
+
+# ----------------------------------------------------------------- paper
+
+PAPER_DT, PAPER_STEPS, PAPER_SKIP = 5e-5, 800, 300  # timing over steps 300..800
+
+
+def paper_scene(scheme, threads):
+    top = bed_top(os.path.join(WORK, "paper_bed.h5"))
+    # the tread's lowest point 1 mm above the highest grain: it touches within
+    # 200 steps at 0.1 m/s and sinks further for the rest of the run
+    rim_z = top + 0.272 + 1e-3
+    return {"name": "paper_tyre",
+            "time": {"dt": PAPER_DT, "end": PAPER_STEPS * PAPER_DT},
+            "output": {"dir": os.path.join(WORK, "runs", f"paper_{scheme}_{threads}"),
+                       "every": 1000000},
+            "coupling": {"scheme": scheme, "handshake_timeout": 1200, "step_timeout": 300},
+            "scenario": {"kind": "tire_travel", "rim_center": [0.5, 0.5, rim_z],
+                         "sinkage_velocity": 0.1, "sinkage_force": 1e4, "slip": 0.05,
+                         "omega": 1.8, "radius": 0.272},
+            "processes": {
+                "tyre": {"exec": "fem_server", "mesh": {"generate": "tread", "refine": 1, "lugs": 32},
+                         "element": "tet4", "material": TREAD_MAT, "fixed": {"group": "rim"},
+                         "pressure": {"group": "inner", "value": 2e5}},
+                "soil": {"exec": "dem_server", "materials": [GRAIN, RUBBER],
+                         "particles": {"file": os.path.join(WORK, "paper_bed.h5")},
+                         "walls": [{"type": "box", "lo": [0, 0, 0], "hi": [1, 1, 1], "open_top": True}],
+                         "surface_material": 1, "gravity": [0, 0, -9.81], "threads": threads}}}
+
+
+def timing_summary(out_dir):
+    with h5py.File(os.path.join(out_dir, "results.h5"), "r") as f:
+        tim = f["/coupler/timing"][:]
+        cols = columns(f["/coupler/timing"])
+        load = f["/coupler/traction"][:, 4]
+        it = f["/coupler/series"][:, 2]
+    w = slice(PAPER_SKIP, None)
+    res = {c: float(tim[w, i].mean()) for i, c in enumerate(cols) if c != "t"}
+    res["steps"] = int(tim[w].shape[0])
+    res["steps_in_contact"] = int((load[w] > 0).sum())
+    res["mean_load"] = float(load[w].mean())
+    res["iterations"] = float(it[w].mean())
+    return res
+
+
+PAPER_CONFIGS = [("serial", 2), ("serial", 1), ("parallel", 1), ("parallel", 2), ("implicit", 1)]
+
+
+def paper(repeats=2):
+    raw = load_raw()
+    runs = {f"{s}_{t}": [] for s, t in PAPER_CONFIGS}
+    for rep in range(repeats):
+        for scheme, threads in PAPER_CONFIGS:
+            key = f"{scheme}_{threads}"
+            env = {"OMP_NUM_THREADS": str(threads)}
+            wall, _ = cosim_run(paper_scene(scheme, threads), f"paper_{key}", env=env)
+            res = timing_summary(os.path.join(WORK, "runs", f"paper_{key}"))
+            res["run_wall_s"] = wall
+            runs[key].append(res)
+            print(key, rep, f"{1e3 * res['wall']:.2f} ms/step", "contact steps", res["steps_in_contact"],
+                  flush=True)
+    best = {k: min(v, key=lambda r: r["wall"]) for k, v in runs.items()}
+    raw["paper"] = {"configs": best, "all": runs, "load_avg": load_avg(),
+                    "dt": PAPER_DT, "steps": PAPER_STEPS, "skip": PAPER_SKIP}
+    save_raw(raw)
+
+
+# -------------------------------------------------------------------- wp
+
+WP_DTS = [1e-4, 5e-5, 2.5e-5]
+WP_REF_DT = 1.25e-5  # dt/4 of the scene's 5e-5
+WP_T_TRAVEL = 0.42   # travel phase averaged from here to the end
+
+
+def small_scene(scheme, dt, tag):
+    s = json.load(open(os.path.join(ROOT, "configs", "default.json")))
+    s["time"]["dt"] = dt
+    s["output"] = {"dir": os.path.join(WORK, "runs", f"wp_{tag}"), "every": 1000000}
+    s["bus"] = {}
+    s["coupling"]["scheme"] = scheme
+    s["processes"]["dem"]["particles"] = {"file": os.path.join(WORK, "small_bed.h5")}
+    # the DEM's own step stays that of the scene (2.5e-5 s), sub-split by dt
+    s["processes"]["dem"]["dt"] = 2.5e-5
+    return s
+
+
+def wp_metrics(out_dir):
+    with h5py.File(os.path.join(out_dir, "results.h5"), "r") as f:
+        tr = f["/coupler/traction"][:]
+        cols = columns(f["/coupler/traction"])
+        it = f["/coupler/series"][:, 2]
+    w = tr[:, 0] >= WP_T_TRAVEL
+    return {c: float(tr[w, cols.index(c)].mean()) for c in ("T_H", "T_R", "vertical_load")} | \
+        {"iterations": float(it.mean())}
+
+
+def wp():
+    raw = load_raw()
+    ref_tag = "ref"
+    wall, _ = cosim_run(small_scene("implicit", WP_REF_DT, ref_tag), f"wp_{ref_tag}",
+                        env={"OMP_NUM_THREADS": "1"})
+    ref = wp_metrics(os.path.join(WORK, "runs", f"wp_{ref_tag}")) | {"wall": wall}
+    print("reference", ref, flush=True)
+    rows = []
+    for dt in WP_DTS:
+        for scheme in ("serial", "parallel", "implicit"):
+            tag = f"{scheme}_{dt:g}"
+            wall, _ = cosim_run(small_scene(scheme, dt, tag), f"wp_{tag}", env={"OMP_NUM_THREADS": "1"})
+            m = wp_metrics(os.path.join(WORK, "runs", f"wp_{tag}"))
+            rows.append({"scheme": scheme, "dt": dt, "wall": wall} | m)
+            print(rows[-1], flush=True)
+    raw["wp"] = {"reference": ref, "ref_dt": WP_REF_DT, "rows": rows, "t_travel": WP_T_TRAVEL,
+                 "load_avg": load_avg()}
+    save_raw(raw)
+
+
+# ---------------------------------------------------------------- report
+
+def report():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    raw = load_raw()
+    md = ["# Coupling schemes: time per step, where it goes, work–precision", "",
+          "`/usr/bin/python3 bench/coupling/run_bench.py build WORK beds paper wp report` "
+          "(under `flock /tmp/cosim-bench.lock`). Raw numbers: `coupling.json`.", ""]
+    if "paper" in raw:
+        P = raw["paper"]
+        C = P["configs"]
+        ser = C["serial_2"]["wall"]
+        md += ["## Paper-scale tyre in contact",
+               "",
+               f"Settled 21 812-grain bed (bench/dem/paper_bed.json, 1 × 1 m box) under the full "
+               f"165/65 R13 tread (refine 1: 23 808 TET4, 32 lugs, inflated, rim fixed), coupling "
+               f"step {P['dt'] * 1e6:g} µs, {P['steps']} steps; means over steps "
+               f"{P['skip']}–{P['steps']} (the tread in contact, sinking at 0.1 m/s). Minimum of "
+               f"{len(P['all']['serial_2'])} alternated runs per configuration; load average "
+               f"{' '.join(P['load_avg'])} at the end. 2 cores.", "",
+               "| scheme | OpenMP threads / process | ms / step | × serial (2 thr) | tyre compute | soil compute | "
+               "transfer (both) | coupler mapping + output | overhead | iterations |",
+               "|---|---|---|---|---|---|---|---|---|---|"]
+        for key, r in C.items():
+            scheme, thr = key.rsplit("_", 1)
+            tc, sc = r["tyre.compute"], r["soil.compute"]
+            tf = r["tyre.transfer"] + r["soil.transfer"]
+            cm = r["coupler.mapping"] + r["coupler.output"]
+            crit = tc + sc if scheme == "serial" else max(tc, sc)
+            over = r["wall"] - crit
+            md.append(f"| {scheme} | {thr} | {1e3 * r['wall']:.2f} | {r['wall'] / ser:.2f} | "
+                      f"{1e3 * tc:.2f} | {1e3 * sc:.2f} | {1e3 * tf:.3f} | {1e3 * cm:.3f} | "
+                      f"{100 * over / r['wall']:.1f} % | {r['iterations']:.2f} |")
+        md += ["", "Per step: compute = the participant's own time in its step (sum over the "
+               "implicit scheme's iterations); transfer = request sent → reply received minus "
+               "compute (encode, decode, sockets); overhead = wall − compute on the critical path "
+               "(serial: tyre + soil; parallel, implicit: the larger of the two, per step), i.e. "
+               "transfer + coupler + imbalance.", ""]
+        fig, ax = plt.subplots(figsize=(8, 4))
+        keys = list(C)
+        for i, key in enumerate(keys):
+            r = C[key]
+            parts = [("tyre compute", r["tyre.compute"]), ("soil compute", r["soil.compute"]),
+                     ("transfer", r["tyre.transfer"] + r["soil.transfer"]),
+                     ("coupler", r["coupler.mapping"] + r["coupler.output"])]
+            bottom = 0
+            for j, (lab, v) in enumerate(parts):
+                ax.bar(i - 0.2, 1e3 * v, 0.35, bottom=bottom, color=f"C{j}", label=lab if i == 0 else None)
+                bottom += 1e3 * v
+            ax.bar(i + 0.2, 1e3 * r["wall"], 0.35, color="0.6", label="wall per step" if i == 0 else None)
+        ax.set_xticks(range(len(keys)), [k.replace("_", "\n") + " thr" for k in keys])
+        ax.set_ylabel("ms per coupled step")
+        ax.set_title("paper-scale tyre in contact: time per step (stacked: summed over processes)")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(os.path.join(RESULTS, "coupling_paper.png"), dpi=120)
+        md += ["![time per step](coupling_paper.png)", ""]
+    if "wp" in raw:
+        W = raw["wp"]
+        ref = W["reference"]
+        md += ["## Work–precision on the small tyre scene", "",
+               f"configs/default.json (2 181 grains, coarse tread), its bed settled once; DEM step "
+               f"2.5e-5 s (sub-split by the coupling step), 1 thread per process. Metrics: mean "
+               f"T_H, T_R and vertical load over t ≥ {W['t_travel']} s (travel); error against the "
+               f"reference run (implicit, dt = {W['ref_dt']:g} s: T_H = {ref['T_H']:.4g} N, "
+               f"T_R = {ref['T_R']:.4g} N, load = {ref['vertical_load']:.4g} N). Load average "
+               f"{' '.join(W['load_avg'])}.", "",
+               "| scheme | dt (s) | wall (s) | iterations / step | T_H err | T_R err | load err |",
+               "|---|---|---|---|---|---|---|"]
+        for r in W["rows"]:
+            e = {m: abs(r[m] - ref[m]) / max(abs(ref[m]), 1e-30) for m in ("T_H", "T_R", "vertical_load")}
+            r["err"] = e
+            md.append(f"| {r['scheme']} | {r['dt']:g} | {r['wall']:.1f} | {r['iterations']:.2f} | "
+                      f"{100 * e['T_H']:.2f} % | {100 * e['T_R']:.2f} % | {100 * e['vertical_load']:.2f} % |")
+        fig, axs = plt.subplots(1, 3, figsize=(12, 3.6))
+        for ax, m in zip(axs, ("T_H", "T_R", "vertical_load")):
+            for j, scheme in enumerate(("serial", "parallel", "implicit")):
+                rr = [r for r in W["rows"] if r["scheme"] == scheme]
+                ax.loglog([r["wall"] for r in rr], [max(r["err"][m], 1e-6) for r in rr], "o-",
+                          color=f"C{j}", label=scheme)
+                for r in rr:
+                    ax.annotate(f"{r['dt']:g}", (r["wall"], max(r["err"][m], 1e-6)), fontsize=6)
+            ax.set_xlabel("wall time (s)")
+            ax.set_ylabel(f"relative error of mean {m}")
+            ax.set_title(m)
+        axs[0].legend()
+        fig.tight_layout()
+        fig.savefig(os.path.join(RESULTS, "coupling_wp.png"), dpi=120)
+        md += ["", "![work-precision](coupling_wp.png)", ""]
+    open(os.path.join(RESULTS, "coupling.md"), "w").write("\n".join(md) + "\n")
+    save_raw(raw)
+
+
+parts = sys.argv[3:] or ["beds", "paper", "wp", "report"]
+for p in parts:
+    {"beds": beds, "paper": paper, "wp": wp, "report": report}[p]()
