@@ -82,25 +82,24 @@ const proto_array_spec *proto_role_table(int *n) {
   return table;
 }
 
+/* Index of name in names[0..n), or -1. */
+static int index_of(const char *name, const char *const *names, int n) {
+  for (int i = 0; name && i < n; i++)
+    if (strcmp(name, names[i]) == 0) return i;
+  return -1;
+}
+
 const char *proto_role_name(proto_role r) {
   return (unsigned)r < PROTO_N_ROLES ? role_names[r] : "?";
 }
 
-int proto_role_parse(const char *name) {
-  for (int i = 0; name && i < PROTO_N_ROLES; i++)
-    if (strcmp(name, role_names[i]) == 0) return i;
-  return -1;
-}
+int proto_role_parse(const char *name) { return index_of(name, role_names, PROTO_N_ROLES); }
 
 const char *proto_msg_type(proto_msg_kind k) {
   return (unsigned)k < PROTO_N_MSGS ? msg_types[k] : "?";
 }
 
-int proto_msg_kind_parse(const char *type) {
-  for (int i = 0; type && i < PROTO_N_MSGS; i++)
-    if (strcmp(type, msg_types[i]) == 0) return i;
-  return -1;
-}
+int proto_msg_kind_parse(const char *type) { return index_of(type, msg_types, PROTO_N_MSGS); }
 
 void proto_dims_init(proto_dims *d) {
   d->nodes = d->tris = -1;
