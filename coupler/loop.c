@@ -238,7 +238,7 @@ static int record(cpl_runner *r, int64_t k, int output) {
   double t = (double)k * r->scene->dt;
   double crow[N_CS] = {t, proto_now() - r->wall_start, r->iterations, r->converged,
                        r->residual[IF_X], r->residual[IF_F], r->residual[IF_ROAD]};
-  if (cpl_output_coupler_row(r->out, "series", N_CS, coupler_cols, crow, &r->err) < 0)
+  if (cpl_output_coupler_row(r->out, PROTO_A_SERIES, N_CS, coupler_cols, crow, &r->err) < 0)
     return -1;
   publish(r, "coupler.series", "series", k, t, PROTO_A_SERIES, N_CS, crow);
   if (r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL) {

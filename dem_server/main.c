@@ -115,7 +115,7 @@ static void publish_summary(dem_app *a, proto_peer *peer, int64_t step, double t
   snprintf(topic, sizeof topic, "%s.summary", a->name);
   proto_msg_reset(&m, topic, "summary", step, t);
   cJSON_AddItemToObject(proto_msg_header(&m), "columns", cJSON_CreateStringArray(SERIES, 6));
-  proto_msg_add_f8(&m, "series", 6, 0, a->series);
+  proto_msg_add_f8(&m, PROTO_A_SERIES, 6, 0, a->series);
   proto_peer_publish(peer, &m);
   proto_msg_free(&m);
 }

@@ -182,10 +182,11 @@ def wp_metrics(out_dir):
     with h5py.File(os.path.join(out_dir, "results.h5"), "r") as f:
         tr = f["/coupler/traction"][:]
         cols = columns(f["/coupler/traction"])
-        it = f["/coupler/series"][:, 2]
+        cs = f["/coupler/series"][:]
     w = tr[:, 0] >= WP_T_TRAVEL
     return {c: float(tr[w, cols.index(c)].mean()) for c in ("T_H", "T_R", "vertical_load")} | \
-        {"iterations": float(it.mean())}
+        {"iterations": float(cs[:, 2].mean()), "unconverged": int((cs[:, 3] == 0).sum()),
+         "steps": int(cs.shape[0])}
 
 
 def wp():
@@ -277,13 +278,13 @@ def report():
                f"reference run (implicit, dt = {W['ref_dt']:g} s: T_H = {ref['T_H']:.4g} N, "
                f"T_R = {ref['T_R']:.4g} N, load = {ref['vertical_load']:.4g} N). Load average "
                f"{' '.join(W['load_avg'])}.", "",
-               "| scheme | dt (s) | wall (s) | iterations / step | T_H err | T_R err | load err |",
-               "|---|---|---|---|---|---|---|"]
+               "| scheme | dt (s) | wall (s) | iterations / step | steps not converged | T_H err | T_R err | load err |",
+               "|---|---|---|---|---|---|---|---|"]
         for r in W["rows"]:
             e = {m: abs(r[m] - ref[m]) / max(abs(ref[m]), 1e-30) for m in ("T_H", "T_R", "vertical_load")}
             r["err"] = e
             md.append(f"| {r['scheme']} | {r['dt']:g} | {r['wall']:.1f} | {r['iterations']:.2f} | "
-                      f"{100 * e['T_H']:.2f} % | {100 * e['T_R']:.2f} % | {100 * e['vertical_load']:.2f} % |")
+                      f"{r['unconverged']} of {r['steps']} | {100 * e['T_H']:.2f} % | {100 * e['T_R']:.2f} % | {100 * e['vertical_load']:.2f} % |")
         fig, axs = plt.subplots(1, 3, figsize=(12, 3.6))
         for ax, m in zip(axs, ("T_H", "T_R", "vertical_load")):
             for j, scheme in enumerate(("serial", "parallel", "implicit")):

@@ -1,6 +1,6 @@
-"""End to end through real processes over ipc: the tyre-travel scenario with
-fem_stub (rigid surface following the rim) and dem_stub (prescribed forces),
-with each coupling scheme. Checks the values in results.h5 against what the
+"""End to end through real processes over ipc: configs/stub_tire.json (the
+tyre-travel scenario with fem_stub, a rigid surface following the rim, and
+dem_stub, prescribed forces), with each coupling scheme. Checks the values in results.h5 against what the
 scenario and the scheme must produce, computed here from their definitions:
 
 - dem_stub returns the impulse of its ramped force over each step / dt
@@ -20,7 +20,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from common import check, done, h5, no_orphans, run, scene, columns
+from common import HERE, check, done, h5, no_orphans, run, scene, columns
 
 N_NODES = 25  # plane n = [4, 4]
 DT, RAMP, LOAD = 1e-3, 0.1, 20.0
@@ -38,15 +38,11 @@ def expected_travel_start(scheme):
 
 
 def run_scheme(scheme):
-    s = scene(f"stub_run_{scheme}", {
-        "fem": {"exec": "fem_stub",
-                "surface": {"plane": {"size": [0.2, 0.16], "n": [4, 4], "z": -0.27}}},
-        "dem": {"exec": "dem_stub", "force_per_node": [-0.1, 0.0, 1.0], "ramp_time": RAMP}},
-        scenario={"kind": "tire_travel", "rim_center": [0, 0, 0.3], "sinkage_velocity": 0.1,
-                  "sinkage_force": LOAD, "slip": 0.05, "omega": 1.8, "radius": 0.272})
-    s["time"] = {"dt": DT, "end": 0.2}
-    s["output"]["every"] = 50
-    s["coupling"]["scheme"] = scheme
+    """configs/stub_tire.json as it is, with the scheme set."""
+    cfg = json.load(open(os.path.join(HERE, "..", "..", "configs", "stub_tire.json")))
+    s = scene(f"stub_run_{scheme}", cfg["processes"], scenario=cfg["scenario"], time=cfg["time"])
+    s["output"]["every"] = cfg["output"]["every"]
+    s["coupling"] = dict(cfg["coupling"], scheme=scheme)
     rc, out, err = run(s)
     check(rc == 0, f"{scheme}: run exits 0 (got {rc}: {err})")
     check("results:" in out and "results.h5" in out, f"{scheme}: run prints where its results are")
