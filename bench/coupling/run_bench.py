@@ -164,7 +164,7 @@ def paper(repeats=2):
 
 WP_DTS = [1e-4, 5e-5, 2.5e-5]
 WP_REF_DT = 1.25e-5  # dt/4 of the scene's 5e-5
-WP_T_TRAVEL = 0.42   # travel phase averaged from here to the end
+WP_T_TRAVEL = 0.3    # travel (from t = 0.28 s) averaged from here to the end
 
 
 def small_scene(scheme, dt, tag):
