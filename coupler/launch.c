@@ -52,6 +52,11 @@ int cpl_spawn(cpl_child *c, const char *name, int argc, const char *const *argv,
     int devnull = open("/dev/null", O_RDONLY);
     if (devnull >= 0) dup2(devnull, 0);
     setenv("COSIM_LAUNCHED", "1", 1);
+    /* Participants take turns on shared cores (serial scheme): OpenMP
+     * threads that spin after each parallel region steal the cores of the
+     * process computing next (paper-scale tyre, 2 cores, 2 threads each:
+     * 1.8x slower; bench/results/coupling.md). Unless the user chose. */
+    setenv("OMP_WAIT_POLICY", "passive", 0);
     execv(args[0], (char *const *)args);
     fprintf(stderr, "cannot execute %s: %s\n", args[0], strerror(errno));
     _exit(127);
