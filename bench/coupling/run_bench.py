@@ -393,6 +393,27 @@ def report():
             md.append(f"| {r['scheme']} | {r['dt']:g} | {r['wall']:.1f} | {r['iterations']:.2f} | "
                       f"{r['unconverged']} of {r['steps']} | {100 * e['T_H']:.2f} % | {100 * e['T_R']:.2f} % | {100 * e['vertical_load']:.2f} % | "
                       f"{100 * e['sink_load']:.2f} % |")
+        def sink_errs(scheme):
+            return ", ".join(f"{100 * r['err']['sink_load']:.2g} %" if "err" in r else "stopped"
+                             for r in W["rows"] if r["scheme"] == scheme)
+        noise = W.get("noise", {}).get("err", {})
+        md += ["", "### Findings", "",
+               f"- The travel-phase means (T_H, T_R, load over 0.2 s of travel) are dominated by the "
+               f"grains' chaos: the reference run repeated with a 100× tighter tolerance differs from "
+               f"it by {100 * noise.get('T_H', float('nan')):.0f} %, {100 * noise.get('T_R', float('nan')):.0f} % "
+               f"and {100 * noise.get('vertical_load', float('nan')):.0f} %; the schemes cannot be "
+               f"ranked by them.",
+               f"- The vertical load during the sinkage (before the travel) is reproducible to "
+               f"{100 * noise.get('sink_load', float('nan')):.2g} % (noise floor) and measures the "
+               f"coupling: errors at dt = 1e-4, 5e-5, 2.5e-5 s: serial {sink_errs('serial')}; "
+               f"parallel {sink_errs('parallel')}; implicit {sink_errs('implicit')}. Serial converges "
+               f"to the floor by dt = 5e-5 s. The parallel scheme's one-step force lag injects energy "
+               f"(negative damping, notes §1): at 5e-5 s the tread's kinetic energy grew from 2e-6 J to "
+               f"0.6 J (serial: 2e-5 J) and its load curve left the others'; at 2.5e-5 s it stayed "
+               f"stable. The implicit scheme removes the lag but, here, is not more "
+               f"accurate than serial (whose grains see the surface of the last step and whose tread "
+               f"gets the forces of the same step: no lag) and costs 4–5× its wall time.",
+               ""]
         fig, axs = plt.subplots(1, 4, figsize=(15, 3.6))
         for ax, m in zip(axs, ("T_H", "T_R", "vertical_load", "sink_load")):
             for j, scheme in enumerate(("serial", "parallel", "implicit")):
