@@ -428,7 +428,7 @@ def report():
             ax.set_xlabel("wall time (s)")
             ax.set_ylabel(f"relative error of mean {m}" if m != "sink_load" else "RMS error, sinkage load")
             ax.set_title(m)
-        axs[0].legend()
+        axs[3].legend(fontsize=7, loc="upper right")
         fig.tight_layout()
         fig.savefig(os.path.join(RESULTS, "coupling_wp.png"), dpi=120)
         md += ["", "![work-precision](coupling_wp.png)", ""]
