@@ -32,6 +32,11 @@ typedef struct grn_grid {
 
 /* Love coefficients for every offset: C[(dj+ny-1)(2nx-1) + di+nx-1], m/N. */
 void grn_static_love(const grn_grid *g, double E, double nu, double *C);
+/* The same for a half-space whose load repeats over nx·dx × ny·dy (periodic
+ * road): C(Δ) = C(Δ − n) in the same layout. The uniform mode is set to zero
+ * mean displacement per period (the image sum of 1/r diverges): periodic.c. */
+int grn_static_love_periodic(const grn_grid *g, double E, double nu, double *C,
+                             proto_err *err);
 
 /* Static surface stiffness (Pa/m) of a layer of thickness h bonded to a rigid
  * base, frictionless free top, at wavenumber q (notes §2.2, checked in

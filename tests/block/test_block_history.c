@@ -28,6 +28,7 @@ static void scene(blk_model *m, int asym) {
   m->solver.tail_tol = 0; /* all Q samples, as the plain convolution */
   if (!asym) return;
   /* tilt g over the offsets (not a layer, a test of the general path) */
+  OK(blk_green_materialize(m, &err));
   for (int k = 0; k < m->Q; k++)
     for (int dj = 0; dj < m->noy; dj++)
       for (int di = 0; di < m->nox; di++)
