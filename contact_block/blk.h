@@ -102,6 +102,7 @@ typedef struct blk_model {
   int rigid;
   int n_knots, n_tables;
   double *spr_d, *spr_F, *spr_k; /* [n_tables][n_knots] */
+  double *spr_W;                 /* [n_tables][n_knots] ∫F up to each knot (derived) */
   int *spr_table;                /* [M] */
   double *spr_scale;             /* [M] */
   /* adhesion (ch. 5.1): mirrored springs, contact breaks past the release force */

@@ -24,8 +24,6 @@
 /* Armijo constant and backtracking cuts */
 #define BLK_ARMIJO 1e-4
 enum { BLK_MAX_CUTS = 40 };
-/* tangent stiffness: relative residual of its linear solve */
-#define BLK_TANGENT_TOL 1e-10
 
 static inline int bounded(const blk_model *m, const blk_work *w, int e) {
   return !(m->adhesion && w->held[e]);
@@ -219,6 +217,9 @@ int blk_cg_solve(const blk_model *m, blk_state *s, int *conv, double *rmax, int 
  * Uses the matrix-free vectors; after the step's solve. */
 double blk_cg_tangent(const blk_model *m, blk_state *s, int *products) {
   blk_work *w = s->work;
+  double Kd;
+  if (w->method != BLK_CG && blk_dense_tangent(m, s, BLK_TANGENT_TOL, &Kd, products) == 0)
+    return Kd;
   const int M = m->M;
   double *x = w->dF, *r = w->rho, *z = w->z, *p = w->t, *q = w->q, *D = w->Dk;
   int nA = 0;

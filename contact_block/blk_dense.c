@@ -166,7 +166,7 @@ static int newton_direction(const blk_model *m, blk_work *w, const double *k,
     if (k[e] > 0) w->act[P++] = e;
   /* chord step: the stored factor of (I + K½ C K½) with the old K, if the
    * contact set is the same */
-  const int reuse = may_reuse && w->fact_valid && P == w->fact_P &&
+  const int reuse = may_reuse && w->fact_valid == BLK_FACT_PRIMAL && P == w->fact_P &&
                     memcmp(w->act, w->fact_act, (size_t)P * sizeof(int)) == 0;
   const double *keff = k; /* stiffness the direction is built with */
   int ok = -1;
@@ -191,7 +191,7 @@ static int newton_direction(const blk_model *m, blk_work *w, const double *k,
     }
     ok = cholesky(w->A, P, P);
     (*factored)++;
-    w->fact_valid = ok == 0;
+    w->fact_valid = ok == 0 ? BLK_FACT_PRIMAL : 0;
     if (ok == 0) {
       w->fact_P = P;
       memcpy(w->fact_act, w->act, (size_t)P * sizeof(int));
@@ -300,7 +300,7 @@ int blk_dense_dual(const blk_model *m, blk_state *s, int *conv, double *rmax, in
     if (!(m->adhesion && w->held[e]) && F[e] < 0) F[e] = 0;
     dd[e] = s->d_rs[e];
   }
-  w->fact_valid = 0; /* w->A is reused below */
+  w->fact_valid = 0; /* w->A holds the dual's factor from here */
   double J = dual_eval(m, w, F, grad, dd);
   int it = 0;
   *conv = 0;
@@ -330,7 +330,11 @@ int blk_dense_dual(const blk_model *m, blk_state *s, int *conv, double *rmax, in
       gt[a] = -grad[i];
     }
     (*factored)++;
+    w->fact_valid = 0;
     if (cholesky(w->A, P, P)) break; /* C not SPD: the dual is not convex */
+    w->fact_valid = BLK_FACT_DUAL; /* kept for the tangent's preconditioner */
+    w->fact_P = P;
+    memcpy(w->fact_act, w->act, (size_t)P * sizeof(int));
     cholesky_solve(w->A, P, P, gt);
     for (int e = 0; e < M; e++) dF[e] = 0;
     for (int a = 0; a < P; a++) dF[w->act[a]] = gt[a];
@@ -367,4 +371,77 @@ int blk_dense_newton(const blk_model *m, blk_state *s, int *conv, double *rmax,
   blk_work *w = s->work; /* residual() left b − C F */
   for (int e = 0; e < m->M; e++) w->CF[e] = w->b[e] - w->CF[e];
   return it;
+}
+
+/* ------------------------------------------------------------ tangent */
+
+/* dF/dd_road = 1ᵀ(C_AA + D_A)⁻¹1 over the loaded set A (blk_cg_tangent),
+ * by CG preconditioned with the last factor of the Newton matrix when that
+ * was built on the same set: primal form sᵀ(I + S C S)⁻¹s with S = diag √k
+ * (factor of I + S_f C S_f), dual form with the factor of C_AA + D_A. The
+ * factor is from the last iterate, so a couple of iterations suffice.
+ * Returns -1 (nothing done) when no factor fits. */
+int blk_dense_tangent(const blk_model *m, blk_state *s, double tol, double *K,
+                      int *products) {
+  blk_work *w = s->work;
+  const int M = m->M, primal = w->fact_valid == BLK_FACT_PRIMAL;
+  if (!w->fact_valid) return -1;
+  int P = 0;
+  for (int e = 0; e < M; e++) {
+    const int in = s->force[e] > 0 || (m->adhesion && w->held[e] && s->force[e] != 0);
+    if (!in) continue;
+    if (P >= w->fact_P || w->fact_act[P] != e) return -1;
+    double Fe, ke;
+    blk_spring_eval(m, e, fabs(s->d_rs[e]), &Fe, &ke);
+    if (!m->rigid && !(ke > 0)) return -1;
+    w->sk[P] = m->rigid ? 0.0 : primal ? sqrt(ke) : 1.0 / ke; /* √k, or 1/k (dual) */
+    P++;
+  }
+  if (P != w->fact_P) return -1;
+  /* vectors over A: x (w->y), r (w->r), z (w->delta), p (w->d_try), q (w->F_try) */
+  double *x = w->y, *r = w->r, *z = w->delta, *p = w->d_try, *q = w->F_try;
+  double rz = 0, rhs = 0;
+  for (int a = 0; a < P; a++) {
+    x[a] = 0;
+    r[a] = primal ? w->sk[a] : 1.0;
+    z[a] = r[a];
+    rhs = fmax(rhs, fabs(r[a]));
+  }
+  cholesky_solve(w->A, P, P, z);
+  for (int a = 0; a < P; a++) {
+    p[a] = z[a];
+    rz += r[a] * z[a];
+  }
+  for (int it = 0; it < m->solver.cg_max_iter; it++) {
+    memset(w->t, 0, (size_t)M * sizeof(double));
+    for (int a = 0; a < P; a++) w->t[w->fact_act[a]] = primal ? w->sk[a] * p[a] : p[a];
+    blk_fft_apply(&w->fft, &w->C_hat, w->t, w->qc);
+    (*products)++;
+    double pq = 0;
+    for (int a = 0; a < P; a++) {
+      const double c = w->qc[w->fact_act[a]];
+      q[a] = primal ? p[a] + w->sk[a] * c : c + w->sk[a] * p[a];
+      pq += p[a] * q[a];
+    }
+    if (!(pq > 0)) break;
+    const double alpha = rz / pq;
+    double rmax = 0;
+    for (int a = 0; a < P; a++) {
+      x[a] += alpha * p[a];
+      r[a] -= alpha * q[a];
+      rmax = fmax(rmax, fabs(r[a]));
+      z[a] = r[a];
+    }
+    if (rmax <= tol * rhs) break;
+    cholesky_solve(w->A, P, P, z);
+    double rz_new = 0;
+    for (int a = 0; a < P; a++) rz_new += r[a] * z[a];
+    const double beta = rz_new / rz;
+    rz = rz_new;
+    for (int a = 0; a < P; a++) p[a] = z[a] + beta * p[a];
+  }
+  double T = 0;
+  for (int a = 0; a < P; a++) T += primal ? w->sk[a] * x[a] : x[a];
+  *K = T;
+  return 0;
 }

@@ -37,8 +37,7 @@ int blk_fft_init(blk_fft *f, const blk_model *m, proto_err *err) {
   f->box = fftw_alloc_real((size_t)f->Nx * f->Ny);
   f->spec = fftw_alloc_complex((size_t)f->Ny * f->nqx);
   if (!f->box || !f->spec) return proto_fail(err, "FFT box %d x %d: out of memory", f->Nx, f->Ny);
-  const unsigned flags = (size_t)f->Nx * f->Ny >= BLK_FFTW_MEASURE_MIN ? FFTW_MEASURE
-                                                                      : FFTW_ESTIMATE;
+  const unsigned flags = BLK_FFTW_STEP(m->M);
   const int nX[1] = {f->Nx}, nY[1] = {f->Ny};
   f->rows_fwd = fftw_plan_many_dft_r2c(1, nX, f->ny, f->box, NULL, 1, f->Nx, f->spec, NULL,
                                        1, f->nqx, flags);

@@ -207,8 +207,7 @@ int blk_history_init(const blk_model *m, blk_work *w, blk_history *h, proto_err 
     return proto_fail(err, "out of memory");
   h->bytes += (size_t)h->Nx * h->Ny * sizeof(double) +
               (size_t)(h->Qh + 1) * h->nq * sizeof(fftw_complex) + h->Qh * sizeof(int);
-  const unsigned flags = (size_t)h->Nx * h->Ny >= BLK_FFTW_MEASURE_MIN ? FFTW_MEASURE
-                                                                      : FFTW_ESTIMATE;
+  const unsigned flags = BLK_FFTW_STEP(m->M);
   h->fwd = fftw_plan_dft_r2c_2d(h->Ny, h->Nx, h->pad, h->acc, flags);
   h->inv = fftw_plan_dft_c2r_2d(h->Ny, h->Nx, h->acc, h->pad, flags);
   if (!h->fwd || !h->inv) return proto_fail(err, "history: FFTW planning failed");

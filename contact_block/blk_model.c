@@ -44,9 +44,10 @@ static void springs_release(blk_model *m) {
   free(m->spr_d);
   free(m->spr_F);
   free(m->spr_k);
+  free(m->spr_W);
   free(m->spr_table);
   free(m->spr_scale);
-  m->spr_d = m->spr_F = m->spr_k = m->spr_scale = NULL;
+  m->spr_d = m->spr_F = m->spr_k = m->spr_W = m->spr_scale = NULL;
   m->spr_table = NULL;
   m->n_knots = m->n_tables = 0;
   m->rigid = 0;
@@ -122,11 +123,12 @@ static int springs_alloc(blk_model *m, int T, int K, proto_err *err) {
   m->spr_d = malloc(n * sizeof(double));
   m->spr_F = malloc(n * sizeof(double));
   m->spr_k = malloc(n * sizeof(double));
+  m->spr_W = malloc(n * sizeof(double));
   m->spr_table = malloc((size_t)m->M * sizeof(int));
   m->spr_scale = malloc((size_t)m->M * sizeof(double));
   m->n_knots = K;
   m->n_tables = T;
-  if (!m->spr_d || !m->spr_F || !m->spr_k || !m->spr_table || !m->spr_scale)
+  if (!m->spr_d || !m->spr_F || !m->spr_k || !m->spr_W || !m->spr_table || !m->spr_scale)
     return proto_fail(err, "out of memory");
   for (int e = 0; e < m->M; e++) {
     m->spr_table[e] = T == m->M ? e : 0;
@@ -171,6 +173,27 @@ static int springs_check(const blk_model *m, proto_err *err) {
   return 0;
 }
 
+/* ∫ of the cubic Hermite piece i of table t from its left knot over the
+ * fraction x ∈ [0, 1] of the interval. */
+static double piece_energy(const blk_model *m, int t, int i, double x) {
+  const int K = m->n_knots;
+  const double *kd = m->spr_d + (size_t)t * K, *kF = m->spr_F + (size_t)t * K,
+               *kk = m->spr_k + (size_t)t * K;
+  const double h = kd[i + 1] - kd[i], x2 = x * x, x3 = x2 * x, x4 = x3 * x;
+  return h * ((x4 / 2 - x3 + x) * kF[i] + (x4 / 4 - 2 * x3 / 3 + x2 / 2) * h * kk[i] +
+              (-x4 / 2 + x3) * kF[i + 1] + (x4 / 4 - x3 / 3) * h * kk[i + 1]);
+}
+
+/* The stored energy at every knot (W[0] = 0), for O(1) energies. */
+static void springs_finish(blk_model *m) {
+  const int K = m->n_knots;
+  for (int t = 0; t < m->n_tables; t++) {
+    double *W = m->spr_W + (size_t)t * K;
+    W[0] = 0;
+    for (int i = 0; i + 1 < K; i++) W[i + 1] = W[i] + piece_energy(m, t, i, 1.0);
+  }
+}
+
 int blk_springs_table(blk_model *m, int K, const double *d, const double *F,
                       const double *k, proto_err *err) {
   if (K < 2) return proto_fail(err, "springs: need >= 2 knots (got %d)", K);
@@ -179,7 +202,9 @@ int blk_springs_table(blk_model *m, int K, const double *d, const double *F,
   memcpy(m->spr_d, d, n);
   memcpy(m->spr_F, F, n);
   memcpy(m->spr_k, k, n);
-  return springs_check(m, err);
+  if (springs_check(m, err)) return -1;
+  springs_finish(m);
+  return 0;
 }
 
 int blk_springs_linear(blk_model *m, const double *k, int per_element,
@@ -197,6 +222,7 @@ int blk_springs_linear(blk_model *m, const double *k, int per_element,
                         "(got %g)", e, ke);
     m->spr_scale[e] = ke;
   }
+  springs_finish(m);
   return 0;
 }
 
@@ -215,6 +241,7 @@ int blk_springs_stiffening(blk_model *m, double k0, double d0, double spread,
   }
   uint64_t s = seed;
   for (int e = 0; e < m->M; e++) m->spr_scale[e] = 1.0 + spread * (2.0 * uniform01(&s) - 1.0);
+  springs_finish(m);
   return 0;
 }
 
@@ -223,6 +250,25 @@ int blk_springs_rigid(blk_model *m, proto_err *err) {
   springs_release(m);
   m->rigid = 1;
   return 0;
+}
+
+/* The knot interval kd[lo] <= d < kd[lo+1] of 0 <= d < kd[K-1] (unique:
+ * knots increase): guessed as for equally spaced knots (the synthetic
+ * tables), checked, else bisection. */
+static int knot_interval(const double *kd, int K, double d) {
+  int lo = (int)(d / kd[K - 1] * (K - 1));
+  if (lo > K - 2) lo = K - 2;
+  if (lo < 0) lo = 0;
+  if (lo + 1 < K - 1 && kd[lo + 1] <= d) lo++;
+  else if (lo > 0 && kd[lo] > d) lo--;
+  if (kd[lo] <= d && d < kd[lo + 1]) return lo;
+  int hi = K - 1;
+  lo = 0;
+  while (hi - lo > 1) {
+    int mid = (lo + hi) / 2;
+    if (kd[mid] <= d) lo = mid; else hi = mid;
+  }
+  return lo;
 }
 
 /* Cubic Hermite on table t at 0 < d (linear beyond the last knot). */
@@ -235,23 +281,7 @@ static void table_eval(const blk_model *m, int t, double d, double *F, double *k
     *k = kk[K - 1];
     return;
   }
-  /* the knot interval kd[lo] <= d < kd[lo+1] (unique: knots increase):
-   * guessed as for equally spaced knots (the synthetic tables), checked,
-   * else bisection */
-  int lo = (int)(d / kd[K - 1] * (K - 1)), hi;
-  if (lo > K - 2) lo = K - 2;
-  if (lo + 1 < K - 1 && kd[lo + 1] <= d) lo++;
-  else if (lo > 0 && kd[lo] > d) lo--;
-  if (kd[lo] <= d && d < kd[lo + 1]) {
-    hi = lo + 1;
-  } else {
-    lo = 0;
-    hi = K - 1;
-    while (hi - lo > 1) {
-      int mid = (lo + hi) / 2;
-      if (kd[mid] <= d) lo = mid; else hi = mid;
-    }
-  }
+  const int lo = knot_interval(kd, K, d), hi = lo + 1;
   /* cubic Hermite on [d_lo, d_hi] (green/FORMATS.md) */
   const double h = kd[hi] - kd[lo], x = (d - kd[lo]) / h, x2 = x * x, x3 = x2 * x;
   const double h00 = 2 * x3 - 3 * x2 + 1, h10 = x3 - 2 * x2 + x,
@@ -276,24 +306,23 @@ void blk_spring_eval(const blk_model *m, int e, double d, double *F, double *k) 
 }
 
 /* ∫_0^d F(s) ds of element e (the spring's stored energy W, d ≥ 0): exact
- * integral of the cubic Hermite pieces, linear beyond the last knot. */
+ * integral of the cubic Hermite pieces (knot energies tabulated), linear
+ * beyond the last knot. */
 double blk_spring_energy(const blk_model *m, int e, double d) {
   if (d <= 0 || m->rigid) return 0;
   const int K = m->n_knots, t = m->spr_table[e];
   const double *kd = m->spr_d + (size_t)t * K, *kF = m->spr_F + (size_t)t * K,
-               *kk = m->spr_k + (size_t)t * K;
-  double W = 0;
-  for (int i = 0; i + 1 < K; i++) {
-    const double h = kd[i + 1] - kd[i];
-    const double x = d >= kd[i + 1] ? 1.0 : (d - kd[i]) / h;
-    const double x2 = x * x, x3 = x2 * x, x4 = x3 * x;
-    W += h * ((x4 / 2 - x3 + x) * kF[i] + (x4 / 4 - 2 * x3 / 3 + x2 / 2) * h * kk[i] +
-              (-x4 / 2 + x3) * kF[i + 1] + (x4 / 4 - x3 / 3) * h * kk[i + 1]);
-    if (d <= kd[i + 1]) return m->spr_scale[e] * W;
+               *kk = m->spr_k + (size_t)t * K, *W = m->spr_W + (size_t)t * K;
+  if (d >= kd[K - 1]) {
+    const double s = d - kd[K - 1];
+    return m->spr_scale[e] * (W[K - 1] + kF[K - 1] * s + 0.5 * kk[K - 1] * s * s);
   }
-  const double s = d - kd[K - 1];
-  return m->spr_scale[e] * (W + kF[K - 1] * s + 0.5 * kk[K - 1] * s * s);
+  const int i = knot_interval(kd, K, d);
+  return m->spr_scale[e] * (W[i] + piece_energy(m, t, i, (d - kd[i]) / (kd[i + 1] - kd[i])));
 }
+
+/* Relative Newton step below which the inverse has converged (round-off). */
+#define BLK_INVERSE_STEP 4e-16
 
 /* Inverse spring law: the compression d ≥ 0 at which element e carries F ≥ 0
  * (safeguarded Newton on the monotone Hermite piece). */
@@ -321,6 +350,8 @@ double blk_spring_inverse(const blk_model *m, int e, double F) {
     if (fabs(r) <= 1e-15 * F || b - a <= 1e-16 * b) break;
     double xn = kx > 0 ? x - r / kx : 0.5 * (a + b);
     if (!(xn > a && xn < b)) xn = 0.5 * (a + b);
+    /* F(x) is only known to a few ulp: a step below that is converged */
+    if (fabs(xn - x) <= BLK_INVERSE_STEP * x) return xn;
     x = xn;
   }
   return x;

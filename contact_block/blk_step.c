@@ -3,7 +3,6 @@
  * adhesion with a release force (ch. 5.1), the tangent contact stiffness,
  * then the history term for the next step (eq. 5). Also the state's
  * allocation: nothing is allocated in blk_step. */
-#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -28,23 +27,36 @@ void blk_spring_law(const blk_model *m, const int *held, const double *d, double
 }
 
 /* Newton from the previous compression (one or two steps when the force
- * changed little), else the bracketed inverse of blk_model.c. */
-double blk_spring_inverse_from(const blk_model *m, int e, double F, double d0) {
-  if (F <= 0 || m->rigid) return 0;
+ * changed little), else the bracketed inverse of blk_model.c. k at the
+ * result into *k. */
+static double inverse_from(const blk_model *m, int e, double F, double d0, double *k) {
   if (d0 > 0) {
     double x = d0;
     for (int it = 0; it < 6; it++) {
-      double Fx, kx;
-      blk_spring_eval(m, e, x, &Fx, &kx);
+      double Fx;
+      blk_spring_eval(m, e, x, &Fx, k);
       const double r = Fx - F;
       if (fabs(r) <= 1e-15 * F) return x;
-      if (!(kx > 0)) break;
-      const double xn = x - r / kx;
+      if (!(*k > 0)) break;
+      const double xn = x - r / *k;
       if (!(xn > 0)) break;
+      if (fabs(xn - x) <= 4e-16 * x) { /* below the round-off of F(x) */
+        blk_spring_eval(m, e, xn, &Fx, k);
+        return xn;
+      }
       x = xn;
     }
   }
-  return blk_spring_inverse(m, e, F);
+  const double x = blk_spring_inverse(m, e, F);
+  double Fx;
+  blk_spring_eval(m, e, x, &Fx, k);
+  return x;
+}
+
+double blk_spring_inverse_from(const blk_model *m, int e, double F, double d0) {
+  if (F <= 0 || m->rigid) return 0;
+  double k;
+  return inverse_from(m, e, F, d0, &k);
 }
 
 /* 1/k used at the contact onset of a spring with k(0) = 0: far softer than
@@ -59,9 +71,15 @@ double blk_dual_element(const blk_model *m, const blk_work *w, int e, double F,
     *inv_k = 0;
     return 0;
   }
-  const double a = fabs(F), x = blk_spring_inverse_from(m, e, a, fabs(d_guess));
-  double Fx, kx;
-  blk_spring_eval(m, e, x > 0 ? x : DBL_MIN, &Fx, &kx); /* k at d = 0+ at the onset */
+  const double a = fabs(F);
+  double x = 0, kx;
+  if (a > 0) { /* warm start only from a compression (d_guess < 0 is a gap) */
+    const double d0 = F > 0 ? d_guess : -d_guess;
+    x = inverse_from(m, e, a, d0 > 0 ? d0 : 0, &kx);
+  } else { /* unloaded: k at the onset d = 0+ */
+    const int K = m->n_knots;
+    kx = m->spr_scale[e] * m->spr_k[(size_t)m->spr_table[e] * K];
+  }
   *inv_k = kx > 0 ? 1.0 / kx : w->c_self > 0 ? BLK_INV_K_CAP * w->c_self : 1.0;
   *d = F < 0 ? -x : x;
   return a * x - blk_spring_energy(m, e, x); /* Ψ = F d − W(d), Legendre */
