@@ -176,6 +176,10 @@ int blk_springs_table(blk_model *m, int K, const double *d, const double *F,
  * scatter in [1−spread, 1+spread] (seeded), tabulated on K knots to d_max. */
 int blk_springs_stiffening(blk_model *m, double k0, double d0, double spread,
                            uint64_t seed, double d_max, int K, proto_err *err);
+/* Multiplies every spring's force by e^{σ g − σ²/2}, g standard normal
+ * (seeded): a heavy-tailed, log-normal scatter of mean 1 (a few elements
+ * far stiffer than the rest, as the thesis found on its road, ch. 4.2.2). */
+int blk_springs_lognormal(blk_model *m, double sigma, uint64_t seed, proto_err *err);
 /* No roughness springs: hard contact (Signorini), d_rs = 0. */
 int blk_springs_rigid(blk_model *m, proto_err *err);
 /* Reads springs.h5 (green/FORMATS.md): tables and z_road. */

@@ -121,6 +121,14 @@ static int read_springs(blk_model *m, proto_cfg *sec, proto_err *err) {
     rc = blk_springs_stiffening(m, k0, d0, spread, (uint64_t)seed, d_max, (int)knots, err);
   }
   if (rc) return proto_wrap(err, "%s", c.path);
+  double sigma = 0;
+  int64_t lseed = 3;
+  int has = proto_cfg_raw(&c, "lognormal", PROTO_OPTIONAL) != NULL;
+  if (has && (proto_cfg_num(&c, "lognormal", PROTO_OPTIONAL, 0.0, 10.0, &sigma) ||
+              proto_cfg_int(&c, "lognormal_seed", PROTO_OPTIONAL, 0, INT64_MAX, &lseed)))
+    return -1;
+  if (has && blk_springs_lognormal(m, sigma, (uint64_t)lseed, err))
+    return proto_wrap(err, "%s", c.path);
   if (read_soften(m, &c, err)) return -1;
   return proto_cfg_end(&c);
 }

@@ -245,6 +245,16 @@ int blk_springs_stiffening(blk_model *m, double k0, double d0, double spread,
   return 0;
 }
 
+int blk_springs_lognormal(blk_model *m, double sigma, uint64_t seed, proto_err *err) {
+  if (m->rigid || !m->spr_scale)
+    return proto_fail(err, "springs.lognormal: needs roughness springs (not rigid)");
+  if (!(sigma >= 0) || !isfinite(sigma))
+    return proto_fail(err, "springs.lognormal = %g: must be >= 0", sigma);
+  uint64_t s = seed;
+  for (int e = 0; e < m->M; e++) m->spr_scale[e] *= exp(sigma * gauss(&s) - 0.5 * sigma * sigma);
+  return 0;
+}
+
 int blk_springs_rigid(blk_model *m, proto_err *err) {
   (void)err;
   springs_release(m);

@@ -69,19 +69,31 @@ int grn_static_love_periodic(const grn_grid *g, double E, double nu, double *C,
   /* short-range part over the images, then the mean removed */
   const int Rx = (int)fmin(GRN_PERIODIC_MAX_IMAGES, ceil((double)GRN_PERIODIC_REACH / nx));
   const int Ry = (int)fmin(GRN_PERIODIC_MAX_IMAGES, ceil((double)GRN_PERIODIC_REACH / ny));
-  double mean = 0;
   for (int j = 0; j < ny; j++)
     for (int i = 0; i < nx; i++) {
+      /* images about the nearest representative of the offset */
+      const int ic = i <= nx / 2 ? i : i - nx, jc = j <= ny / 2 ? j : j - ny;
       double s = 0;
       for (int my = -Ry; my <= Ry; my++)
         for (int mx = -Rx; mx <= Rx; mx++) {
-          const double x = (i + mx * nx) * g->dx, y = (j + my * ny) * g->dy;
+          const double x = (ic + mx * nx) * g->dx, y = (jc + my * ny) * g->dy;
           s += grn_love_compliance(x, y, 0.5 * g->dx, 0.5 * g->dy, E, nu) -
                grn_love_smoothed(x, y, 0.5 * g->dx, 0.5 * g->dy, c, E, nu);
         }
       K[(size_t)j * nx + i] += s;
-      mean += K[(size_t)j * nx + i];
     }
+  /* exactly even in each axis (the truncated image sum of the half-period
+   * offsets is not), then the mean removed */
+  double mean = 0;
+  for (int j = 0; j <= ny / 2; j++)
+    for (int i = 0; i <= nx / 2; i++) {
+      const int i2 = (nx - i) % nx, j2 = (ny - j) % ny;
+      double *a = &K[(size_t)j * nx + i], *b = &K[(size_t)j * nx + i2],
+             *c2 = &K[(size_t)j2 * nx + i], *d = &K[(size_t)j2 * nx + i2];
+      const double v = 0.25 * (*a + *b + *c2 + *d);
+      *a = *b = *c2 = *d = v;
+    }
+  for (size_t q = 0; q < (size_t)nx * ny; q++) mean += K[q];
   mean /= (double)nx * ny;
   /* offset layout [2ny−1][2nx−1]: K(Δ) = K(Δ mod n), so K(Δ) = K(Δ − n) */
   const int wx = 2 * nx - 1;
