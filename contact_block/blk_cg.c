@@ -21,6 +21,8 @@
 /* inexact Newton: each quadratic model solved to this fraction of the
  * current violation (but at least to the tolerance) */
 #define BLK_CG_FORCING 0.1
+/* CG iterations without halving the violation: stagnation, stop */
+enum { BLK_CG_STALL = 200 };
 /* Armijo constant and backtracking cuts */
 #define BLK_ARMIJO 1e-4
 enum { BLK_MAX_CUTS = 40 };
@@ -48,8 +50,8 @@ static double qp_solve(const blk_model *m, blk_work *w, const double *F, double 
     w->prec[e] = 1.0 / (w->c_self + w->Dk[e]);
     t[e] = 0;
   }
-  int exact = 1, conj = 0, it = 0;
-  double G_old = 1, tau = 0, viol = 0;
+  int exact = 1, conj = 0, it = 0, since_best = 0;
+  double G_old = 1, tau = 0, viol = 0, best = INFINITY;
   for (;;) {
     /* loaded (free) set: bonded, or F + Δ > 0 */
     double G = 0;
@@ -70,6 +72,13 @@ static double qp_solve(const blk_model *m, blk_work *w, const double *F, double 
       continue;
     }
     if (it == m->solver.cg_max_iter) break;
+    /* stagnation (the tolerance below the round-off of the products) */
+    if (viol < 0.5 * best) {
+      best = viol;
+      since_best = 0;
+    } else if (++since_best > BLK_CG_STALL) {
+      break;
+    }
     it++;
     if (!nfree) { /* nothing loaded (cold start): a Jacobi step on the penetrating */
       for (int e = 0; e < M; e++)

@@ -383,16 +383,16 @@ static int by_force_desc(const void *a, const void *b) {
 int blk_springs_soften(blk_model *m, int count, double at, double factor,
                        proto_err *err) {
   if (m->rigid || !m->spr_d)
-    return proto_fail(err, "springs.soften: needs roughness springs (not rigid)");
+    return proto_fail(err, "soften: needs roughness springs (not rigid)");
   const int exchange = !(factor > 0);
   if (count < 1 || count > (exchange ? m->M / 2 : m->M))
-    return proto_fail(err, "springs.soften.count = %d: must be in [1, %d] (%s)", count,
+    return proto_fail(err, "soften: count = %d: must be in [1, %d] (%s)", count,
                       exchange ? m->M / 2 : m->M,
                       exchange ? "exchanged for the next count springs" : "the elements");
   if (!(at > 0) || !isfinite(at))
-    return proto_fail(err, "springs.soften.at = %g: must be > 0 (m)", at);
+    return proto_fail(err, "soften: at = %g: must be > 0 (m)", at);
   if (!exchange && !(factor <= 1))
-    return proto_fail(err, "springs.soften.factor = %g: must be in (0, 1]", factor);
+    return proto_fail(err, "soften: factor = %g: must be in (0, 1]", factor);
   ranked *r = malloc((size_t)m->M * sizeof *r);
   if (!r) return proto_fail(err, "out of memory");
   for (int e = 0; e < m->M; e++) {
@@ -454,6 +454,32 @@ int blk_model_check(const blk_model *m, proto_err *err) {
   if (m->solver.cg_max_iter < 1) return proto_fail(err, "solver: cg_max_iter must be >= 1");
   if (!(m->solver.tol > 0)) return proto_fail(err, "solver: tol must be > 0");
   if (!(m->solver.max_force > 0)) return proto_fail(err, "solver: max_force must be > 0");
+  if (m->periodic) { /* periodic kernels: K(Δ) = K(Δ − n) along each axis */
+    const double *kern[] = {m->g_static, m->g_space};
+    for (int t = 0; t < 2; t++) {
+      const double *K = kern[t];
+      if (!K) continue;
+      double kmax = 0, worst = 0;
+      for (size_t o = 0; o < no; o++) kmax = fmax(kmax, fabs(K[o]));
+      for (int dj = 0; dj < m->noy; dj++)
+        for (int di = 0; di < m->nox; di++) {
+          const int ri = di >= m->nx ? di - m->nx : di + (di < m->nx - 1 ? m->nx : 0);
+          const int rj = dj >= m->ny ? dj - m->ny : dj + (dj < m->ny - 1 ? m->ny : 0);
+          if (ri >= 0 && ri < m->nox && ri != di)
+            worst = fmax(worst, fabs(K[(size_t)dj * m->nox + di] - K[(size_t)dj * m->nox + ri]));
+          if (rj >= 0 && rj < m->noy && rj != dj)
+            worst = fmax(worst, fabs(K[(size_t)dj * m->nox + di] - K[(size_t)rj * m->nox + di]));
+        }
+      if (!(worst <= 1e-9 * kmax))
+        return proto_fail(err, "grid.periodic: the Green's functions (%s) are not periodic "
+                          "over the %d x %d grid (K(d) != K(d - n) by %.2g of the largest); "
+                          "periodic grids need green.kind halfspace or synthetic",
+                          m->green_model, m->nx, m->ny, kmax > 0 ? worst / kmax : worst);
+    }
+    if (m->g)
+      return proto_fail(err, "grid.periodic: full (file) Green's functions are not periodic; "
+                        "use green.kind halfspace or synthetic");
+  }
   const blk_method me = m->solver.method;
   if (m->rigid && (me == BLK_NR_PLAIN || me == BLK_NR_LINESEARCH))
     return proto_fail(err, "solver.method: newton/line_search work on spring compressions; "

@@ -237,10 +237,13 @@ void grn_springs_free(grn_springs *sp);
 
 /* ------------------------------------------------------------ files */
 
+/* green.h5 (FORMATS.md), the one writer: gk [Q][2ny−1][2nx−1] (NULL: static
+ * only), stat the static compliance, stat_relaxed (dynamic files, may be
+ * NULL) the independent f = 0 layer and sum_check its deviation. */
 int grn_write_green(const char *path, const grn_grid *g, int Q, double rate,
                     const char *sampling, const char *model, const double *gk,
-                    const double *stat, double h, const grn_material *mat,
-                    proto_err *err);
+                    const double *stat, const double *stat_relaxed, double sum_check,
+                    double h, const grn_material *mat, proto_err *err);
 int grn_write_springs(const char *path, const grn_springs *sp,
                       const char *film_rule, proto_err *err);
 

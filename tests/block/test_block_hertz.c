@@ -73,13 +73,13 @@ static void hertz(int nx, int ny, double dx, double dy, blk_method method, doubl
   OK(blk_road_paraboloid(&m, R, &err));
   OK(blk_green_halfspace(&m, E, nu, &err));
   OK(blk_springs_rigid(&m, &err));
+  const double a = 0.7 * 0.5 * fmin(nx * dx, ny * dy), delta = a * a / R;
   m.solver.quasi_static = 1;
   m.solver.method = method;
   m.solver.max_iter = 50;
-  m.solver.tol = 1e-18;
+  m.solver.tol = 1e-12 * delta; /* m: a little above the round-off of C·F */
   blk_state s;
   OK(blk_state_create(&m, &s, &err));
-  const double a = 0.7 * 0.5 * fmin(nx * dx, ny * dy), delta = a * a / R;
   OK(blk_step(&m, &s, delta, &err));
   CHECK(s.converged, "%s: not converged (residual %g m)", label, s.residual);
   const double F_h = 4.0 / 3.0 * E_STAR * sqrt(R) * pow(delta, 1.5);
