@@ -195,30 +195,47 @@ int blk_history_init(const blk_model *m, blk_work *w, blk_history *h, proto_err 
     h->bytes += blk_kspec_bytes(&w->fft, &h->S_hat);
     return 0;
   }
+  /* bins of the time convolution: the spatial frequencies of a zero-padded
+   * (or periodic) box; for a separable g the elements themselves, two real
+   * fields packed per complex bin (T_k is real, so real and imaginary parts
+   * stay apart), and one product with Δt·S at the end */
+  h->packed = m->g_time != NULL;
   h->Nx = m->periodic ? m->nx : 2 * m->nx;
   h->Ny = m->periodic ? m->ny : 2 * m->ny;
-  h->nq = h->Ny * (h->Nx / 2 + 1);
-  h->pad = fftw_malloc((size_t)h->Nx * h->Ny * sizeof(double));
+  h->nq = h->packed ? (m->M + 1) / 2 : h->Ny * (h->Nx / 2 + 1);
+  if (!h->packed) h->pad = fftw_malloc((size_t)h->Nx * h->Ny * sizeof(double));
   h->ghat = fftw_malloc((size_t)h->Qh * h->nq * sizeof(fftw_complex));
   h->F_hat = fftw_malloc((size_t)h->Qh * h->nq * sizeof(fftw_complex));
   h->acc = fftw_malloc((size_t)h->nq * sizeof(fftw_complex));
   h->nnz = calloc((size_t)h->Qh, sizeof(int));
-  if (!h->pad || !h->ghat || !h->F_hat || !h->acc || !h->nnz)
+  if ((!h->pad && !h->packed) || !h->ghat || !h->F_hat || !h->acc || !h->nnz)
     return proto_fail(err, "out of memory");
-  h->bytes += (size_t)h->Nx * h->Ny * sizeof(double) +
+  h->bytes += (h->packed ? 0 : (size_t)h->Nx * h->Ny * sizeof(double)) +
               (size_t)(h->Qh + 1) * h->nq * sizeof(fftw_complex) + h->Qh * sizeof(int);
-  const unsigned flags = BLK_FFTW_STEP(m->M);
-  h->fwd = fftw_plan_dft_r2c_2d(h->Ny, h->Nx, h->pad, h->acc, flags);
-  h->inv = fftw_plan_dft_c2r_2d(h->Ny, h->Nx, h->acc, h->pad, flags);
-  if (!h->fwd || !h->inv) return proto_fail(err, "history: FFTW planning failed");
-  /* spectra of g_k, scaled by Δt / (Nx Ny) (FFTW's unnormalised inverse) */
-  const double scale = h->dt / ((double)h->Nx * h->Ny);
-  for (int k = 0; k < h->Qh; k++) {
-    place_kernel(m, h, k, h->pad);
-    fftw_execute_dft_r2c(h->fwd, h->pad, h->ghat + (size_t)k * h->nq);
-    for (int q = 0; q < h->nq; q++) {
-      h->ghat[(size_t)k * h->nq + q][0] *= scale;
-      h->ghat[(size_t)k * h->nq + q][1] *= scale;
+  if (h->packed) {
+    h->y = track(h, (size_t)2 * h->nq, sizeof(double));
+    if (!h->y) return proto_fail(err, "out of memory");
+    for (int k = 0; k < h->Qh; k++)
+      for (int q = 0; q < h->nq; q++) {
+        h->ghat[(size_t)k * h->nq + q][0] = h->dt * m->g_time[k];
+        h->ghat[(size_t)k * h->nq + q][1] = 0;
+      }
+    if (blk_fft_kernel(&w->fft, m, m->g_space, 1.0, &h->S_hat, err)) return -1;
+    h->bytes += blk_kspec_bytes(&w->fft, &h->S_hat);
+  } else {
+    const unsigned flags = BLK_FFTW_STEP(m->M);
+    h->fwd = fftw_plan_dft_r2c_2d(h->Ny, h->Nx, h->pad, h->acc, flags);
+    h->inv = fftw_plan_dft_c2r_2d(h->Ny, h->Nx, h->acc, h->pad, flags);
+    if (!h->fwd || !h->inv) return proto_fail(err, "history: FFTW planning failed");
+    /* spectra of g_k, scaled by Δt / (Nx Ny) (FFTW's unnormalised inverse) */
+    const double scale = h->dt / ((double)h->Nx * h->Ny);
+    for (int k = 0; k < h->Qh; k++) {
+      place_kernel(m, h, k, h->pad);
+      fftw_execute_dft_r2c(h->fwd, h->pad, h->ghat + (size_t)k * h->nq);
+      for (int q = 0; q < h->nq; q++) {
+        h->ghat[(size_t)k * h->nq + q][0] *= scale;
+        h->ghat[(size_t)k * h->nq + q][1] *= scale;
+      }
     }
   }
   /* an even kernel (g(Δ) = g(−Δ)) has a real spectrum: keep only Re */
@@ -323,14 +340,20 @@ static void push_direct(const blk_model *m, blk_history *h, const double *F,
   }
 }
 
-BLK_HOT static void push_fft(const blk_model *m, blk_history *h, const double *F, double *d_old) {
+BLK_HOT static void push_fft(const blk_model *m, blk_work *w, blk_history *h, const double *F,
+                             double *d_old) {
   const int Qh = h->Qh, nq = h->nq, nx = m->nx, ny = m->ny;
   const int slot = (int)(h->pushed % Qh);
   fftw_complex *Fs = h->F_hat + (size_t)slot * nq;
   int nnz = 0;
   for (int e = 0; e < m->M; e++) nnz += F[e] != 0.0;
   h->nnz[slot] = nnz;
-  if (nnz) {
+  if (h->packed) { /* elements p and p + nq as one complex bin */
+    for (int q = 0; q < nq; q++) {
+      Fs[q][0] = F[q];
+      Fs[q][1] = q + nq < m->M ? F[q + nq] : 0.0;
+    }
+  } else if (nnz) {
     memset(h->pad, 0, (size_t)h->Nx * h->Ny * sizeof(double));
     for (int j = 0; j < ny; j++)
       for (int i = 0; i < nx; i++) h->pad[j * h->Nx + i] = F[j * nx + i];
@@ -371,6 +394,14 @@ BLK_HOT static void push_fft(const blk_model *m, blk_history *h, const double *F
   }
   if (!any) {
     memset(d_old, 0, (size_t)m->M * sizeof(double));
+    return;
+  }
+  if (h->packed) { /* the time sums per element, then Δt-weighted S * y */
+    for (int q = 0; q < nq; q++) {
+      h->y[q] = acc[2 * q];
+      if (q + nq < m->M) h->y[q + nq] = acc[2 * q + 1];
+    }
+    blk_fft_apply(&w->fft, &h->S_hat, h->y, d_old);
     return;
   }
   fftw_execute_dft_c2r(h->inv, h->acc, h->pad);
@@ -418,6 +449,6 @@ void blk_history_push(const blk_model *m, blk_work *w, blk_history *h, const dou
   switch (h->kind) {
   case BLK_HIST_SEPARABLE: push_separable(m, w, h, F, d_old); break;
   case BLK_HIST_DIRECT: push_direct(m, h, F, d_old); break;
-  default: push_fft(m, h, F, d_old);
+  default: push_fft(m, w, h, F, d_old);
   }
 }

@@ -87,7 +87,9 @@ typedef struct blk_history {
   int *nnz;
   double *y;          /* [M] separable time sums */
   blk_kspec S_hat;    /* separable: spectrum of Δt g_space */
-  /* FFT: zero-padded Ny × Nx grid, spectra of g_k and of past forces */
+  /* FFT: zero-padded Ny × Nx grid, spectra of g_k and of past forces; or,
+   * packed (separable g), the elements two per complex bin */
+  int packed;
   int Nx, Ny, nq;
   double *pad;
   fftw_complex *ghat;   /* [Qh][nq] */

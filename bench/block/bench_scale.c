@@ -1,0 +1,190 @@
+/* bench_scale.c — the block solvers against grid size (issue 14): one case
+ * per process, one JSON line on stdout (bench/block/run_scale.py drives it).
+ *
+ *   bench_scale hertz N METHOD            quasi-static rigid Hertz, one cold solve
+ *   bench_scale ramp N METHOD DYN STEPS   stiffening springs on a curved rough
+ *                                         road, STEPS steps of a ramp (DYN 1:
+ *                                         synthetic ZOH layer, separable history)
+ *   bench_scale rough ROAD.h5 METHOD FRAC rigid road from `cosim road` (one
+ *                                         element per road point), the approach
+ *                                         with FRAC of the area in contact
+ * METHOD: cg | dual | newton. Times are CPU seconds of this process. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <time.h>
+
+#include "contact_block/blk.h"
+#include "green/green.h"
+
+static proto_err err;
+#define OK(call)                                                 \
+  do {                                                           \
+    if ((call) != 0) {                                           \
+      fprintf(stderr, "bench_scale: %s: %s\n", #call, err.msg);  \
+      exit(1);                                                   \
+    }                                                            \
+  } while (0)
+
+static double cpu(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+static long rss_kb(void) {
+  struct rusage u;
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_maxrss;
+}
+
+static blk_method method_of(const char *s) {
+  if (!strcmp(s, "cg")) return BLK_CG;
+  if (!strcmp(s, "dual")) return BLK_NR_DUAL;
+  if (!strcmp(s, "newton")) return BLK_NR_PLAIN;
+  fprintf(stderr, "bench_scale: method %s: expected cg, dual or newton\n", s);
+  exit(2);
+}
+
+static size_t model_bytes(const blk_model *m) {
+  const size_t no = (size_t)m->nox * m->noy;
+  size_t b = (size_t)m->M * (sizeof(double) + (m->spr_scale ? sizeof(double) + sizeof(int) : 0));
+  b += (size_t)m->n_tables * m->n_knots * 4 * sizeof(double);
+  b += no * sizeof(double) * (1 + (m->g_space ? 1 : 0));
+  if (m->g) b += (size_t)m->Q * no * sizeof(double);
+  if (m->g_time) b += (size_t)m->Q * sizeof(double);
+  return b;
+}
+
+static void report(const char *what, const blk_model *m, const blk_state *s, double setup,
+                   double loop, int steps, long products, long iters, double extra) {
+  printf("{\"case\": \"%s\", \"nx\": %d, \"ny\": %d, \"M\": %d, \"method\": %d, "
+         "\"quasi_static\": %d, \"setup_s\": %.6f, \"loop_s\": %.6f, \"steps\": %d, "
+         "\"per_step_s\": %.6e, \"products_per_step\": %.2f, \"iterations_per_step\": %.2f, "
+         "\"state_bytes\": %zu, \"model_bytes\": %zu, \"rss_kb\": %ld, \"force\": %.10e, "
+         "\"contacts\": %d, \"stiffness\": %.6e, \"converged\": %d, \"residual\": %.3e, "
+         "\"extra\": %.6e}\n",
+         what, m->nx, m->ny, m->M, s->method, m->solver.quasi_static, setup, loop, steps,
+         loop / steps, (double)products / steps, (double)iters / steps, blk_state_bytes(s),
+         model_bytes(m), rss_kb(), s->total_force, s->n_contact, s->stiffness, s->converged,
+         s->residual, extra);
+}
+
+/* Quasi-static Hertz, rigid road, one cold solve; extra = relative force error. */
+static void hertz(int n, blk_method me) {
+  const double dx = 1e-4, R = 0.1, E = 10e6, nu = 0.3, Es = E / (1 - nu * nu);
+  double t0 = cpu();
+  blk_model m;
+  OK(blk_model_init(&m, n, n, dx, dx, &err));
+  OK(blk_road_paraboloid(&m, R, &err));
+  OK(blk_green_halfspace(&m, E, nu, &err));
+  OK(blk_springs_rigid(&m, &err));
+  const double a = 0.35 * n * dx, delta = a * a / R;
+  m.solver.quasi_static = 1;
+  m.solver.method = me;
+  m.solver.max_iter = 50;
+  m.solver.tol = 1e-10 * delta;
+  blk_state s;
+  OK(blk_state_create(&m, &s, &err));
+  const double t1 = cpu();
+  OK(blk_step(&m, &s, delta, &err));
+  const double t2 = cpu();
+  const double F_h = 4.0 / 3.0 * Es * sqrt(R) * pow(delta, 1.5);
+  report("hertz", &m, &s, t1 - t0, t2 - t1, 1, s.products, s.iterations, s.total_force / F_h - 1);
+  blk_state_free(&s);
+  blk_model_free(&m);
+}
+
+/* Stiffening springs (the default scene's law) on a curved rough road,
+ * 1 mm elements: a ramp of `steps` steps to 0.2 mm; dynamic: synthetic ZOH
+ * layer at 51.2 kHz. extra = mean contact fraction at the end. */
+static void ramp(int n, blk_method me, int dyn, int steps) {
+  double t0 = cpu();
+  blk_model m;
+  OK(blk_model_init(&m, n, n, 1e-3, 1e-3, &err));
+  OK(blk_road_random(&m, 3e-5, 1, &err));
+  const double R = 0.5 * n; /* a gentle crown (m): ~half the block in contact at the end */
+  for (int j = 0; j < n; j++)
+    for (int i = 0; i < n; i++) {
+      const double x = (i + 0.5 - 0.5 * n) * 1e-3, y = (j + 0.5 - 0.5 * n) * 1e-3;
+      m.z_road[j * n + i] -= (x * x + y * y) / (2 * R);
+    }
+  OK(blk_springs_stiffening(&m, 3e5, 1.5e-6, 0.5, 2, 5e-4, 33, &err));
+  blk_synth sy = {.E = 25e6, .nu = 0.49, .rate = 51200, .Q = 256, .f_mode = 2000,
+                  .zeta = 0.1, .beta = 0.0, .tau_fast = 2e-5, .point_sampling = 0};
+  OK(blk_green_synthetic(&m, &sy, &err));
+  m.solver.quasi_static = !dyn;
+  m.solver.method = me;
+  m.solver.max_iter = 50;
+  blk_state s;
+  OK(blk_state_create(&m, &s, &err));
+  const double t1 = cpu();
+  long products = 0, iters = 0;
+  for (int k = 1; k <= steps; k++) {
+    OK(blk_step(&m, &s, 2e-4 * k / steps, &err));
+    products += s.products;
+    iters += s.iterations;
+  }
+  const double t2 = cpu();
+  report(dyn ? "ramp_dynamic" : "ramp_quasi_static", &m, &s, t1 - t0, t2 - t1, steps, products,
+         iters, (double)s.n_contact / m.M);
+  blk_state_free(&s);
+  blk_model_free(&m);
+}
+
+/* Rigid self-affine road (cosim road), one element per road point: the
+ * approach is bracketed by the height distribution and bisected (cheap
+ * solves at a loose tolerance) to `frac` of the area in contact, then the
+ * timed cold solve at the default tolerance. extra = contact fraction. */
+static void rough(const char *path, blk_method me, double frac) {
+  grn_surface sf;
+  OK(grn_surface_read_h5(path, &sf, &err));
+  const double E = 25e6, nu = 0.49;
+  blk_model m;
+  OK(blk_model_init(&m, sf.Nx, sf.Ny, sf.dx, sf.dy, &err));
+  double top = -INFINITY;
+  for (int e = 0; e < m.M; e++) top = fmax(top, sf.z[e]);
+  for (int e = 0; e < m.M; e++) m.z_road[e] = sf.z[e] - top;
+  OK(blk_green_halfspace(&m, E, nu, &err));
+  OK(blk_springs_rigid(&m, &err));
+  m.solver.quasi_static = 1;
+  m.solver.method = me;
+  m.solver.max_iter = 50;
+  blk_state s;
+  OK(blk_state_create(&m, &s, &err));
+  /* geometric overlap at the approach d covers the points above −d: an upper
+   * bound of the contact; bisection on the elastic contact fraction */
+  double lo = 0, hi = -2 * grn_surface_rms(&sf) * 5;
+  hi = -hi;
+  for (int it = 0; it < 14; it++) {
+    const double d = 0.5 * (lo + hi);
+    blk_state_reset(&m, &s);
+    OK(blk_step(&m, &s, d, &err));
+    if ((double)s.n_contact / m.M < frac) lo = d; else hi = d;
+  }
+  const double d = 0.5 * (lo + hi);
+  blk_state_reset(&m, &s);
+  const double t1 = cpu();
+  OK(blk_step(&m, &s, d, &err));
+  const double t2 = cpu();
+  report("rough", &m, &s, 0, t2 - t1, 1, s.products, s.iterations, (double)s.n_contact / m.M);
+  blk_state_free(&s);
+  blk_model_free(&m);
+  grn_surface_free(&sf);
+}
+
+int main(int argc, char **argv) {
+  if (argc >= 4 && !strcmp(argv[1], "hertz")) hertz(atoi(argv[2]), method_of(argv[3]));
+  else if (argc >= 6 && !strcmp(argv[1], "ramp"))
+    ramp(atoi(argv[2]), method_of(argv[3]), atoi(argv[4]), atoi(argv[5]));
+  else if (argc >= 5 && !strcmp(argv[1], "rough"))
+    rough(argv[2], method_of(argv[3]), atof(argv[4]));
+  else {
+    fprintf(stderr, "usage: bench_scale hertz N METHOD | ramp N METHOD DYN STEPS | "
+                    "rough ROAD.h5 METHOD FRAC\n");
+    return 2;
+  }
+  return 0;
+}
