@@ -41,12 +41,13 @@ typedef enum {
    * by Polonsky–Keer constrained conjugate gradients (Jacobi-preconditioned),
    * products C·x by FFT (zero-padded, or circular for a periodic grid) */
   BLK_CG = 3,
-  /* BLK_NR_DUAL up to BLK_DENSE_MAX_AUTO elements, BLK_CG above (README) */
+  /* springs: BLK_NR_DUAL up to BLK_DENSE_MAX_AUTO elements, BLK_CG above;
+   * rigid contact: BLK_CG (README) */
   BLK_AUTO = 4
 } blk_method;
 
 /* Largest grid (elements) the automatic choice solves densely: measured
- * crossover, bench/results/block.md "dense or matrix-free". */
+ * crossover, bench/results/block.md "Dense or matrix-free". */
 enum { BLK_DENSE_MAX_AUTO = 1024, BLK_DENSE_MAX = 4096 };
 
 typedef enum {

@@ -96,14 +96,17 @@ static void *track(blk_work *w, size_t n, size_t size) {
 /* Relative asymmetry of the step's compliance kernel taken as round-off. */
 #define BLK_EVEN_TOL 1e-10
 
-/* The solver the model asks for, BLK_AUTO resolved (README: dense up to
- * BLK_DENSE_MAX_AUTO elements, matrix-free above). */
+/* The solver the model asks for, BLK_AUTO resolved (README, measured in
+ * bench/results/block.md: with springs the dense dual up to
+ * BLK_DENSE_MAX_AUTO elements, matrix-free above; rigid contact always
+ * matrix-free). */
 static int resolve_method(const blk_model *m, int symmetric, blk_method *out,
                           proto_err *err) {
   blk_method me = m->solver.method;
   if (me == BLK_AUTO) {
-    if (symmetric) me = m->M <= BLK_DENSE_MAX_AUTO ? BLK_NR_DUAL : BLK_CG;
-    else me = BLK_NR_PLAIN; /* LU fallback of the primal Newton */
+    if (!symmetric) me = BLK_NR_PLAIN; /* LU fallback of the primal Newton */
+    else if (m->rigid || m->M > BLK_DENSE_MAX_AUTO) me = BLK_CG; /* rigid: CG always faster */
+    else me = BLK_NR_DUAL;
   }
   if ((me == BLK_CG || me == BLK_NR_DUAL || m->rigid) && !symmetric)
     return proto_fail(err, "solver: the dual solvers need a symmetric compliance "
@@ -236,6 +239,18 @@ int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err) {
   for (int e = 0; e < M; e++) {
     w->b[e] = d_road + m->z_road[e] - m->z_free - s->d_el_old[e];
     w->held[e] = s->attached[e];
+  }
+  if (m->periodic && m->rigid && !m->adhesion) {
+    /* the periodic half-space has zero mean displacement (green/periodic.c):
+     * hard contact beyond full contact has no equilibrium */
+    double mean = 0;
+    for (int e = 0; e < M; e++) mean += w->b[e];
+    mean /= M;
+    if (mean >= 0)
+      return proto_fail(err, "step %lld (d_road = %g m): periodic grid, rigid contact: the "
+                        "mean overlap %g m is not below full contact (the periodic "
+                        "half-space keeps zero mean displacement): no equilibrium",
+                        (long long)s->n + 1, d_road, mean);
   }
   int conv = 0, cuts = 0, iters = 0, factored = 0, products = 0;
   double rmax = 0;

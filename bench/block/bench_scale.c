@@ -2,10 +2,12 @@
  * per process, one JSON line on stdout (bench/block/run_scale.py drives it).
  *
  *   bench_scale hertz N METHOD            quasi-static rigid Hertz, one cold solve
- *   bench_scale ramp N METHOD DYN STEPS   stiffening springs on a curved rough
- *                                         road, STEPS steps of a ramp (DYN 1:
- *                                         synthetic ZOH layer, separable history)
- *   bench_scale rough ROAD.h5 METHOD FRAC rigid road from `cosim road` (one
+ *   bench_scale ramp N METHOD DYN STEPS [HIST]  stiffening springs on a curved
+ *                                         rough road, STEPS steps of a ramp (DYN 1:
+ *                                         synthetic ZOH layer; HIST separable|fft,
+ *                                         default auto)
+ *   bench_scale bumpy N DX R A LAMBDA D METHOD  the road of pk_numpy.py
+ *   bench_scale rough ROAD.h5 METHOD FRAC [periodic]  rigid road from `cosim road` (one
  *                                         element per road point), the approach
  *                                         with FRAC of the area in contact
  * METHOD: cg | dual | newton. Times are CPU seconds of this process. */
@@ -100,12 +102,13 @@ static void hertz(int n, blk_method me) {
 /* Stiffening springs (the default scene's law) on a curved rough road,
  * 1 mm elements: a ramp of `steps` steps to 0.2 mm; dynamic: synthetic ZOH
  * layer at 51.2 kHz. extra = mean contact fraction at the end. */
-static void ramp(int n, blk_method me, int dyn, int steps) {
+static void ramp(int n, blk_method me, int dyn, int steps, blk_history_kind hist) {
   double t0 = cpu();
   blk_model m;
   OK(blk_model_init(&m, n, n, 1e-3, 1e-3, &err));
   OK(blk_road_random(&m, 3e-5, 1, &err));
-  const double R = 0.5 * n; /* a gentle crown (m): ~half the block in contact at the end */
+  /* a crown sagging 0.15 mm at the block's edge: most of it in contact at 0.2 mm */
+  const double R = pow(0.5 * n * 1e-3, 2) / (2 * 1.5e-4);
   for (int j = 0; j < n; j++)
     for (int i = 0; i < n; i++) {
       const double x = (i + 0.5 - 0.5 * n) * 1e-3, y = (j + 0.5 - 0.5 * n) * 1e-3;
@@ -118,6 +121,7 @@ static void ramp(int n, blk_method me, int dyn, int steps) {
   m.solver.quasi_static = !dyn;
   m.solver.method = me;
   m.solver.max_iter = 50;
+  m.solver.history = hist;
   blk_state s;
   OK(blk_state_create(&m, &s, &err));
   const double t1 = cpu();
@@ -138,12 +142,13 @@ static void ramp(int n, blk_method me, int dyn, int steps) {
  * approach is bracketed by the height distribution and bisected (cheap
  * solves at a loose tolerance) to `frac` of the area in contact, then the
  * timed cold solve at the default tolerance. extra = contact fraction. */
-static void rough(const char *path, blk_method me, double frac) {
+static void rough(const char *path, blk_method me, double frac, int periodic) {
   grn_surface sf;
   OK(grn_surface_read_h5(path, &sf, &err));
   const double E = 25e6, nu = 0.49;
   blk_model m;
   OK(blk_model_init(&m, sf.Nx, sf.Ny, sf.dx, sf.dy, &err));
+  m.periodic = periodic; /* the generated road is periodic over the patch */
   double top = -INFINITY;
   for (int e = 0; e < m.M; e++) top = fmax(top, sf.z[e]);
   for (int e = 0; e < m.M; e++) m.z_road[e] = sf.z[e] - top;
@@ -156,8 +161,14 @@ static void rough(const char *path, blk_method me, double frac) {
   OK(blk_state_create(&m, &s, &err));
   /* geometric overlap at the approach d covers the points above −d: an upper
    * bound of the contact; bisection on the elastic contact fraction */
-  double lo = 0, hi = -2 * grn_surface_rms(&sf) * 5;
-  hi = -hi;
+  const double tol = m.solver.tol;
+  m.solver.tol = 1e-3 * grn_surface_rms(&sf); /* the bracket needs no more */
+  double lo = 0, hi = 10 * grn_surface_rms(&sf);
+  if (periodic) { /* below full contact: the mean overlap stays negative */
+    double mean = 0;
+    for (int e = 0; e < m.M; e++) mean += m.z_road[e];
+    hi = fmin(hi, -mean / m.M);
+  }
   for (int it = 0; it < 14; it++) {
     const double d = 0.5 * (lo + hi);
     blk_state_reset(&m, &s);
@@ -165,25 +176,62 @@ static void rough(const char *path, blk_method me, double frac) {
     if ((double)s.n_contact / m.M < frac) lo = d; else hi = d;
   }
   const double d = 0.5 * (lo + hi);
+  m.solver.tol = tol;
   blk_state_reset(&m, &s);
   const double t1 = cpu();
   OK(blk_step(&m, &s, d, &err));
   const double t2 = cpu();
-  report("rough", &m, &s, 0, t2 - t1, 1, s.products, s.iterations, (double)s.n_contact / m.M);
+  report(periodic ? "rough_periodic" : "rough", &m, &s, 0, t2 - t1, 1, s.products, s.iterations,
+         (double)s.n_contact / m.M);
   blk_state_free(&s);
   blk_model_free(&m);
   grn_surface_free(&sf);
 }
 
+/* Independent comparison (bench/block/pk_numpy.py): a paraboloid with a bump
+ * pattern, z = −r²/(2R) + A cos(2πx/λ) cos(2πy/λ), rigid, quasi-static, one
+ * cold solve at the approach d; the same formula in both codes. */
+static void bumpy(int n, double dx, double R, double A, double lam, double d, blk_method me) {
+  const double E = 10e6, nu = 0.3;
+  double t0 = cpu();
+  blk_model m;
+  OK(blk_model_init(&m, n, n, dx, dx, &err));
+  for (int j = 0; j < n; j++)
+    for (int i = 0; i < n; i++) {
+      const double x = (i + 0.5 - 0.5 * n) * dx, y = (j + 0.5 - 0.5 * n) * dx;
+      m.z_road[j * n + i] = -(x * x + y * y) / (2 * R) +
+                            A * cos(2 * M_PI * x / lam) * cos(2 * M_PI * y / lam);
+    }
+  OK(blk_green_halfspace(&m, E, nu, &err));
+  OK(blk_springs_rigid(&m, &err));
+  m.solver.quasi_static = 1;
+  m.solver.method = me;
+  m.solver.max_iter = 50;
+  m.solver.tol = 1e-10 * d;
+  blk_state s;
+  OK(blk_state_create(&m, &s, &err));
+  const double t1 = cpu();
+  OK(blk_step(&m, &s, d, &err));
+  const double t2 = cpu();
+  report("bumpy", &m, &s, t1 - t0, t2 - t1, 1, s.products, s.iterations, 0);
+  blk_state_free(&s);
+  blk_model_free(&m);
+}
+
 int main(int argc, char **argv) {
   if (argc >= 4 && !strcmp(argv[1], "hertz")) hertz(atoi(argv[2]), method_of(argv[3]));
   else if (argc >= 6 && !strcmp(argv[1], "ramp"))
-    ramp(atoi(argv[2]), method_of(argv[3]), atoi(argv[4]), atoi(argv[5]));
+    ramp(atoi(argv[2]), method_of(argv[3]), atoi(argv[4]), atoi(argv[5]),
+         argc > 6 ? (!strcmp(argv[6], "separable") ? BLK_HIST_SEPARABLE : BLK_HIST_FFT)
+                  : BLK_HIST_AUTO);
+  else if (argc >= 9 && !strcmp(argv[1], "bumpy"))
+    bumpy(atoi(argv[2]), atof(argv[3]), atof(argv[4]), atof(argv[5]), atof(argv[6]),
+          atof(argv[7]), method_of(argv[8]));
   else if (argc >= 5 && !strcmp(argv[1], "rough"))
-    rough(argv[2], method_of(argv[3]), atof(argv[4]));
+    rough(argv[2], method_of(argv[3]), atof(argv[4]), argc > 5 && !strcmp(argv[5], "periodic"));
   else {
-    fprintf(stderr, "usage: bench_scale hertz N METHOD | ramp N METHOD DYN STEPS | "
-                    "rough ROAD.h5 METHOD FRAC\n");
+    fprintf(stderr, "usage: bench_scale hertz N METHOD | ramp N METHOD DYN STEPS [HIST] | "
+                    "bumpy N DX R A LAMBDA D METHOD | rough ROAD.h5 METHOD FRAC\n");
     return 2;
   }
   return 0;

@@ -67,7 +67,28 @@ static double westergaard(int nx, int ny, double dy, blk_method method, double a
   return pbar;
 }
 
+/* Beyond full contact the periodic rigid problem has no equilibrium: a
+ * clear error, not a runaway. */
+static void beyond_full_contact(void) {
+  blk_model m;
+  OK(blk_model_init(&m, 16, 2, 1e-4, 1e-4, &err));
+  m.periodic = 1;
+  for (int i = 0; i < m.M; i++) m.z_road[i] = h0 * cos(2 * M_PI * (i % 16) / 16.0) - h0;
+  OK(blk_green_halfspace(&m, E, nu, &err));
+  OK(blk_springs_rigid(&m, &err));
+  m.solver.quasi_static = 1;
+  blk_state s;
+  OK(blk_state_create(&m, &s, &err));
+  err.msg[0] = 0;
+  CHECK(blk_step(&m, &s, 1.5 * h0, &err) == -1 && strstr(err.msg, "no equilibrium"),
+        "beyond full contact: '%s'", err.msg);
+  printf("beyond full contact: %s\n", err.msg);
+  blk_state_free(&s);
+  blk_model_free(&m);
+}
+
 int main(void) {
+  beyond_full_contact();
   westergaard(128, 8, lambda / 128, BLK_CG, 0.4, NULL, 1, "matrix-free");
   westergaard(128, 12, lambda / 192, BLK_CG, 0.4, NULL, 1, "matrix-free, dy = dx/1.5");
   enum { NX = 32, NY = 4 };
