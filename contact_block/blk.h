@@ -41,14 +41,14 @@ typedef enum {
    * by Polonsky–Keer constrained conjugate gradients (Jacobi-preconditioned),
    * products C·x by FFT (zero-padded, or circular for a periodic grid) */
   BLK_CG = 3,
-  /* springs: BLK_NR_DUAL up to BLK_DENSE_MAX_AUTO elements, BLK_CG above;
-   * rigid contact: BLK_CG (README) */
+  /* per step: springs and at most BLK_AUTO_DENSE_CONTACTS elements in contact
+   * at the previous step: BLK_NR_DUAL, else BLK_CG; rigid contact: BLK_CG
+   * (measured crossover, bench/results/block.md "Dense or matrix-free") */
   BLK_AUTO = 4
 } blk_method;
 
-/* Largest grid (elements) the automatic choice solves densely: measured
- * crossover, bench/results/block.md "Dense or matrix-free". */
-enum { BLK_DENSE_MAX_AUTO = 1024, BLK_DENSE_MAX = 4096 };
+/* The dense solvers keep an M × M (auto: a cap × cap) Newton matrix. */
+enum { BLK_DENSE_MAX = 4096, BLK_AUTO_DENSE_CONTACTS = 400, BLK_AUTO_DENSE_CAP = 800 };
 
 typedef enum {
   BLK_HIST_FFT = 0,       /* per spatial frequency, partitioned in time (full g) */

@@ -167,6 +167,7 @@ int blk_cg_solve(const blk_model *m, blk_state *s, int *conv, double *rmax, int 
   blk_work *w = s->work;
   const int M = m->M;
   double *F = s->force, *d = s->d_rs, *u = w->CF;
+  w->fact_valid = 0; /* a dense factor (auto) is stale from here */
   for (int e = 0; e < M; e++)
     if (bounded(m, w, e) && F[e] < 0) F[e] = 0;
   blk_fft_apply(&w->fft, &w->C_hat, F, u);
@@ -227,7 +228,7 @@ int blk_cg_solve(const blk_model *m, blk_state *s, int *conv, double *rmax, int 
 double blk_cg_tangent(const blk_model *m, blk_state *s, int *products) {
   blk_work *w = s->work;
   double Kd;
-  if (w->method != BLK_CG && blk_dense_tangent(m, s, BLK_TANGENT_TOL, &Kd, products) == 0)
+  if (w->A && blk_dense_tangent(m, s, BLK_TANGENT_TOL, &Kd, products) == 0)
     return Kd;
   const int M = m->M;
   double *x = w->dF, *r = w->rho, *z = w->z, *p = w->t, *q = w->q, *D = w->Dk;

@@ -300,6 +300,7 @@ int blk_dense_dual(const blk_model *m, blk_state *s, int *conv, double *rmax, in
     if (!(m->adhesion && w->held[e]) && F[e] < 0) F[e] = 0;
     dd[e] = s->d_rs[e];
   }
+  w->dense_overflow = 0;
   w->fact_valid = 0; /* w->A holds the dual's factor from here */
   double J = dual_eval(m, w, F, grad, dd);
   int it = 0;
@@ -320,6 +321,10 @@ int blk_dense_dual(const blk_model *m, blk_state *s, int *conv, double *rmax, in
       break;
     }
     if (it == m->solver.max_iter || !isfinite(J)) break;
+    if (P > w->A_cap) { /* auto: too many for the matrix, the caller goes matrix-free */
+      w->dense_overflow = 1;
+      return it;
+    }
     it++;
     /* (C_AA + diag(1/k_A)) ΔF_A = −∇J_A, ΔF = 0 on the binding set */
     for (int a = 0; a < P; a++) {

@@ -123,7 +123,10 @@ struct blk_work {
   double *col_f;
   double *r, *delta, *d_try, *F_try, *k_try, *sk, *y;
   int *act;           /* indices with k > 0 / the free set */
-  double *A;          /* [M][M] Newton matrix (dense methods only) */
+  double *A;          /* [A_cap][A_cap] Newton matrix (dense methods only) */
+  int A_cap;          /* rows of A: M, or BLK_AUTO_DENSE_CAP for auto */
+  int dense_overflow; /* the last dense solve found more free elements than A_cap */
+  int auto_dense;     /* auto: the dense dual may be used (springs, symmetric C) */
   int *piv;
   /* the last Cholesky factor of the Newton matrix, kept for chord steps
    * (solver.reuse_jacobian) and the tangent: its kind (BLK_FACT_*), active

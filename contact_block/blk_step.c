@@ -96,23 +96,16 @@ static void *track(blk_work *w, size_t n, size_t size) {
 /* Relative asymmetry of the step's compliance kernel taken as round-off. */
 #define BLK_EVEN_TOL 1e-10
 
-/* The solver the model asks for, BLK_AUTO resolved (README, measured in
- * bench/results/block.md: with springs the dense dual up to
- * BLK_DENSE_MAX_AUTO elements, matrix-free above; rigid contact always
- * matrix-free). */
+/* The solver the model asks for (BLK_AUTO stays: chosen per step, blk_step). */
 static int resolve_method(const blk_model *m, int symmetric, blk_method *out,
                           proto_err *err) {
   blk_method me = m->solver.method;
-  if (me == BLK_AUTO) {
-    if (!symmetric) me = BLK_NR_PLAIN; /* LU fallback of the primal Newton */
-    else if (m->rigid || m->M > BLK_DENSE_MAX_AUTO) me = BLK_CG; /* rigid: CG always faster */
-    else me = BLK_NR_DUAL;
-  }
+  if (me == BLK_AUTO && !symmetric) me = BLK_NR_PLAIN; /* LU fallback of the primal Newton */
   if ((me == BLK_CG || me == BLK_NR_DUAL || m->rigid) && !symmetric)
     return proto_fail(err, "solver: the dual solvers need a symmetric compliance "
                       "(g(0) even in the offset, reciprocity); this one is not: use "
                       "newton or line_search with compliant springs");
-  if (me != BLK_CG && m->M > BLK_DENSE_MAX)
+  if (me != BLK_CG && me != BLK_AUTO && m->M > BLK_DENSE_MAX)
     return proto_fail(err, "solver: %d elements exceed the dense limit %d", m->M,
                       BLK_DENSE_MAX);
   *out = me;
@@ -158,6 +151,11 @@ int blk_state_create(const blk_model *m, blk_state *s, proto_err *err) {
     w->kern[o] = w->kern[no - 1 - o] = 0.5 * (w->kern[o] + w->kern[no - 1 - o]);
   if (resolve_method(m, w->symmetric, &w->method, err)) return -1;
   s->method = w->method;
+  /* auto: the dense dual while few elements are in contact (springs only: for
+   * rigid contact constrained CG was faster at every size measured) */
+  w->auto_dense = w->method == BLK_AUTO && !m->rigid;
+  w->A_cap = w->method == BLK_AUTO ? (m->M < BLK_AUTO_DENSE_CAP ? m->M : BLK_AUTO_DENSE_CAP)
+                                   : m->M;
   if (blk_fft_init(&w->fft, m, err) || blk_fft_kernel(&w->fft, m, w->kern, 1.0, &w->C_hat, err))
     return -1;
   w->bytes += blk_fft_bytes(&w->fft) + blk_kspec_bytes(&w->fft, &w->C_hat);
@@ -166,7 +164,8 @@ int blk_state_create(const blk_model *m, blk_state *s, proto_err *err) {
                    &w->Fn, &w->dn, &w->un, &w->prec};
   for (size_t i = 0; i < sizeof cg / sizeof *cg; i++)
     if (!(*cg[i] = track(w, M, sizeof(double)))) return proto_fail(err, "out of memory");
-  if (w->method != BLK_CG) { /* dense: M × M Newton matrix and its vectors */
+  if (w->method != BLK_CG && (w->method != BLK_AUTO || w->auto_dense)) {
+    /* dense: the Newton matrix (A_cap × A_cap) and its vectors */
     double **dv[] = {&w->r, &w->delta, &w->d_try, &w->F_try, &w->k_try, &w->sk, &w->y,
                      &w->col_f, &w->fact_sk};
     for (size_t i = 0; i < sizeof dv / sizeof *dv; i++)
@@ -175,9 +174,9 @@ int blk_state_create(const blk_model *m, blk_state *s, proto_err *err) {
     w->act = track(w, M, sizeof(int));
     w->piv = track(w, M, sizeof(int));
     w->fact_act = track(w, M, sizeof(int));
-    w->A = track(w, M * M, sizeof(double));
+    w->A = track(w, (size_t)w->A_cap * w->A_cap, sizeof(double));
     if (!w->col_idx || !w->act || !w->piv || !w->fact_act || !w->A)
-      return proto_fail(err, "out of memory (dense %zu x %zu Newton matrix)", M, M);
+      return proto_fail(err, "out of memory (dense %d x %d Newton matrix)", w->A_cap, w->A_cap);
   }
   if (blk_history_init(m, w, &w->hist, err)) return -1;
   w->bytes += w->hist.bytes;
@@ -256,10 +255,19 @@ int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err) {
   double rmax = 0;
   /* adhesion sweeps: solve with the held set fixed, release every held element
    * whose tension exceeds the release force, repeat until none releases */
+  blk_method me = w->method;
+  if (me == BLK_AUTO)
+    me = w->auto_dense && s->n_contact <= BLK_AUTO_DENSE_CONTACTS ? BLK_NR_DUAL : BLK_CG;
   for (int sweep = 0; sweep <= M; sweep++) {
-    switch (w->method) {
+    switch (me) {
     case BLK_CG: iters += blk_cg_solve(m, s, &conv, &rmax, &products); break;
-    case BLK_NR_DUAL: iters += blk_dense_dual(m, s, &conv, &rmax, &cuts, &factored); break;
+    case BLK_NR_DUAL:
+      iters += blk_dense_dual(m, s, &conv, &rmax, &cuts, &factored);
+      if (w->dense_overflow) { /* auto: more free elements than the matrix holds */
+        me = BLK_CG;
+        iters += blk_cg_solve(m, s, &conv, &rmax, &products);
+      }
+      break;
     default: iters += blk_dense_newton(m, s, &conv, &rmax, &cuts, &factored);
     }
     if (!m->adhesion) break;
@@ -304,6 +312,7 @@ int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err) {
   s->residual = rmax;
   s->line_search_cuts = cuts;
   s->factorizations = factored;
+  s->method = me;
   s->stiffness = m->solver.tangent ? blk_cg_tangent(m, s, &products) : 0.0;
   s->products = products;
   blk_history_push(m, w, &w->hist, s->force, s->d_el_old);

@@ -10,7 +10,7 @@
  *   bench_scale rough ROAD.h5 METHOD FRAC [periodic]  rigid road from `cosim road` (one
  *                                         element per road point), the approach
  *                                         with FRAC of the area in contact
- * METHOD: cg | dual | newton. Times are CPU seconds of this process. */
+ * METHOD: cg | dual | newton | auto. Times are CPU seconds of this process. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -46,7 +46,8 @@ static blk_method method_of(const char *s) {
   if (!strcmp(s, "cg")) return BLK_CG;
   if (!strcmp(s, "dual")) return BLK_NR_DUAL;
   if (!strcmp(s, "newton")) return BLK_NR_PLAIN;
-  fprintf(stderr, "bench_scale: method %s: expected cg, dual or newton\n", s);
+  if (!strcmp(s, "auto")) return BLK_AUTO;
+  fprintf(stderr, "bench_scale: method %s: expected cg, dual, newton or auto\n", s);
   exit(2);
 }
 
