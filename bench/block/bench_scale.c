@@ -15,7 +15,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
 #include <time.h>
 
 #include "contact_block/blk.h"
@@ -36,10 +35,16 @@ static double cpu(void) {
   return t.tv_sec + 1e-9 * t.tv_nsec;
 }
 
+/* Peak resident set of this process (VmHWM: getrusage's maximum would
+ * include the parent's across exec). */
 static long rss_kb(void) {
-  struct rusage u;
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_maxrss;
+  FILE *f = fopen("/proc/self/status", "r");
+  char line[256];
+  long kb = -1;
+  while (f && fgets(line, sizeof line, f))
+    if (sscanf(line, "VmHWM: %ld", &kb) == 1) break;
+  if (f) fclose(f);
+  return kb;
 }
 
 static blk_method method_of(const char *s) {

@@ -116,18 +116,20 @@ def scaling():
           "the dynamic case the history ring of 255 past force fields) and the process's "
           "peak RSS. Growth exponent: least-squares slope of log(time per step) against "
           "log(elements) over 64² … 512² (n log n reads as ≈ 1.1 here).\n",
-          "| case | n × n | ms / step | products / step | state bytes / element | peak RSS (MB) | setup (s) |",
-          "|---|---|---|---|---|---|---|"]
+          "| case | n × n | ms / step | products / step | µs / product | state bytes / element | peak RSS (MB) | setup (s) |",
+          "|---|---|---|---|---|---|---|---|"]
     fig, ax = plt.subplots(1, 2, figsize=(11, 4))
     for name, rs in cases.items():
         M = np.array([r["M"] for r in rs], float)
         t = np.array([r["per_step_s"] for r in rs])
         for r in rs:
-            md.append("| %s | %d | %.2f | %.1f | %.0f | %.0f | %.2f |" % (
+            md.append("| %s | %d | %.2f | %.1f | %.0f | %.0f | %.0f | %.2f |" % (
                 name, r["nx"], 1e3 * r["per_step_s"], r["products_per_step"],
-                r["state_bytes"] / r["M"], r["rss_kb"] / 1e3, r["setup_s"]))
+                1e6 * r["per_step_s"] / r["products_per_step"], r["state_bytes"] / r["M"],
+                r["rss_kb"] / 1e3, r["setup_s"]))
         k = fit(M[1:], t[1:])
-        out.setdefault("exponents", []).append((name, k))
+        kp = fit(M[1:], t[1:] / np.array([r["products_per_step"] for r in rs])[1:])
+        out.setdefault("exponents", []).append((name, k, kp))
         ax[0].loglog(M, t, "o-", label="%s (slope %.2f)" % (name, k))
         ax[1].loglog(M, [r["state_bytes"] / r["M"] for r in rs], "o-", label=name)
     ref = np.array([32.0 ** 2, 512.0 ** 2])
@@ -142,8 +144,11 @@ def scaling():
     fig.tight_layout()
     fig.savefig(os.path.join(RES, "block_scaling.png"), dpi=110)
     plt.close(fig)
-    md.append("\nFitted exponents (time per step ∝ M^k, 64²–512²): " +
-              ", ".join("%s k = %.2f" % e for e in out["exponents"]) + ".\n")
+    md.append("\nFitted exponents, time ∝ M^k over 64²–512² (per step; per FFT product): " +
+              ", ".join("%s k = %.2f; %.2f" % e for e in out["exponents"]) +
+              ". M log M over this range reads as k ≈ 1.1; the products per step stay "
+              "flat with the springs and grow like M^0.2 for the rigid cold solve (CG "
+              "iterations ∝ √cond, cond ∝ n for the 1/q kernel).\n")
     dyn256 = [r for r in cases["ramp dyn (springs, ZOH)"] if r["nx"] == 256][0]
     md.append("A 256 × 256 dynamic step: %.3f s (goal ≤ 0.1 s).\n" % dyn256["per_step_s"])
     md.append("![scaling](block_scaling.png)\n")
