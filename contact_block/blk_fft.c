@@ -13,26 +13,15 @@
 #include <string.h>
 
 #include "contact_block/blk_internal.h"
-
-/* Smallest n' >= n with factors 2, 3, 5, 7 only (FFTW's fast sizes). */
-static int fft_size(int n) {
-  for (;; n++) {
-    int r = n;
-    while (r % 2 == 0) r /= 2;
-    while (r % 3 == 0) r /= 3;
-    while (r % 5 == 0) r /= 5;
-    while (r % 7 == 0) r /= 7;
-    if (r == 1) return n;
-  }
-}
+#include "green/green.h"
 
 int blk_fft_init(blk_fft *f, const blk_model *m, proto_err *err) {
   memset(f, 0, sizeof *f);
   f->nx = m->nx;
   f->ny = m->ny;
   f->periodic = m->periodic;
-  f->Nx = m->periodic ? m->nx : fft_size(2 * m->nx - 1);
-  f->Ny = m->periodic ? m->ny : fft_size(2 * m->ny - 1);
+  f->Nx = m->periodic ? m->nx : grn_fft_size(2 * m->nx - 1);
+  f->Ny = m->periodic ? m->ny : grn_fft_size(2 * m->ny - 1);
   f->nqx = f->Nx / 2 + 1;
   f->box = fftw_alloc_real((size_t)f->Nx * f->Ny);
   f->spec = fftw_alloc_complex((size_t)f->Ny * f->nqx);

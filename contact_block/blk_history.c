@@ -309,18 +309,23 @@ void blk_history_reset(const blk_model *m, blk_history *h) {
   }
 }
 
-static void push_direct(const blk_model *m, blk_history *h, const double *F,
-                        double *d_old) {
-  const int Qh = h->Qh, M = m->M, nx = m->nx;
-  const int slot = (int)(h->pushed % Qh);
-  double *row = h->F_ring + (size_t)slot * M;
+/* The force field of the step just solved into the real-space ring. */
+static void ring_push(const blk_model *m, blk_history *h, const double *F) {
+  const int slot = (int)(h->pushed % h->Qh);
+  double *row = h->F_ring + (size_t)slot * m->M;
   int nnz = 0;
-  for (int e = 0; e < M; e++) {
+  for (int e = 0; e < m->M; e++) {
     row[e] = F[e];
     nnz += F[e] != 0.0;
   }
   h->nnz[slot] = nnz;
   h->pushed++;
+}
+
+static void push_direct(const blk_model *m, blk_history *h, const double *F,
+                        double *d_old) {
+  const int Qh = h->Qh, M = m->M, nx = m->nx;
+  ring_push(m, h, F);
   memset(d_old, 0, (size_t)M * sizeof(double));
   /* next step n+1 = pushed: d_old = Δt Σ_{k≥1} Σ_p g(k; m−p) F_p(n+1−k) */
   for (int k = 1; k < Qh && k <= h->pushed; k++) {
@@ -414,15 +419,7 @@ BLK_HOT static void push_fft(const blk_model *m, blk_work *w, blk_history *h, co
 BLK_HOT static void push_separable(const blk_model *m, blk_work *w, blk_history *h,
                                    const double *F, double *d_old) {
   const int Qh = h->Qh, M = m->M;
-  const int slot = (int)(h->pushed % Qh);
-  double *row = h->F_ring + (size_t)slot * M;
-  int nnz = 0;
-  for (int e = 0; e < M; e++) {
-    row[e] = F[e];
-    nnz += F[e] != 0.0;
-  }
-  h->nnz[slot] = nnz;
-  h->pushed++;
+  ring_push(m, h, F);
   double *restrict y = h->y;
   memset(y, 0, (size_t)M * sizeof(double));
   int any = 0;

@@ -23,6 +23,9 @@ double grn_love_compliance(double x, double y, double a, double b, double E,
 double grn_love_smoothed(double x, double y, double a, double b, double c,
                          double E, double nu);
 
+/* Smallest n' >= n whose only prime factors are 2, 3, 5 (fast FFT sizes). */
+int grn_fft_size(int n);
+
 /* ------------------------------------------------------------ elements */
 
 typedef struct grn_grid {
