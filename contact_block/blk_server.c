@@ -10,11 +10,12 @@
 #include "contact_block/blk.h"
 
 /* stiffness: tangent dF/dd_road of the step's solve (blk_state.stiffness);
- * slope: (F_n − F_{n−1}) / (d_n − d_{n−1}) between the last two steps */
-enum { COL_T, COL_D, COL_F, COL_NC, COL_IT, COL_K, COL_SLOPE, COL_CONV, COL_RES, NCOL };
+ * slope: (F_n − F_{n−1}) / (d_n − d_{n−1}) between the last two steps (last,
+ * so the earlier columns keep their places) */
+enum { COL_T, COL_D, COL_F, COL_NC, COL_IT, COL_K, COL_CONV, COL_RES, COL_SLOPE, NCOL };
 static const char *const columns[NCOL] = {"t", "d_road", "force", "contacts",
-                                          "iterations", "stiffness", "slope",
-                                          "converged", "residual"};
+                                          "iterations", "stiffness", "converged",
+                                          "residual", "slope"};
 
 typedef struct server {
   blk_model model;
