@@ -41,14 +41,16 @@ typedef enum {
    * by Polonsky–Keer constrained conjugate gradients (Jacobi-preconditioned),
    * products C·x by FFT (zero-padded, or circular for a periodic grid) */
   BLK_CG = 3,
-  /* per step: springs and at most BLK_AUTO_DENSE_CONTACTS elements in contact
-   * at the previous step: BLK_NR_DUAL, else BLK_CG; rigid contact: BLK_CG
-   * (measured crossover, bench/results/block.md "Dense or matrix-free") */
+  /* per step, by a cost model: with springs and P elements in contact at the
+   * previous step, BLK_NR_DUAL (∝ P³) while P³ ≤ BLK_AUTO_KAPPA · M log2 M
+   * (BLK_CG ∝ M log M), else BLK_CG; rigid contact: BLK_CG (measured,
+   * bench/results/block.md "Dense or matrix-free") */
   BLK_AUTO = 4
 } blk_method;
 
 /* The dense solvers keep an M × M (auto: a cap × cap) Newton matrix. */
-enum { BLK_DENSE_MAX = 4096, BLK_AUTO_DENSE_CONTACTS = 400, BLK_AUTO_DENSE_CAP = 800 };
+enum { BLK_DENSE_MAX = 4096, BLK_AUTO_DENSE_CAP = 800 };
+#define BLK_AUTO_KAPPA 1e6
 
 typedef enum {
   BLK_HIST_FFT = 0,       /* per spatial frequency, partitioned in time (full g) */

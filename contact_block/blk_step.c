@@ -256,8 +256,12 @@ int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err) {
   /* adhesion sweeps: solve with the held set fixed, release every held element
    * whose tension exceeds the release force, repeat until none releases */
   blk_method me = w->method;
-  if (me == BLK_AUTO)
-    me = w->auto_dense && s->n_contact <= BLK_AUTO_DENSE_CONTACTS ? BLK_NR_DUAL : BLK_CG;
+  if (me == BLK_AUTO) {
+    const double P = s->n_contact; /* dense ∝ P³, matrix-free ∝ M log M */
+    me = w->auto_dense && P <= w->A_cap && P * P * P <= BLK_AUTO_KAPPA * M * log2(M + 1.0)
+             ? BLK_NR_DUAL
+             : BLK_CG;
+  }
   for (int sweep = 0; sweep <= M; sweep++) {
     switch (me) {
     case BLK_CG: iters += blk_cg_solve(m, s, &conv, &rmax, &products); break;

@@ -2,10 +2,10 @@
  * per process, one JSON line on stdout (bench/block/run_scale.py drives it).
  *
  *   bench_scale hertz N METHOD            quasi-static rigid Hertz, one cold solve
- *   bench_scale ramp N METHOD DYN STEPS [HIST]  stiffening springs on a curved
- *                                         rough road, STEPS steps of a ramp (DYN 1:
- *                                         synthetic ZOH layer; HIST separable|fft,
- *                                         default auto)
+ *   bench_scale ramp N METHOD DYN STEPS [HIST [SAG]]  stiffening springs on a
+ *                                         crowned rough road (edge sag SAG, default
+ *                                         0.15 mm), STEPS steps of a ramp (DYN 1:
+ *                                         synthetic ZOH layer; HIST separable|fft|auto)
  *   bench_scale bumpy N DX R A LAMBDA D METHOD  the road of pk_numpy.py
  *   bench_scale rough ROAD.h5 METHOD FRAC [periodic]  rigid road from `cosim road` (one
  *                                         element per road point), the approach
@@ -116,13 +116,13 @@ static void hertz(int n, blk_method me) {
 /* Stiffening springs (the default scene's law) on a curved rough road,
  * 1 mm elements: a ramp of `steps` steps to 0.2 mm; dynamic: synthetic ZOH
  * layer at 51.2 kHz. extra = mean contact fraction at the end. */
-static void ramp(int n, blk_method me, int dyn, int steps, blk_history_kind hist) {
+static void ramp(int n, blk_method me, int dyn, int steps, blk_history_kind hist, double sag) {
   double t0 = cpu();
   blk_model m;
   OK(blk_model_init(&m, n, n, 1e-3, 1e-3, &err));
   OK(blk_road_random(&m, 3e-5, 1, &err));
-  /* a crown sagging 0.15 mm at the block's edge: most of it in contact at 0.2 mm */
-  const double R = pow(0.5 * n * 1e-3, 2) / (2 * 1.5e-4);
+  /* a crown sagging `sag` at the block's edge (default 0.15 mm) */
+  const double R = pow(0.5 * n * 1e-3, 2) / (2 * sag);
   for (int j = 0; j < n; j++)
     for (int i = 0; i < n; i++) {
       const double x = (i + 0.5 - 0.5 * n) * 1e-3, y = (j + 0.5 - 0.5 * n) * 1e-3;
@@ -226,8 +226,10 @@ int main(int argc, char **argv) {
   if (argc >= 4 && !strcmp(argv[1], "hertz")) hertz(atoi(argv[2]), method_of(argv[3]));
   else if (argc >= 6 && !strcmp(argv[1], "ramp"))
     ramp(atoi(argv[2]), method_of(argv[3]), atoi(argv[4]), atoi(argv[5]),
-         argc > 6 ? (!strcmp(argv[6], "separable") ? BLK_HIST_SEPARABLE : BLK_HIST_FFT)
-                  : BLK_HIST_AUTO);
+         argc > 6 && strcmp(argv[6], "auto")
+             ? (!strcmp(argv[6], "separable") ? BLK_HIST_SEPARABLE : BLK_HIST_FFT)
+             : BLK_HIST_AUTO,
+         argc > 7 ? atof(argv[7]) : 1.5e-4);
   else if (argc >= 9 && !strcmp(argv[1], "bumpy"))
     bumpy(atoi(argv[2]), atof(argv[3]), atof(argv[4]), atof(argv[5]), atof(argv[6]),
           atof(argv[7]), method_of(argv[8]));
