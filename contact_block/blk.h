@@ -50,7 +50,7 @@ typedef enum {
 
 /* The dense solvers keep an M × M (auto: a cap × cap) Newton matrix. */
 enum { BLK_DENSE_MAX = 4096, BLK_AUTO_DENSE_CAP = 800 };
-#define BLK_AUTO_KAPPA 1e6
+#define BLK_AUTO_KAPPA 1e3
 
 typedef enum {
   BLK_HIST_FFT = 0,       /* per spatial frequency, partitioned in time (full g) */

@@ -96,8 +96,8 @@ def dense():
             1e3 * c, "%.2f" % (c / d) if d else "—", 1e3 * a))
     md.append("\nThe dense cost grows with the cube of the P elements in contact, the "
               "matrix-free one with the grid (M log M): at the crossovers above P³ / (M log2 M) "
-              "is about 1e6 (32², flat crown: 2e6, CG faster; 64², crowned: 6e5, dense "
-              "faster), so `auto` uses the dense dual while P³ ≤ 1e6 · M log2 M (P at the "
+              "is about 1e3 (32², flat crown: 2.1e3, CG faster; 64², crowned: 650, dense "
+              "faster), so `auto` uses the dense dual while P³ ≤ 1e3 · M log2 M (P at the "
               "previous step, springs only), constrained CG otherwise; a dense solve that "
               "finds more free elements than its 800 × 800 matrix holds hands over to CG.\n")
     out["dense"] = md
@@ -340,7 +340,7 @@ FIND = """## Issue 14: footprint-scale grids, the second cure, tangent stiffness
   0.2 % of p(0).
 - Rigid contact: constrained CG is faster than the dense path at every size measured
   (32²: 1.0 ms against 26 ms). With the stiffening springs and warm starts the dense dual
-  wins while the P elements in contact are few (P³ below about 1e6 · M log2 M);
+  wins while the P elements in contact are few (P³ below about 1e3 · M log2 M);
   `solver.method = auto` decides per step on the previous step's P.
 - Footprint scale: 512² rough rigid contact at 1 % in 0.66 s (free) / 0.31 s (periodic),
   a 256² dynamic step in 25 ms, 512² dynamic in 0.14 s with 2.3 kB per element.
