@@ -9,10 +9,13 @@
 
 #include "contact_block/blk.h"
 
-enum { COL_T, COL_D, COL_F, COL_NC, COL_IT, COL_K, COL_CONV, COL_RES, NCOL };
+/* stiffness: tangent dF/dd_road of the step's solve (blk_state.stiffness);
+ * slope: (F_n − F_{n−1}) / (d_n − d_{n−1}) between the last two steps (last,
+ * so the earlier columns keep their places) */
+enum { COL_T, COL_D, COL_F, COL_NC, COL_IT, COL_K, COL_CONV, COL_RES, COL_SLOPE, NCOL };
 static const char *const columns[NCOL] = {"t", "d_road", "force", "contacts",
                                           "iterations", "stiffness", "converged",
-                                          "residual"};
+                                          "residual", "slope"};
 
 enum { SNAP_X, SNAP_FORCE, SNAP_D_RS, SNAP_D_EL, N_SNAP };
 static const char *const SNAP[N_SNAP] = {"x", "element_force", "d_rs", "d_el"};
@@ -85,7 +88,8 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   s->row[COL_F] = st->total_force;
   s->row[COL_NC] = st->n_contact;
   s->row[COL_IT] = st->iterations;
-  s->row[COL_K] = dd != 0 ? (st->total_force - s->prev[0]) / dd : 0.0;
+  s->row[COL_K] = st->stiffness;
+  s->row[COL_SLOPE] = dd != 0 ? (st->total_force - s->prev[0]) / dd : 0.0;
   s->row[COL_CONV] = st->converged;
   s->row[COL_RES] = st->residual;
   s->prev[1] = st->d_road;

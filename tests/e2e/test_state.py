@@ -109,8 +109,12 @@ exercise("fem_server", "fem_server", slab, 1e-4,
 # contact_block: the default tread-block scene's block, past history blocks
 block = json.load(open(os.path.join(ROOT, "configs", "tread_block.json")))["processes"]["block"]
 dtb = 1.953125e-5
-exercise("contact_block", "contact_block", block, dtb,
-         lambda k, v: [("d_road", np.array([2e-4 * min(k / 60, 1.0) * (1.0 + 0.1 * v)]))], warmup=37)
+ramp = lambda k, v: [("d_road", np.array([2e-4 * min(k / 60, 1.0) * (1.0 + 0.1 * v)]))]
+exercise("contact_block", "contact_block", block, dtb, ramp, warmup=37)
+# the matrix-free solver (no kept factor) and the direct history ring
+cg = json.loads(json.dumps(block))
+cg["solver"].update({"method": "constrained_cg", "history": "direct"})
+exercise("contact_block (cg, direct)", "contact_block", cg, dtb, ramp, warmup=21)
 
 # the stubs
 exercise("block_stub", "block_stub", {"exec": "block_stub", "stiffness": 1e5}, 1e-3,
