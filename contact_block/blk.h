@@ -225,6 +225,17 @@ void blk_state_reset(const blk_model *m, blk_state *s);
  * is (-1, message names step and element). */
 int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err);
 
+/* The whole changing state as arrays "state.<x>" (proto.h state_save /
+ * state_load: rollback of implicit coupling, checkpoints). Export adds arrays
+ * pointing into s (and into `scalars`, the caller's buffer of
+ * BLK_STATE_SCALARS doubles); import copies them back into a state created
+ * for the same model; restored states step bit-identically. */
+#define BLK_STATE_SCALARS 16
+int blk_state_export(const blk_model *m, const blk_state *s, double *scalars,
+                     proto_msg *out, proto_err *err);
+int blk_state_import(const blk_model *m, blk_state *s, const proto_msg *in,
+                     proto_err *err);
+
 /* Reference: the layer displacement by the plain double sum (eq. 4–5, all
  * Q samples, no truncation) at the last row of a force record F_hist[n][M]
  * of n_rows rows (row r = step r+1), into d_el[M]. */
