@@ -12,7 +12,13 @@
  *
  * d is the spring compression (m), F the spring force (N, compression > 0).
  * The quasi-static mode replaces Δt g(0) by the time-summed g (static
- * compliance) and drops the history.
+ * compliance) and drops the history. With C = Δt g(0) symmetric positive
+ * definite the step is the minimum of the convex dual (notes/contact.md §5.1)
+ *
+ *   J(F) = ½ FᵀCF − bᵀF + Σ Ψ_m(F_m),  Ψ' = inverse spring law, F ≥ 0,
+ *
+ * solved densely (Cholesky, small grids) or matrix-free (C·x by FFT,
+ * Polonsky–Keer constrained conjugate gradients, large grids).
  *
  * Model (blk_model: the scene, fixed during a run) and state (blk_state:
  * what changes each step) are separate; blk_step() allocates nothing.
@@ -20,20 +26,38 @@
 #ifndef COSIM_BLK_H
 #define COSIM_BLK_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "proto/proto.h"
 
 typedef enum {
-  BLK_NR_PLAIN = 0,     /* the thesis' Newton–Raphson: full steps (ch. 3.4) */
-  BLK_NR_LINESEARCH = 1, /* same direction + Armijo backtracking on ½|f|² */
-  /* robust: projected Newton on the convex dual in the forces,
-   *   min_F ½FᵀCF − bᵀF + Σ Ψ_m(F_m),  Ψ' = inverse spring law, F ≥ 0
-   * (notes/contact.md §5.1), Armijo on the objective: globally convergent */
-  BLK_NR_DUAL = 2
+  BLK_NR_PLAIN = 0,     /* the thesis' Newton–Raphson: full steps (ch. 3.4), dense */
+  BLK_NR_LINESEARCH = 1, /* same direction + Armijo backtracking on ½|f|², dense */
+  /* robust, dense: projected Newton on the convex dual J with a Cholesky
+   * factor of C_AA + diag(1/k_A) per iteration, Armijo on J */
+  BLK_NR_DUAL = 2,
+  /* matrix-free: Newton on J, each step a bound-constrained quadratic solved
+   * by Polonsky–Keer constrained conjugate gradients (Jacobi-preconditioned),
+   * products C·x by FFT (zero-padded, or circular for a periodic grid) */
+  BLK_CG = 3,
+  /* per step, by a cost model: with springs and P elements in contact at the
+   * previous step, BLK_NR_DUAL (∝ P³) while P³ ≤ BLK_AUTO_KAPPA · M log2 M
+   * (BLK_CG ∝ M log M), else BLK_CG; rigid contact: BLK_CG (measured,
+   * bench/results/block.md "Dense or matrix-free") */
+  BLK_AUTO = 4
 } blk_method;
 
-typedef enum { BLK_HIST_FFT = 0, BLK_HIST_DIRECT = 1 } blk_history_kind;
+/* The dense solvers keep an M × M (auto: a cap × cap) Newton matrix. */
+enum { BLK_DENSE_MAX = 4096, BLK_AUTO_DENSE_CAP = 800 };
+#define BLK_AUTO_KAPPA 1e3
+
+typedef enum {
+  BLK_HIST_FFT = 0,       /* per spatial frequency, partitioned in time (full g) */
+  BLK_HIST_DIRECT = 1,    /* the plain double sum (reference) */
+  BLK_HIST_SEPARABLE = 2, /* g = g_time ⊗ g_space: time sums per element, one FFT */
+  BLK_HIST_AUTO = 3       /* separable when g is and the grid is large, else fft */
+} blk_history_kind;
 
 typedef struct blk_solver_opts {
   blk_method method;
@@ -45,6 +69,8 @@ typedef struct blk_solver_opts {
   double max_force;     /* N per element: larger is a runaway and stops the run */
   int reuse_jacobian;   /* newton: keep the factorisation while the contact set is
                            unchanged and the residual drops 4× per step (chord) */
+  int cg_max_iter;      /* constrained CG iterations per Newton step */
+  int tangent;          /* 1: compute the tangent stiffness dF/dd each step */
 } blk_solver_opts;
 
 /* Parameters of the in-process synthetic dynamic Green's function (clearly
@@ -52,7 +78,7 @@ typedef struct blk_solver_opts {
  * static compliance per offset o and h a unit-area time shape
  *   h(t) = β e^{−t/τ}/τ + (1−β) ω²/ω_d e^{−ζωt} sin(ω_d t),
  * a fast local (dashpot-like) part and one damped layer mode. Its time
- * integral is 1, so Δt Σ_k g(k) → S (the static limit). */
+ * integral is 1, so Δt Σ_k g(k) → S (the static limit). Stored separable. */
 typedef struct blk_synth {
   double E, nu;        /* Pa, –: Love static compliance */
   double rate;         /* Hz */
@@ -68,21 +94,31 @@ typedef struct blk_model {
   /* grid: element m = j·nx + i, centre ((i+½)dx, (j+½)dy) */
   int nx, ny, M;
   double dx, dy;
+  int periodic;   /* 1: the road and layer repeat over nx·dx × ny·dy */
   /* road: outermost heights per element and the initial gap */
   double *z_road; /* [M] m */
   double z_free;  /* m */
-  /* roughness springs: monotone piecewise-cubic Hermite per element,
-   * knots d[m][0..K-1] (d[0] = 0), F, k = dF/dd; linear beyond the last */
-  int n_knots;
-  double *spr_d, *spr_F, *spr_k; /* [M][n_knots] */
+  /* roughness springs: monotone piecewise-cubic Hermite tables, knots
+   * d[t][0..K-1] (d[0] = 0), F, k = dF/dd; linear beyond the last. Element e
+   * uses table spr_table[e] scaled in force by spr_scale[e]. rigid: no
+   * springs (hard contact, d_rs = 0): only the dual solvers apply. */
+  int rigid;
+  int n_knots, n_tables;
+  double *spr_d, *spr_F, *spr_k; /* [n_tables][n_knots] */
+  double *spr_W;                 /* [n_tables][n_knots] ∫F up to each knot (derived) */
+  int *spr_table;                /* [M] */
+  double *spr_scale;             /* [M] */
   /* adhesion (ch. 5.1): mirrored springs, contact breaks past the release force */
   int adhesion;
   double release_force; /* N */
-  /* Green's functions per offset (Δj, Δi) (green/FORMATS.md layout) */
+  /* Green's functions per offset (Δj, Δi) (green/FORMATS.md layout): full
+   * g[k][o], or separable g(k; o) = g_time[k] · g_space[o] (then g = NULL) */
   int Q;          /* samples; 1 for a static-only model */
   double rate;    /* Hz; 0 for static only */
   int nox, noy;   /* 2nx−1, 2ny−1 */
-  double *g;      /* [Q][noy][nox] m/(N s); NULL for static only */
+  double *g;      /* [Q][noy][nox] m/(N s) */
+  double *g_time; /* [Q] 1/s */
+  double *g_space; /* [noy][nox] m/N */
   double *g_static; /* [noy][nox] m/N */
   char green_model[64];
   char sampling[16]; /* "zoh", "point", "static" */
@@ -100,7 +136,10 @@ typedef struct blk_state {
   int *attached;    /* [M] 1: in contact / adhered */
   /* last step */
   double d_road, total_force, residual;
+  double stiffness; /* tangent dF/dd_road of this step's solve, N/m (0: not computed) */
   int n_contact, iterations, converged, line_search_cuts, factorizations;
+  int products;     /* FFT products C·x in this step (matrix-free and tangent) */
+  blk_method method; /* the solver used (BLK_AUTO resolved) */
   blk_work *work;
 } blk_state;
 
@@ -115,15 +154,20 @@ void blk_model_free(blk_model *m);
 int blk_green_set(blk_model *m, int Q, double rate, int noy, int nox,
                   const double *g, const double *g_static, const char *sampling,
                   const char *model_name, proto_err *err);
-/* Love half-space static compliance (quasi-static only), seed 002 / notes §2.1. */
+/* Love half-space static compliance (quasi-static only), seed 002 / notes §2.1;
+ * on a periodic grid the periodic half-space (green/green.h). */
 int blk_green_halfspace(blk_model *m, double E, double nu, proto_err *err);
 int blk_green_synthetic(blk_model *m, const blk_synth *s, proto_err *err);
 /* Reads green.h5 (green/FORMATS.md). */
 int blk_green_load(blk_model *m, const char *path, proto_err *err);
 /* Refines the sampling rate by an integer factor (appendix C.2): "point"
  * samples by linear interpolation of g (the thesis), "zoh" samples by
- * linear interpolation of the step response and differencing. */
+ * cubic interpolation of the step response and differencing. */
 int blk_green_refine(blk_model *m, int factor, proto_err *err);
+/* A separable g stored in full (g[k][o]), e.g. to modify it sample by sample. */
+int blk_green_materialize(blk_model *m, proto_err *err);
+/* g(k; o) whatever the storage (o = offset index in [noy][nox]). */
+double blk_green_at(const blk_model *m, int k, size_t o);
 
 /* Springs. Linear: F = k d (k [M], or one value if per_element == 0). */
 int blk_springs_linear(blk_model *m, const double *k, int per_element,
@@ -135,8 +179,20 @@ int blk_springs_table(blk_model *m, int K, const double *d, const double *F,
  * scatter in [1−spread, 1+spread] (seeded), tabulated on K knots to d_max. */
 int blk_springs_stiffening(blk_model *m, double k0, double d0, double spread,
                            uint64_t seed, double d_max, int K, proto_err *err);
+/* Multiplies every spring's force by e^{σ g − σ²/2}, g standard normal
+ * (seeded): a heavy-tailed, log-normal scatter of mean 1 (a few elements
+ * far stiffer than the rest, as the thesis found on its road, ch. 4.2.2). */
+int blk_springs_lognormal(blk_model *m, double sigma, uint64_t seed, proto_err *err);
+/* No roughness springs: hard contact (Signorini), d_rs = 0. */
+int blk_springs_rigid(blk_model *m, proto_err *err);
 /* Reads springs.h5 (green/FORMATS.md): tables and z_road. */
 int blk_springs_load(blk_model *m, const char *path, proto_err *err);
+/* The thesis' second cure (seed 002 ch. 4.2.2): the `count` stiffest springs,
+ * ranked by their force at compression `at` (thesis: 80 at 9 µm), are
+ * softened: factor > 0 scales their force and stiffness by factor; factor
+ * <= 0 exchanges them for the next `count` in the ranking (the thesis). */
+int blk_springs_soften(blk_model *m, int count, double at, double factor,
+                       proto_err *err);
 /* Spring force and stiffness of element e at compression d ≥ 0. */
 void blk_spring_eval(const blk_model *m, int e, double d, double *F, double *k);
 /* Stored energy W(d) = ∫_0^d F and the inverse law d(F), for d, F ≥ 0. */
@@ -160,12 +216,25 @@ int blk_model_from_config(blk_model *m, const cJSON *section,
 /* ---- running */
 int blk_state_create(const blk_model *m, blk_state *s, proto_err *err);
 void blk_state_free(blk_state *s);
+/* Bytes allocated by blk_state_create for this model (state, solver, history). */
+size_t blk_state_bytes(const blk_state *s);
 /* Forgets the history (t = 0, nothing in contact). */
 void blk_state_reset(const blk_model *m, blk_state *s);
 /* One step to road displacement d_road (m, + = indentation). Not converging
  * within max_iter is not an error (s->converged = 0, as in the thesis); NaN
  * is (-1, message names step and element). */
 int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err);
+
+/* The whole changing state as arrays "state.<x>" (proto.h state_save /
+ * state_load: rollback of implicit coupling, checkpoints). Export adds arrays
+ * pointing into s (and into `scalars`, the caller's buffer of
+ * BLK_STATE_SCALARS doubles); import copies them back into a state created
+ * for the same model; restored states step bit-identically. */
+#define BLK_STATE_SCALARS 16
+int blk_state_export(const blk_model *m, const blk_state *s, double *scalars,
+                     proto_msg *out, proto_err *err);
+int blk_state_import(const blk_model *m, blk_state *s, const proto_msg *in,
+                     proto_err *err);
 
 /* Reference: the layer displacement by the plain double sum (eq. 4–5, all
  * Q samples, no truncation) at the last row of a force record F_hist[n][M]

@@ -6,21 +6,28 @@
 
 #include "contact_block/blk.h"
 
+/* Elements per axis from a scene: the matrix-free solver handles 512 × 512
+ * on one core in seconds (bench/results/block.md); the model allows 4096. */
+enum { BLK_CFG_GRID_MAX = 4096 };
+
 static int read_grid(blk_model *m, proto_cfg *sec, proto_err *err) {
   proto_cfg c;
   int64_t nx = 20, ny = 20;
   double dx = 1e-3, dy = 1e-3;
+  int periodic = 0;
   int r = proto_cfg_child(sec, "grid", PROTO_OPTIONAL, &c);
   if (r < 0) return -1;
   if (r == 0) {
-    if (proto_cfg_int(&c, "nx", PROTO_OPTIONAL, 1, 64, &nx) ||
-        proto_cfg_int(&c, "ny", PROTO_OPTIONAL, 1, 64, &ny) ||
+    if (proto_cfg_int(&c, "nx", PROTO_OPTIONAL, 1, BLK_CFG_GRID_MAX, &nx) ||
+        proto_cfg_int(&c, "ny", PROTO_OPTIONAL, 1, BLK_CFG_GRID_MAX, &ny) ||
         proto_cfg_num(&c, "dx", PROTO_OPTIONAL, 1e-9, 1.0, &dx) ||
-        proto_cfg_num(&c, "dy", PROTO_OPTIONAL, 1e-9, 1.0, &dy) || proto_cfg_end(&c))
+        proto_cfg_num(&c, "dy", PROTO_OPTIONAL, 1e-9, 1.0, &dy) ||
+        proto_cfg_bool(&c, "periodic", PROTO_OPTIONAL, &periodic) || proto_cfg_end(&c))
       return -1;
   }
   if (blk_model_init(m, (int)nx, (int)ny, dx, dy, err))
     return proto_wrap(err, "%s.grid", sec->path);
+  m->periodic = periodic;
   return 0;
 }
 
@@ -68,13 +75,32 @@ static int read_green(blk_model *m, proto_cfg *sec, proto_err *err) {
   return proto_cfg_end(&c);
 }
 
+/* springs.soften: the thesis' second cure (seed 002 ch. 4.2.2) — the `count`
+ * stiffest springs by force at compression `at` softened by `factor`, or,
+ * without a factor, exchanged for the next `count` (the thesis: 80 at 9 µm). */
+static int read_soften(blk_model *m, proto_cfg *springs, proto_err *err) {
+  proto_cfg c;
+  int r = proto_cfg_child(springs, "soften", PROTO_OPTIONAL, &c);
+  if (r) return r < 0 ? -1 : 0;
+  int64_t count = 0;
+  double at = 9e-6, factor = 0;
+  if (proto_cfg_int(&c, "count", PROTO_REQUIRED, 1, INT32_MAX, &count) ||
+      proto_cfg_num(&c, "at", PROTO_OPTIONAL, 1e-12, 1.0, &at) ||
+      proto_cfg_num(&c, "factor", PROTO_OPTIONAL, 1e-12, 1.0, &factor) || proto_cfg_end(&c))
+    return -1;
+  if (blk_springs_soften(m, (int)count, at, factor, err)) return proto_wrap(err, "%s", c.path);
+  return 0;
+}
+
 static int read_springs(blk_model *m, proto_cfg *sec, proto_err *err) {
   proto_cfg c;
   if (proto_cfg_child(sec, "springs", PROTO_REQUIRED, &c)) return -1;
-  static const char *const kinds[] = {"file", "linear", "stiffening", NULL};
+  static const char *const kinds[] = {"file", "linear", "stiffening", "rigid", NULL};
   int kind = 0, rc = 0;
   if (proto_cfg_enum(&c, "kind", PROTO_REQUIRED, kinds, &kind)) return -1;
-  if (kind == 0) {
+  if (kind == 3) {
+    rc = blk_springs_rigid(m, err);
+  } else if (kind == 0) {
     char path[1024];
     if (proto_cfg_str(&c, "file", PROTO_REQUIRED, path, sizeof path)) return -1;
     rc = blk_springs_load(m, path, err);
@@ -95,6 +121,15 @@ static int read_springs(blk_model *m, proto_cfg *sec, proto_err *err) {
     rc = blk_springs_stiffening(m, k0, d0, spread, (uint64_t)seed, d_max, (int)knots, err);
   }
   if (rc) return proto_wrap(err, "%s", c.path);
+  double sigma = 0;
+  int64_t lseed = 3;
+  int has = proto_cfg_raw(&c, "lognormal", PROTO_OPTIONAL) != NULL;
+  if (has && (proto_cfg_num(&c, "lognormal", PROTO_OPTIONAL, 0.0, 10.0, &sigma) ||
+              proto_cfg_int(&c, "lognormal_seed", PROTO_OPTIONAL, 0, INT64_MAX, &lseed)))
+    return -1;
+  if (has && blk_springs_lognormal(m, sigma, (uint64_t)lseed, err))
+    return proto_wrap(err, "%s", c.path);
+  if (read_soften(m, &c, err)) return -1;
   return proto_cfg_end(&c);
 }
 
@@ -155,12 +190,16 @@ static int read_adhesion_solver(blk_model *m, proto_cfg *sec) {
   r = proto_cfg_child(sec, "solver", PROTO_OPTIONAL, &c);
   if (r < 0) return -1;
   if (r == 1) return 0;
-  static const char *const methods[] = {"newton", "line_search", "dual_newton", NULL};
-  static const char *const hist[] = {"fft", "direct", NULL};
+  /* the order of blk_method and blk_history_kind */
+  static const char *const methods[] = {"newton", "line_search", "dual_newton",
+                                        "constrained_cg", "auto", NULL};
+  static const char *const hist[] = {"fft", "direct", "separable", "auto", NULL};
   int method = (int)m->solver.method, h = (int)m->solver.history;
-  int64_t max_iter = m->solver.max_iter;
+  int64_t max_iter = m->solver.max_iter, cg_max_iter = m->solver.cg_max_iter;
   if (proto_cfg_enum(&c, "method", PROTO_OPTIONAL, methods, &method) ||
       proto_cfg_int(&c, "max_iter", PROTO_OPTIONAL, 1, 100000, &max_iter) ||
+      proto_cfg_int(&c, "cg_max_iter", PROTO_OPTIONAL, 1, 10000000, &cg_max_iter) ||
+      proto_cfg_bool(&c, "tangent", PROTO_OPTIONAL, &m->solver.tangent) ||
       proto_cfg_num(&c, "tol", PROTO_OPTIONAL, 1e-30, 1.0, &m->solver.tol) ||
       proto_cfg_bool(&c, "quasi_static", PROTO_OPTIONAL, &m->solver.quasi_static) ||
       proto_cfg_enum(&c, "history", PROTO_OPTIONAL, hist, &h) ||
@@ -172,6 +211,7 @@ static int read_adhesion_solver(blk_model *m, proto_cfg *sec) {
   m->solver.method = (blk_method)method;
   m->solver.history = (blk_history_kind)h;
   m->solver.max_iter = (int)max_iter;
+  m->solver.cg_max_iter = (int)cg_max_iter;
   return 0;
 }
 

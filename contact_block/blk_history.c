@@ -4,8 +4,10 @@
  * convolution, done with FFTs on a zero-padded 2nx × 2ny grid (Hockney), and
  * the time sum runs per spatial frequency over a ring of past force spectra:
  * the latest lags directly, older ones block-wise with FFTs in time (levels
- * of a non-uniformly partitioned convolution). The direct double sum is kept
- * as the reference (solver.history = "direct"). */
+ * of a non-uniformly partitioned convolution). A separable g (g_time ⊗
+ * g_space, the synthetic layer) needs far less: the time sums per element
+ * over a ring of past forces, then one spatial FFT product (large grids).
+ * The direct double sum is kept as the reference (solver.history = "direct"). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,6 +18,13 @@
 static int truncated_length(const blk_model *m) {
   const size_t no = (size_t)m->nox * m->noy;
   double gmax = 0;
+  if (m->g_time) { /* separable: |g(k; o)| = |T_k| |S(o)| */
+    for (int k = 0; k < m->Q; k++) gmax = fmax(gmax, fabs(m->g_time[k]));
+    int Qh = 1;
+    for (int k = 0; k < m->Q; k++)
+      if (fabs(m->g_time[k]) > m->solver.tail_tol * gmax) Qh = k + 1;
+    return Qh;
+  }
   for (size_t i = 0; i < (size_t)m->Q * no; i++)
     if (fabs(m->g[i]) > gmax) gmax = fabs(m->g[i]);
   int Qh = 1;
@@ -30,13 +39,14 @@ static int truncated_length(const blk_model *m) {
 
 /* Kernel of sample k on the padded grid: K[(Δj mod Ny)][(Δi mod Nx)]. */
 static void place_kernel(const blk_model *m, const blk_history *h, int k, double *pad) {
-  const size_t no = (size_t)m->nox * m->noy;
   memset(pad, 0, (size_t)h->Nx * h->Ny * sizeof(double));
-  for (int dj = -(m->ny - 1); dj <= m->ny - 1; dj++)
-    for (int di = -(m->nx - 1); di <= m->nx - 1; di++) {
+  /* periodic: circular on nx × ny, the offsets 0..n−1 (K(Δ) = K(Δ − n)) */
+  const int lo_j = m->periodic ? 0 : -(m->ny - 1), lo_i = m->periodic ? 0 : -(m->nx - 1);
+  for (int dj = lo_j; dj <= m->ny - 1; dj++)
+    for (int di = lo_i; di <= m->nx - 1; di++) {
       int pj = (dj + h->Ny) % h->Ny, pi = (di + h->Nx) % h->Nx;
       pad[pj * h->Nx + pi] =
-          m->g[(size_t)k * no + (size_t)(dj + m->ny - 1) * m->nox + (di + m->nx - 1)];
+          blk_green_at(m, k, (size_t)(dj + m->ny - 1) * m->nox + (di + m->nx - 1));
     }
 }
 
@@ -150,39 +160,82 @@ static void level_block(blk_history *h, blk_level *lv) {
   fftw_execute(lv->tinv);
 }
 
-int blk_history_init(const blk_model *m, blk_history *h, proto_err *err) {
+/* Grids from this size up use the separable history when g is separable
+ * (auto): measured, bench/results/block.md "history". */
+enum { BLK_HIST_SEPARABLE_MIN = 1024 };
+
+static void *track(blk_history *h, size_t n, size_t size) {
+  void *p = calloc(n ? n : 1, size);
+  if (p) h->bytes += n * size;
+  return p;
+}
+
+int blk_history_init(const blk_model *m, blk_work *w, blk_history *h, proto_err *err) {
   memset(h, 0, sizeof *h);
-  if (m->solver.quasi_static || !m->g) return 0;
+  if (m->solver.quasi_static || (!m->g && !m->g_time)) return 0;
+  h->kind = m->solver.history;
+  if (h->kind == BLK_HIST_AUTO)
+    h->kind = m->g_time && m->M >= BLK_HIST_SEPARABLE_MIN ? BLK_HIST_SEPARABLE : BLK_HIST_FFT;
+  if (h->kind == BLK_HIST_SEPARABLE && !m->g_time)
+    return proto_fail(err, "solver.history = separable needs a separable Green's function "
+                      "(the synthetic layer); this one (%s) is stored in full", m->green_model);
   h->Qh = truncated_length(m);
   h->dt = 1.0 / m->rate;
   if (h->Qh < 2) return 0; /* instantaneous response only: no history */
-  if (m->solver.history == BLK_HIST_DIRECT) {
-    h->F_ring = calloc((size_t)h->Qh * m->M, sizeof(double));
-    h->nnz = calloc((size_t)h->Qh, sizeof(int));
-    if (!h->F_ring || !h->nnz) return proto_fail(err, "out of memory");
+  if (h->kind == BLK_HIST_DIRECT || h->kind == BLK_HIST_SEPARABLE) {
+    h->F_ring = track(h, (size_t)h->Qh * m->M, sizeof(double));
+    h->nnz = track(h, (size_t)h->Qh, sizeof(int));
+    if (!h->F_ring || !h->nnz) return proto_fail(err, "out of memory (history ring %d x %d)",
+                                                 h->Qh, m->M);
+    if (h->kind == BLK_HIST_DIRECT) return 0;
+    h->y = track(h, (size_t)m->M, sizeof(double));
+    if (!h->y) return proto_fail(err, "out of memory");
+    /* d_old = Δt S * y on the step's FFT box */
+    if (blk_fft_kernel(&w->fft, m, m->g_space, h->dt, &h->S_hat, err)) return -1;
+    h->bytes += blk_kspec_bytes(&w->fft, &h->S_hat);
     return 0;
   }
-  h->Nx = 2 * m->nx;
-  h->Ny = 2 * m->ny;
-  h->nq = h->Ny * (h->Nx / 2 + 1);
-  h->pad = fftw_malloc((size_t)h->Nx * h->Ny * sizeof(double));
+  /* bins of the time convolution: the spatial frequencies of a zero-padded
+   * (or periodic) box; for a separable g the elements themselves, two real
+   * fields packed per complex bin (T_k is real, so real and imaginary parts
+   * stay apart), and one product with Δt·S at the end */
+  h->packed = m->g_time != NULL;
+  h->Nx = m->periodic ? m->nx : 2 * m->nx;
+  h->Ny = m->periodic ? m->ny : 2 * m->ny;
+  h->nq = h->packed ? (m->M + 1) / 2 : h->Ny * (h->Nx / 2 + 1);
+  if (!h->packed) h->pad = fftw_malloc((size_t)h->Nx * h->Ny * sizeof(double));
   h->ghat = fftw_malloc((size_t)h->Qh * h->nq * sizeof(fftw_complex));
   h->F_hat = fftw_malloc((size_t)h->Qh * h->nq * sizeof(fftw_complex));
   h->acc = fftw_malloc((size_t)h->nq * sizeof(fftw_complex));
   h->nnz = calloc((size_t)h->Qh, sizeof(int));
-  if (!h->pad || !h->ghat || !h->F_hat || !h->acc || !h->nnz)
+  if ((!h->pad && !h->packed) || !h->ghat || !h->F_hat || !h->acc || !h->nnz)
     return proto_fail(err, "out of memory");
-  h->fwd = fftw_plan_dft_r2c_2d(h->Ny, h->Nx, h->pad, h->acc, BLK_FFTW_STEP);
-  h->inv = fftw_plan_dft_c2r_2d(h->Ny, h->Nx, h->acc, h->pad, BLK_FFTW_STEP);
-  if (!h->fwd || !h->inv) return proto_fail(err, "history: FFTW planning failed");
-  /* spectra of g_k, scaled by Δt / (Nx Ny) (FFTW's unnormalised inverse) */
-  const double scale = h->dt / ((double)h->Nx * h->Ny);
-  for (int k = 0; k < h->Qh; k++) {
-    place_kernel(m, h, k, h->pad);
-    fftw_execute_dft_r2c(h->fwd, h->pad, h->ghat + (size_t)k * h->nq);
-    for (int q = 0; q < h->nq; q++) {
-      h->ghat[(size_t)k * h->nq + q][0] *= scale;
-      h->ghat[(size_t)k * h->nq + q][1] *= scale;
+  h->bytes += (h->packed ? 0 : (size_t)h->Nx * h->Ny * sizeof(double)) +
+              (size_t)(h->Qh + 1) * h->nq * sizeof(fftw_complex) + h->Qh * sizeof(int);
+  if (h->packed) {
+    h->y = track(h, (size_t)2 * h->nq, sizeof(double));
+    if (!h->y) return proto_fail(err, "out of memory");
+    for (int k = 0; k < h->Qh; k++)
+      for (int q = 0; q < h->nq; q++) {
+        h->ghat[(size_t)k * h->nq + q][0] = h->dt * m->g_time[k];
+        h->ghat[(size_t)k * h->nq + q][1] = 0;
+      }
+    if (blk_fft_kernel(&w->fft, m, m->g_space, 1.0, &h->S_hat, err)) return -1;
+    h->bytes += blk_kspec_bytes(&w->fft, &h->S_hat);
+  } else {
+    const unsigned flags = BLK_FFTW_STEP(m->M);
+    h->fwd = fftw_plan_dft_r2c_2d(h->Ny, h->Nx, h->pad, h->acc, flags);
+    h->inv = fftw_plan_dft_c2r_2d(h->Ny, h->Nx, h->acc, h->pad, flags);
+    if (!h->fwd || !h->inv) return proto_fail(err, "history: FFTW planning failed");
+    /* spectra of g_k, scaled by Δt / (Nx Ny) (FFTW's unnormalised inverse) */
+    const double scale = h->dt / ((double)h->Nx * h->Ny);
+    for (int k = 0; k < h->Qh; k++) {
+      place_kernel(m, h, k, h->pad);
+      fftw_execute_dft_r2c(h->fwd, h->pad, h->ghat + (size_t)k * h->nq);
+      for (int q = 0; q < h->nq; q++) {
+        h->ghat[(size_t)k * h->nq + q][0] *= scale;
+        h->ghat[(size_t)k * h->nq + q][1] *= scale;
+      }
     }
   }
   /* an even kernel (g(Δ) = g(−Δ)) has a real spectrum: keep only Re */
@@ -201,8 +254,20 @@ int blk_history_init(const blk_model *m, blk_history *h, proto_err *err) {
     const int nk = h->n_lev ? h->head + 1 : h->Qh;
     h->ghat_re2 = malloc((size_t)nk * 2 * h->nq * sizeof(double));
     if (!h->ghat_re2) return proto_fail(err, "out of memory");
+    h->bytes += (size_t)nk * 2 * h->nq * sizeof(double);
     for (size_t i = 0; i < (size_t)nk * h->nq; i++)
       h->ghat_re2[2 * i] = h->ghat_re2[2 * i + 1] = h->ghat_re[i];
+    /* the full spectra were only needed to build the segments and this */
+    free(h->ghat_re);
+    fftw_free(h->ghat);
+    h->ghat_re = NULL;
+    h->ghat = NULL;
+    h->bytes -= (size_t)h->Qh * h->nq * sizeof(fftw_complex);
+  }
+  for (int l = 0; l < h->n_lev; l++) {
+    const blk_level *lv = &h->lev[l];
+    h->bytes += (size_t)(lv->S * lv->hl + (lv->S + 1) * 2 * lv->B) * h->nq *
+                sizeof(fftw_complex);
   }
   blk_history_reset(m, h);
   return 0;
@@ -227,6 +292,8 @@ void blk_history_free(blk_history *h) {
   free(h->ghat_re2);
   free(h->F_ring);
   free(h->nnz);
+  free(h->y);
+  blk_kspec_free(&h->S_hat);
   memset(h, 0, sizeof *h);
 }
 
@@ -242,46 +309,56 @@ void blk_history_reset(const blk_model *m, blk_history *h) {
   }
 }
 
-static void push_direct(const blk_model *m, blk_history *h, const double *F,
-                        double *d_old) {
-  const int Qh = h->Qh, M = m->M, nx = m->nx;
-  const size_t no = (size_t)m->nox * m->noy;
-  const int slot = (int)(h->pushed % Qh);
-  double *row = h->F_ring + (size_t)slot * M;
+/* The force field of the step just solved into the real-space ring. */
+static void ring_push(const blk_model *m, blk_history *h, const double *F) {
+  const int slot = (int)(h->pushed % h->Qh);
+  double *row = h->F_ring + (size_t)slot * m->M;
   int nnz = 0;
-  for (int e = 0; e < M; e++) {
+  for (int e = 0; e < m->M; e++) {
     row[e] = F[e];
     nnz += F[e] != 0.0;
   }
   h->nnz[slot] = nnz;
   h->pushed++;
+}
+
+static void push_direct(const blk_model *m, blk_history *h, const double *F,
+                        double *d_old) {
+  const int Qh = h->Qh, M = m->M, nx = m->nx;
+  ring_push(m, h, F);
   memset(d_old, 0, (size_t)M * sizeof(double));
   /* next step n+1 = pushed: d_old = Δt Σ_{k≥1} Σ_p g(k; m−p) F_p(n+1−k) */
   for (int k = 1; k < Qh && k <= h->pushed; k++) {
     const int s = (int)((h->pushed - k) % Qh);
     if (!h->nnz[s]) continue;
     const double *Fk = h->F_ring + (size_t)s * M;
-    const double *gk = m->g + (size_t)k * no;
     for (int p = 0; p < M; p++) {
       if (Fk[p] == 0.0) continue;
       const int pi = p % nx, pj = p / nx;
       const double f = Fk[p] * h->dt;
       for (int e = 0; e < M; e++) {
         const int ei = e % nx, ej = e / nx;
-        d_old[e] += f * gk[(size_t)(ej - pj + m->ny - 1) * m->nox + (ei - pi + nx - 1)];
+        d_old[e] +=
+            f * blk_green_at(m, k, (size_t)(ej - pj + m->ny - 1) * m->nox + (ei - pi + nx - 1));
       }
     }
   }
 }
 
-BLK_HOT static void push_fft(const blk_model *m, blk_history *h, const double *F, double *d_old) {
+BLK_HOT static void push_fft(const blk_model *m, blk_work *w, blk_history *h, const double *F,
+                             double *d_old) {
   const int Qh = h->Qh, nq = h->nq, nx = m->nx, ny = m->ny;
   const int slot = (int)(h->pushed % Qh);
   fftw_complex *Fs = h->F_hat + (size_t)slot * nq;
   int nnz = 0;
   for (int e = 0; e < m->M; e++) nnz += F[e] != 0.0;
   h->nnz[slot] = nnz;
-  if (nnz) {
+  if (h->packed) { /* elements p and p + nq as one complex bin */
+    for (int q = 0; q < nq; q++) {
+      Fs[q][0] = F[q];
+      Fs[q][1] = q + nq < m->M ? F[q + nq] : 0.0;
+    }
+  } else if (nnz) {
     memset(h->pad, 0, (size_t)h->Nx * h->Ny * sizeof(double));
     for (int j = 0; j < ny; j++)
       for (int i = 0; i < nx; i++) h->pad[j * h->Nx + i] = F[j * nx + i];
@@ -324,38 +401,51 @@ BLK_HOT static void push_fft(const blk_model *m, blk_history *h, const double *F
     memset(d_old, 0, (size_t)m->M * sizeof(double));
     return;
   }
+  if (h->packed) { /* the time sums per element, then Δt-weighted S * y */
+    for (int q = 0; q < nq; q++) {
+      h->y[q] = acc[2 * q];
+      if (q + nq < m->M) h->y[q + nq] = acc[2 * q + 1];
+    }
+    blk_fft_apply(&w->fft, &h->S_hat, h->y, d_old);
+    return;
+  }
   fftw_execute_dft_c2r(h->inv, h->acc, h->pad);
   for (int j = 0; j < ny; j++)
     for (int i = 0; i < nx; i++) d_old[j * nx + i] = h->pad[j * h->Nx + i];
 }
 
-void blk_history_push(const blk_model *m, blk_history *h, const double *F,
+/* Separable g: y_p = Σ_{k≥1} T_k F_p(n+1−k) over the ring (rows with no load
+ * skipped), then d_old = Δt S * y by one FFT product. */
+BLK_HOT static void push_separable(const blk_model *m, blk_work *w, blk_history *h,
+                                   const double *F, double *d_old) {
+  const int Qh = h->Qh, M = m->M;
+  ring_push(m, h, F);
+  double *restrict y = h->y;
+  memset(y, 0, (size_t)M * sizeof(double));
+  int any = 0;
+  for (int k = 1; k < Qh && k <= h->pushed; k++) {
+    const int s = (int)((h->pushed - k) % Qh);
+    if (!h->nnz[s]) continue;
+    any = 1;
+    const double T = m->g_time[k], *restrict Fk = h->F_ring + (size_t)s * M;
+    for (int p = 0; p < M; p++) y[p] += T * Fk[p];
+  }
+  if (!any) {
+    memset(d_old, 0, (size_t)M * sizeof(double));
+    return;
+  }
+  blk_fft_apply(&w->fft, &h->S_hat, y, d_old);
+}
+
+void blk_history_push(const blk_model *m, blk_work *w, blk_history *h, const double *F,
                       double *d_old) {
   if (h->Qh < 2) {
     memset(d_old, 0, (size_t)m->M * sizeof(double));
     return;
   }
-  if (h->F_ring) push_direct(m, h, F, d_old);
-  else push_fft(m, h, F, d_old);
-}
-
-void blk_layer_displacement_ref(const blk_model *m, const double *F_hist,
-                                int64_t n_rows, double *d_el) {
-  const int M = m->M, nx = m->nx;
-  const size_t no = (size_t)m->nox * m->noy;
-  memset(d_el, 0, (size_t)M * sizeof(double));
-  const int dynamic = m->g && !m->solver.quasi_static;
-  const int Q = dynamic ? m->Q : 1;
-  const double dt = dynamic ? 1.0 / m->rate : 1.0;
-  for (int k = 0; k < Q && k < n_rows; k++) {
-    const double *Fk = F_hist + (size_t)(n_rows - 1 - k) * M;
-    const double *gk = dynamic ? m->g + (size_t)k * no : m->g_static;
-    for (int e = 0; e < M; e++) {
-      const int ei = e % nx, ej = e / nx;
-      double s = 0;
-      for (int p = 0; p < M; p++)
-        s += gk[(size_t)(ej - p / nx + m->ny - 1) * m->nox + (ei - p % nx + nx - 1)] * Fk[p];
-      d_el[e] += s * dt;
-    }
+  switch (h->kind) {
+  case BLK_HIST_SEPARABLE: push_separable(m, w, h, F, d_old); break;
+  case BLK_HIST_DIRECT: push_direct(m, h, F, d_old); break;
+  default: push_fft(m, w, h, F, d_old);
   }
 }

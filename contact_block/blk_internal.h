@@ -6,11 +6,15 @@
 
 #include "contact_block/blk.h"
 
-/* FFTW planning, once in blk_state_create (never in the step loop): the
- * per-step 2-D transforms are measured (×4 case: step loop ~5-9 % faster for
- * ~0.1 s more set-up); the batched time transforms of the partitioned
- * history run once per block, measuring them costs more than it saves. */
-#define BLK_FFTW_STEP FFTW_MEASURE
+/* FFTW planning, once in blk_state_create (never in the step loop). The
+ * per-step transforms are measured from BLK_FFTW_MEASURE_MIN elements on
+ * (512 × 512: a product takes 0.56 ms measured, 0.69 ms estimated, for
+ * 0.6 s of planning); below, measuring the row/column plans costs more than
+ * a run saves (20 × 20: 0.15 s of planning to save 2.6 µs a product). The
+ * batched time transforms of the partitioned history run once per block,
+ * measuring them costs more than it saves. */
+enum { BLK_FFTW_MEASURE_MIN = 64 * 64 };
+#define BLK_FFTW_STEP(M) ((M) >= BLK_FFTW_MEASURE_MIN ? FFTW_MEASURE : FFTW_ESTIMATE)
 #define BLK_FFTW_BLOCK FFTW_ESTIMATE
 
 /* The hot loops (history product sums, compliance columns, Cholesky) get an
@@ -23,6 +27,39 @@
 #else
 #define BLK_HOT
 #endif
+
+/* ---------------------------------------------------------- FFT products
+ * y = K * x over the grid for an offset kernel K [noy][nox] (blk_fft.c):
+ * linear convolution on a zero-padded box of Nx × Ny ≥ (2nx−1) × (2ny−1)
+ * (Hockney), or circular on nx × ny for a periodic grid. The 2-D transforms
+ * are split into row and column passes so that the rows that are all zero
+ * (input) or not needed (output) are skipped: half the row work. */
+typedef struct blk_fft {
+  int nx, ny, Nx, Ny, nqx, periodic;
+  double *box;        /* [Ny][Nx] */
+  fftw_complex *spec; /* [Ny][nqx] */
+  fftw_plan rows_fwd, cols_fwd, cols_inv, rows_inv;
+} blk_fft;
+
+/* Spectrum of a kernel on the box, normalised (1/(Nx Ny) folded in): real
+ * for an even kernel (re), else complex (c). [Ny][nqx]. */
+typedef struct blk_kspec {
+  double *re;
+  fftw_complex *c;
+} blk_kspec;
+
+int blk_fft_init(blk_fft *f, const blk_model *m, proto_err *err);
+void blk_fft_free(blk_fft *f);
+size_t blk_fft_bytes(const blk_fft *f);
+/* Spectrum of scale · kern, kern [noy][nox] in the model's offset layout. */
+int blk_fft_kernel(blk_fft *f, const blk_model *m, const double *kern, double scale,
+                   blk_kspec *ks, proto_err *err);
+void blk_kspec_free(blk_kspec *ks);
+size_t blk_kspec_bytes(const blk_fft *f, const blk_kspec *ks);
+/* y[M] = K * x[M]; x and y may alias. */
+void blk_fft_apply(blk_fft *f, const blk_kspec *ks, const double *x, double *y);
+
+/* ------------------------------------------------------------- history */
 
 /* One level of the partitioned time convolution (blk_history.c). */
 enum { BLK_MAX_LEVELS = 6 };
@@ -38,13 +75,21 @@ typedef struct blk_level {
 } blk_level;
 
 typedef struct blk_history {
+  blk_history_kind kind; /* resolved (never AUTO) */
   int Qh;            /* samples used after tail truncation (0: quasi-static) */
   int64_t pushed;    /* force fields pushed so far */
   double dt;
-  /* direct sum: ring of past force fields [Qh][M] and their nonzero counts */
+  size_t bytes;
+  /* direct sum: ring of past force fields [Qh][M] and their nonzero counts;
+   * separable: the same ring, time sums y = Σ_{k≥1} T_k F(n−k) per element,
+   * then d_old = Δt S * y by one FFT product */
   double *F_ring;
   int *nnz;
-  /* FFT: zero-padded Ny × Nx grid, spectra of g_k and of past forces */
+  double *y;          /* [M] separable time sums */
+  blk_kspec S_hat;    /* separable: spectrum of Δt g_space */
+  /* FFT: zero-padded Ny × Nx grid, spectra of g_k and of past forces; or,
+   * packed (separable g), the elements two per complex bin */
+  int packed;
   int Nx, Ny, nq;
   double *pad;
   fftw_complex *ghat;   /* [Qh][nq] */
@@ -61,34 +106,76 @@ typedef struct blk_history {
 } blk_history;
 
 struct blk_work {
-  double *C;    /* [M][M] compliance of this step's forces (Δt g(0) or static) */
-  /* the same compliance per element offset (translation invariance):
-   * C[i][p] = kern[(j_i−j_p+ny−1)·nox + (i_i−i_p+nx−1)], [noy][nox] (fits
-   * L1, unlike C): the products C·F in the Newton iteration */
+  size_t bytes;       /* allocated by blk_state_create (blk_state_bytes) */
+  blk_method method;  /* resolved (never BLK_AUTO) */
+  /* compliance of this step's forces per element offset (translation
+   * invariance): C[i][p] = kern[(j_i−j_p+ny−1)·nox + (i_i−i_p+nx−1)] */
   double *kern;
-  int *col_idx;   /* [M] columns of C in a product, and their factors */
+  double c_self;      /* its diagonal */
+  int symmetric;      /* kern even: C symmetric */
+  blk_fft fft;        /* products C·x (matrix-free, tangent, dense dual) */
+  blk_kspec C_hat;
+  /* shared per-step vectors [M] */
+  double *b, *CF;     /* b = d_road + z − z_free − d_el_old; CF = C F at the end */
+  int *held;          /* adhesive law per element for this sweep */
+  /* dense (blk_dense.c) */
+  int *col_idx;       /* [M] columns of C in a product, and their factors */
   double *col_f;
-  int symmetric;
-  double *b, *r, *delta, *d_try, *F_try, *k_try, *CF, *sk;
-  int *held;    /* adhesive law per element for this sweep */
-  int *act;     /* indices with k > 0 */
-  double *A;    /* [M][M] Newton matrix */
-  double *y;
+  double *r, *delta, *d_try, *F_try, *k_try, *sk, *y;
+  int *act;           /* indices with k > 0 / the free set */
+  double *A;          /* [A_cap][A_cap] Newton matrix (dense methods only) */
+  int A_cap;          /* rows of A: M, or BLK_AUTO_DENSE_CAP for auto */
+  int dense_overflow; /* the last dense solve found more free elements than A_cap */
+  int auto_dense;     /* auto: the dense dual may be used (springs, symmetric C) */
   int *piv;
   /* the last Cholesky factor of the Newton matrix, kept for chord steps
-   * (solver.reuse_jacobian): its active set and √k */
+   * (solver.reuse_jacobian) and the tangent: its kind (BLK_FACT_*), active
+   * set and √k (primal) */
   int fact_valid, fact_P;
   int *fact_act;
   double *fact_sk;
+  /* matrix-free (blk_cg.c) */
+  double *g, *Dk, *dF, *wC, *rho, *z, *t, *q, *qc, *Fn, *dn, *un, *prec;
   blk_history hist;
 };
 
-int blk_history_init(const blk_model *m, blk_history *h, proto_err *err);
+/* blk_step.c: spring law of this sweep (compression branch; with adhesion
+ * the mirrored tensile branch for held elements, seed 002 ch. 5.1). */
+void blk_spring_law(const blk_model *m, const int *held, const double *d, double *F,
+                    double *k);
+/* d(F) warm-started from d0 (≥ 0), for F ≥ 0. */
+double blk_spring_inverse_from(const blk_model *m, int e, double F, double d0);
+/* Spring terms of the dual at force F of element e (notes §5.1): the signed
+ * compression d(F) (mirrored for F < 0), 1/k at d (capped), returns
+ * Ψ(F) = |F| d − W(d). Rigid springs: all zero. d_guess: warm start. */
+double blk_dual_element(const blk_model *m, const blk_work *w, int e, double F,
+                        double d_guess, double *d, double *inv_k);
+
+/* blk_dense.c — dense solvers; on return w->CF = C F at the final forces.
+ * Return the iterations used; *conv, *rmax (max |f|, m), *cuts, *factored. */
+int blk_dense_newton(const blk_model *m, blk_state *s, int *conv, double *rmax,
+                     int *cuts, int *factored);
+int blk_dense_dual(const blk_model *m, blk_state *s, int *conv, double *rmax, int *cuts,
+                   int *factored);
+enum { BLK_FACT_NONE = 0, BLK_FACT_PRIMAL = 1, BLK_FACT_DUAL = 2 };
+/* The tangent preconditioned by the kept factor; -1 if none fits. */
+int blk_dense_tangent(const blk_model *m, blk_state *s, double tol, double *K,
+                      int *products);
+/* blk_cg.c — matrix-free dual solver (same contract) and the tangent
+ * stiffness 1ᵀ(C_AA + diag(1/k_A))⁻¹1 over the loaded elements. */
+int blk_cg_solve(const blk_model *m, blk_state *s, int *conv, double *rmax, int *products);
+double blk_cg_tangent(const blk_model *m, blk_state *s, int *products);
+/* relative residual of the tangent's linear solve: 1ᵀx is stationary at the
+ * solution (an energy), its error quadratic in the residual — 1e-6 gives the
+ * tangent to about 1e-12 (measured: the same 10 digits as 1e-8). */
+#define BLK_TANGENT_TOL 1e-6
+
+int blk_history_init(const blk_model *m, blk_work *w, blk_history *h, proto_err *err);
 void blk_history_free(blk_history *h);
 void blk_history_reset(const blk_model *m, blk_history *h);
 /* Pushes the force field of the step just solved and returns, in d_old, the
  * history term (eq. 5) of the next step. */
-void blk_history_push(const blk_model *m, blk_history *h, const double *F,
+void blk_history_push(const blk_model *m, blk_work *w, blk_history *h, const double *F,
                       double *d_old);
 
 #endif

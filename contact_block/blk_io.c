@@ -1,11 +1,15 @@
 /* blk_io.c — reads the Green's-function and spring files of cosim_green
  * (green/FORMATS.md). */
 #include <hdf5.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "contact_block/blk.h"
+
+/* Relative mismatch of a file's element size taken as round-off. */
+#define BLK_SIZE_TOL 1e-9
 
 /* Reads a 2-D/3-D f8 dataset; dims (rank entries) out; data malloc'ed. */
 static double *read_dataset(hid_t f, const char *path, const char *file, int rank,
@@ -94,8 +98,15 @@ int blk_green_load(blk_model *m, const char *path, proto_err *err) {
     proto_fail(err, "%s: group /green missing", path);
     goto done;
   }
-  double rate = 0;
+  double rate = 0, fdx = 0, fdy = 0;
   attr_double(grp, "rate", &rate);
+  /* the element size the file was computed for must be the block's */
+  if (attr_double(grp, "dx", &fdx) == 0 && attr_double(grp, "dy", &fdy) == 0 &&
+      (fabs(fdx / m->dx - 1) > BLK_SIZE_TOL || fabs(fdy / m->dy - 1) > BLK_SIZE_TOL)) {
+    proto_fail(err, "%s: elements of %g x %g m, the block's are %g x %g m (grid.dx, "
+               "grid.dy)", path, fdx, fdy, m->dx, m->dy);
+    goto done;
+  }
   char sampling[16], model[64];
   attr_string(grp, "sampling", sampling, sizeof sampling);
   attr_string(grp, "model", model, sizeof model);

@@ -9,19 +9,26 @@
 
 #include "contact_block/blk.h"
 
-enum { COL_T, COL_D, COL_F, COL_NC, COL_IT, COL_K, COL_CONV, COL_RES, NCOL };
+/* stiffness: tangent dF/dd_road of the step's solve (blk_state.stiffness);
+ * slope: (F_n − F_{n−1}) / (d_n − d_{n−1}) between the last two steps (last,
+ * so the earlier columns keep their places) */
+enum { COL_T, COL_D, COL_F, COL_NC, COL_IT, COL_K, COL_CONV, COL_RES, COL_SLOPE, NCOL };
 static const char *const columns[NCOL] = {"t", "d_road", "force", "contacts",
                                           "iterations", "stiffness", "converged",
-                                          "residual"};
+                                          "residual", "slope"};
+
+enum { SNAP_X, SNAP_FORCE, SNAP_D_RS, SNAP_D_EL, N_SNAP };
+static const char *const SNAP[N_SNAP] = {"x", "element_force", "d_rs", "d_el"};
 
 typedef struct server {
+  double scalars[BLK_STATE_SCALARS]; /* state_save */
   blk_model model;
   blk_state state;
   int have_model, have_state;
   double row[NCOL];
   double force[1];
   double *x; /* [M][3] element centres, z = road height */
-  double prev_force, prev_d;
+  double prev[2]; /* force and d_road of the previous step (stiffness column) */
 } server;
 
 static int configure(void *user, const proto_run_info *info, const cJSON *section,
@@ -54,54 +61,71 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
     s->x[3 * e + 1] = (e / m->nx + 0.5) * m->dy;
     s->x[3 * e + 2] = m->z_road[e];
   }
-  const char *attrs[] = {"element_force", "d_rs", "d_el"};
-  if (proto_ready_series(ready, "series", NCOL, columns) < 0 ||
-      proto_ready_snapshot(ready, "points", "x", NULL, 3, attrs) < 0)
+  if (proto_ready_series(ready, PROTO_A_SERIES, NCOL, columns) < 0 ||
+      proto_ready_snapshot(ready, "points", SNAP[SNAP_X], NULL, 3, SNAP + SNAP_FORCE) < 0)
     return proto_fail(err, "out of memory");
   cJSON *h = proto_msg_header(ready);
   cJSON_AddNumberToObject(h, "elements", m->M);
   cJSON_AddStringToObject(h, "green_model", m->green_model);
   cJSON_AddStringToObject(h, "sampling", m->sampling);
-  if (proto_msg_add_f8(ready, "x", m->M, 3, s->x))
+  if (proto_msg_add_prefixed(ready, PROTO_P_MESH, SNAP[SNAP_X], PROTO_F8, m->M, 3, s->x))
     return proto_fail(err, "ready: too many arrays");
   return 0;
 }
 
-static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *reply,
-                proto_err *err) {
+static int step(void *user, proto_peer *peer, const proto_step_info *info,
+                const proto_msg *req, proto_msg *reply, proto_err *err) {
   (void)peer;
   server *s = user;
   const blk_model *m = &s->model;
-  const double *d_road = proto_msg_get_f8(req, "d_road", 1, 0, err);
-  if (!d_road) return -1;
+  /* checked against the role table by the participant loop */
+  const double *d_road = proto_msg_data(req, PROTO_A_D_ROAD);
   if (blk_step(m, &s->state, d_road[0], err)) return -1;
   const blk_state *st = &s->state;
-  const double dd = st->d_road - s->prev_d;
-  const cJSON *jdt = req->header ? cJSON_GetObjectItem(req->header, "dt") : NULL;
-  s->row[COL_T] = req->t + (cJSON_IsNumber(jdt) ? jdt->valuedouble : 0.0);
+  const double dd = st->d_road - s->prev[1];
+  s->row[COL_T] = info->t_end;
   s->row[COL_D] = st->d_road;
   s->row[COL_F] = st->total_force;
   s->row[COL_NC] = st->n_contact;
   s->row[COL_IT] = st->iterations;
-  s->row[COL_K] = dd != 0 ? (st->total_force - s->prev_force) / dd : 0.0;
+  s->row[COL_K] = st->stiffness;
+  s->row[COL_SLOPE] = dd != 0 ? (st->total_force - s->prev[0]) / dd : 0.0;
   s->row[COL_CONV] = st->converged;
   s->row[COL_RES] = st->residual;
-  s->prev_d = st->d_road;
-  s->prev_force = st->total_force;
+  s->prev[1] = st->d_road;
+  s->prev[0] = st->total_force;
   s->force[0] = st->total_force;
-  if (proto_msg_add_f8(reply, "force", 1, 0, s->force) ||
-      proto_msg_add_f8(reply, "series", NCOL, 0, s->row))
+  if (proto_msg_add_f8(reply, PROTO_A_FORCE, 1, 0, s->force) ||
+      proto_msg_add_f8(reply, PROTO_A_SERIES, NCOL, 0, s->row))
     return proto_fail(err, "done: too many arrays");
-  const cJSON *out = req->header ? cJSON_GetObjectItem(req->header, "output") : NULL;
-  if (cJSON_IsTrue(out)) {
+  if (info->output) {
     /* snapshot arrays ("snap.<name>" → /<name>/steps/<k>/<name>) */
-    if (proto_msg_add_f8(reply, "snap.x", m->M, 3, s->x) ||
-        proto_msg_add_f8(reply, "snap.element_force", m->M, 0, st->force) ||
-        proto_msg_add_f8(reply, "snap.d_rs", m->M, 0, st->d_rs) ||
-        proto_msg_add_f8(reply, "snap.d_el", m->M, 0, st->d_el))
-      return proto_fail(err, "done: too many arrays");
+    const double *snap[N_SNAP] = {s->x, st->force, st->d_rs, st->d_el};
+    for (int a = 0; a < N_SNAP; a++)
+      if (proto_msg_add_prefixed(reply, PROTO_P_SNAP, SNAP[a], PROTO_F8, m->M, a == SNAP_X ? 3 : 0,
+                                 snap[a]))
+        return proto_fail(err, "done: too many arrays");
   }
   return 0;
+}
+
+/* The model's state (blk_state_export) and this server's previous-step
+ * values of its stiffness column. */
+static int state_save(void *user, proto_msg *state, proto_err *err) {
+  server *s = user;
+  if (blk_state_export(&s->model, &s->state, s->scalars, state, err)) return -1;
+  return proto_msg_add_prefixed(state, PROTO_P_STATE, "server_prev", PROTO_F8, 2, 0,
+                                s->prev)
+             ? proto_fail(err, "state message full")
+             : 0;
+}
+
+static int state_load(void *user, const proto_msg *state, proto_err *err) {
+  server *s = user;
+  return blk_state_import(&s->model, &s->state, state, err) ||
+                 proto_state_get(state, "server_prev", PROTO_F8, 2, s->prev, err)
+             ? -1
+             : 0;
 }
 
 static void finish(void *user) {
@@ -114,7 +138,8 @@ static void finish(void *user) {
 
 int main(int argc, char **argv) {
   static server s;
-  const proto_participant_ops ops = {.role = "block", .configure = configure,
-                                     .init = init, .step = step, .finish = finish};
+  const proto_participant_ops ops = {.role = PROTO_ROLE_BLOCK, .configure = configure,
+                                     .init = init, .step = step, .finish = finish,
+                                     .state_save = state_save, .state_load = state_load};
   return proto_participant_main(argc, argv, &ops, &s);
 }

@@ -1,229 +1,18 @@
-/* blk_step.c — one time step of the block model: Newton–Raphson over the
- * elements in contact (seed 002 eq. 6–8), the active set changing during the
- * iteration, adhesion with a release force (ch. 5.1), then the history term
- * for the next step (eq. 5). No allocation here after blk_state_create. */
+/* blk_step.c — one time step of the block model: the per-step contact
+ * problem (seed 002 eq. 4–8) by the dense or the matrix-free solver,
+ * adhesion with a release force (ch. 5.1), the tangent contact stiffness,
+ * then the history term for the next step (eq. 5). Also the state's
+ * allocation: nothing is allocated in blk_step. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "contact_block/blk_internal.h"
 
-/* ------------------------------------------------------ dense algebra */
+/* ------------------------------------------------------ spring helpers */
 
-/* Dot product with four partial sums (the compiler may not reassociate a
- * single floating-point sum; this gives it independent chains). */
-static inline double dot(const double *a, const double *b, int n) {
-  double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-  int k = 0;
-  for (; k + 4 <= n; k += 4) {
-    s0 += a[k] * b[k];
-    s1 += a[k + 1] * b[k + 1];
-    s2 += a[k + 2] * b[k + 2];
-    s3 += a[k + 3] * b[k + 3];
-  }
-  for (; k < n; k++) s0 += a[k] * b[k];
-  return (s0 + s1) + (s2 + s3);
-}
-
-/* In-place Cholesky of the leading n×n of A (row stride ld, lower triangle
- * used), row-oriented: row i needs only rows < i. 0 or -1 (not SPD). */
-BLK_HOT static int cholesky(double *A, int n, int ld) {
-  for (int i = 0; i < n; i++) {
-    double *Ai = A + (size_t)i * ld;
-    for (int j = 0; j < i; j++) {
-      const double *Aj = A + (size_t)j * ld;
-      Ai[j] = (Ai[j] - dot(Ai, Aj, j)) / Aj[j];
-    }
-    const double s = Ai[i] - dot(Ai, Ai, i);
-    if (!(s > 0)) return -1;
-    Ai[i] = sqrt(s);
-  }
-  return 0;
-}
-
-BLK_HOT static void cholesky_solve(const double *L, int n, int ld, double *x) {
-  for (int i = 0; i < n; i++) {
-    const double *Li = L + (size_t)i * ld;
-    x[i] = (x[i] - dot(Li, x, i)) / Li[i];
-  }
-  for (int i = n - 1; i >= 0; i--) {
-    x[i] /= L[(size_t)i * ld + i];
-    const double xi = x[i];
-    const double *Li = L + (size_t)i * ld;
-    for (int k = 0; k < i; k++) x[k] -= Li[k] * xi; /* column i of Lᵀ = row i of L */
-  }
-}
-
-/* LU with partial pivoting and solve (fallback for a non-symmetric or
- * indefinite g(0)); -1 if singular. */
-BLK_HOT static int lu_solve(double *A, int n, int ld, int *piv, double *x) {
-  for (int j = 0; j < n; j++) {
-    int p = j;
-    for (int i = j + 1; i < n; i++)
-      if (fabs(A[(size_t)i * ld + j]) > fabs(A[(size_t)p * ld + j])) p = i;
-    if (A[(size_t)p * ld + j] == 0.0) return -1;
-    piv[j] = p;
-    if (p != j)
-      for (int k = 0; k < n; k++) {
-        double t = A[(size_t)j * ld + k];
-        A[(size_t)j * ld + k] = A[(size_t)p * ld + k];
-        A[(size_t)p * ld + k] = t;
-      }
-    for (int i = j + 1; i < n; i++) {
-      double f = A[(size_t)i * ld + j] / A[(size_t)j * ld + j];
-      A[(size_t)i * ld + j] = f;
-      for (int k = j + 1; k < n; k++) A[(size_t)i * ld + k] -= f * A[(size_t)j * ld + k];
-    }
-  }
-  for (int j = 0; j < n; j++) {
-    double t = x[j];
-    x[j] = x[piv[j]];
-    x[piv[j]] = t;
-    for (int i = j + 1; i < n; i++) x[i] -= A[(size_t)i * ld + j] * x[j];
-  }
-  for (int i = n - 1; i >= 0; i--) {
-    double s = x[i];
-    for (int k = i + 1; k < n; k++) s -= A[(size_t)i * ld + k] * x[k];
-    x[i] = s / A[(size_t)i * ld + i];
-  }
-  return 0;
-}
-
-/* y −= Σ_a f[a] · (column idx[a] of C), a ascending, columns read from the
- * offset kernel: row j of column p is a contiguous run of nx kernel values
- * (fits L1, unlike C). Same products in the same order as the dense columns
- * (C[i][p] = kern[…] exactly). */
-static inline void columns_sub_nx(const double *kern, int nx, int ny, int nox, int n,
-                                  const int *idx, const double *f, double *restrict y) {
-  for (int a = 0; a < n; a++) {
-    const int p = idx[a], pi = p % nx, pj = p / nx;
-    const double fa = f[a];
-    for (int j = 0; j < ny; j++) {
-      const double *restrict kr = kern + (size_t)(j - pj + ny - 1) * nox + (nx - 1 - pi);
-      double *restrict yj = y + (size_t)j * nx;
-      for (int i = 0; i < nx; i++) yj[i] -= kr[i] * fa;
-    }
-  }
-}
-
-/* The short rows vectorise far better with nx known at compile time:
- * specialised for common block widths (the thesis' 20), generic otherwise. */
-BLK_HOT static void columns_sub(const blk_model *m, const double *kern, int n, const int *idx,
-                                const double *f, double *y) {
-  switch (m->nx) {
-  case 10: columns_sub_nx(kern, 10, m->ny, m->nox, n, idx, f, y); break;
-  case 16: columns_sub_nx(kern, 16, m->ny, m->nox, n, idx, f, y); break;
-  case 20: columns_sub_nx(kern, 20, m->ny, m->nox, n, idx, f, y); break;
-  case 32: columns_sub_nx(kern, 32, m->ny, m->nox, n, idx, f, y); break;
-  case 40: columns_sub_nx(kern, 40, m->ny, m->nox, n, idx, f, y); break;
-  default: columns_sub_nx(kern, m->nx, m->ny, m->nox, n, idx, f, y);
-  }
-}
-
-/* --------------------------------------------------------------- state */
-
-int blk_state_create(const blk_model *m, blk_state *s, proto_err *err) {
-  memset(s, 0, sizeof *s);
-  if (blk_model_check(m, err)) return -1;
-  if (m->M > 4096) /* the per-step solve keeps dense M × M matrices */
-    return proto_fail(err, "grid: %d x %d = %d elements; the dense per-step solve allows "
-                      "at most 4096", m->nx, m->ny, m->M);
-  const size_t M = (size_t)m->M;
-  blk_work *w = calloc(1, sizeof *w);
-  s->work = w;
-  s->d_rs = calloc(M, sizeof(double));
-  s->force = calloc(M, sizeof(double));
-  s->d_el = calloc(M, sizeof(double));
-  s->d_el_old = calloc(M, sizeof(double));
-  s->attached = calloc(M, sizeof(int));
-  if (!w || !s->d_rs || !s->force || !s->d_el || !s->d_el_old || !s->attached)
-    return proto_fail(err, "out of memory");
-  double **vecs[] = {&w->b, &w->r, &w->delta, &w->d_try, &w->F_try, &w->k_try,
-                     &w->CF, &w->sk, &w->y};
-  for (size_t i = 0; i < sizeof vecs / sizeof *vecs; i++)
-    if (!(*vecs[i] = calloc(M, sizeof(double)))) return proto_fail(err, "out of memory");
-  w->held = calloc(M, sizeof(int));
-  w->act = calloc(M, sizeof(int));
-  w->piv = calloc(M, sizeof(int));
-  w->fact_act = calloc(M, sizeof(int));
-  w->fact_sk = calloc(M, sizeof(double));
-  w->col_idx = calloc(M, sizeof(int));
-  w->col_f = calloc(M, sizeof(double));
-  if (!w->col_idx || !w->col_f) return proto_fail(err, "out of memory");
-  if (!w->fact_act || !w->fact_sk) return proto_fail(err, "out of memory");
-  w->C = malloc(M * M * sizeof(double));
-  w->A = malloc(M * M * sizeof(double));
-  if (!w->held || !w->act || !w->piv || !w->C || !w->A)
-    return proto_fail(err, "out of memory");
-  /* compliance of this step's forces: Δt g(0) (eq. 4) or the static sum */
-  const int qs = m->solver.quasi_static || !m->g;
-  const double *g0 = qs ? m->g_static : m->g;
-  const double scale = qs ? 1.0 : 1.0 / m->rate;
-  w->symmetric = 1;
-  for (int i = 0; i < m->M; i++)
-    for (int p = 0; p < m->M; p++) {
-      int di = i % m->nx - p % m->nx, dj = i / m->nx - p / m->nx;
-      w->C[(size_t)i * M + p] =
-          scale * g0[(size_t)(dj + m->ny - 1) * m->nox + (di + m->nx - 1)];
-    }
-  for (size_t i = 0; i < M && w->symmetric; i++)
-    for (size_t p = 0; p < i; p++)
-      if (fabs(w->C[i * M + p] - w->C[p * M + i]) >
-          1e-12 * (fabs(w->C[i * M + p]) + fabs(w->C[p * M + i]))) {
-        w->symmetric = 0;
-        break;
-      }
-  w->kern = malloc((size_t)m->nox * m->noy * sizeof(double));
-  if (!w->kern) return proto_fail(err, "out of memory");
-  for (int dj = 0; dj < m->noy; dj++) /* the values of C, as the loop above */
-    for (int di = 0; di < m->nox; di++)
-      w->kern[(size_t)dj * m->nox + di] = scale * g0[(size_t)dj * m->nox + di];
-  if (blk_history_init(m, &w->hist, err)) return -1;
-  blk_state_reset(m, s);
-  return 0;
-}
-
-void blk_state_free(blk_state *s) {
-  blk_work *w = s->work;
-  if (w) {
-    blk_history_free(&w->hist);
-    free(w->b); free(w->r); free(w->delta); free(w->d_try); free(w->F_try);
-    free(w->k_try); free(w->CF); free(w->sk); free(w->y);
-    free(w->kern);
-    free(w->held); free(w->act); free(w->piv); free(w->C); free(w->A);
-    free(w->fact_act); free(w->fact_sk); free(w->col_idx); free(w->col_f);
-    free(w);
-  }
-  free(s->d_rs);
-  free(s->force);
-  free(s->d_el);
-  free(s->d_el_old);
-  free(s->attached);
-  memset(s, 0, sizeof *s);
-}
-
-void blk_state_reset(const blk_model *m, blk_state *s) {
-  const size_t M = (size_t)m->M;
-  s->n = 0;
-  memset(s->d_rs, 0, M * sizeof(double));
-  memset(s->force, 0, M * sizeof(double));
-  memset(s->d_el, 0, M * sizeof(double));
-  memset(s->d_el_old, 0, M * sizeof(double));
-  memset(s->attached, 0, M * sizeof(int));
-  s->d_road = s->total_force = s->residual = 0;
-  s->n_contact = s->iterations = s->line_search_cuts = 0;
-  s->converged = 1;
-  s->factorizations = 0;
-  s->work->fact_valid = 0;
-  blk_history_reset(m, &s->work->hist);
-}
-
-/* --------------------------------------------------------------- solve */
-
-/* Spring law of element e: compression branch; with adhesion an element held
- * from the previous step also carries the mirrored tensile branch (ch. 5.1). */
-static void spring_law(const blk_model *m, const int *held, const double *d, double *F,
-                       double *k) {
+void blk_spring_law(const blk_model *m, const int *held, const double *d, double *F,
+                    double *k) {
   for (int e = 0; e < m->M; e++) {
     if (d[e] > 0) {
       blk_spring_eval(m, e, d[e], &F[e], &k[e]);
@@ -237,246 +26,208 @@ static void spring_law(const blk_model *m, const int *held, const double *d, dou
   }
 }
 
-/* r = b − C F − d (eq. 6 with eq. 4); returns ½|r|², max|r| in *rmax. */
-static double residual(const blk_model *m, blk_work *w, const double *d, const double *F,
-                       double *r, double *rmax) {
-  const int M = m->M;
-  memcpy(w->CF, w->b, (size_t)M * sizeof(double));
-  int n = 0; /* the loaded elements */
-  for (int p = 0; p < M; p++)
-    if (F[p] != 0.0) {
-      w->col_idx[n] = p;
-      w->col_f[n++] = F[p];
+/* Newton from the previous compression (one or two steps when the force
+ * changed little), else the bracketed inverse of blk_model.c. k at the
+ * result into *k. */
+static double inverse_from(const blk_model *m, int e, double F, double d0, double *k) {
+  if (d0 > 0) {
+    double x = d0;
+    for (int it = 0; it < 6; it++) {
+      double Fx;
+      blk_spring_eval(m, e, x, &Fx, k);
+      const double r = Fx - F;
+      if (fabs(r) <= 1e-15 * F) return x;
+      if (!(*k > 0)) break;
+      const double xn = x - r / *k;
+      if (!(xn > 0)) break;
+      if (fabs(xn - x) <= 4e-16 * x) { /* below the round-off of F(x) */
+        blk_spring_eval(m, e, xn, &Fx, k);
+        return xn;
+      }
+      x = xn;
     }
-  columns_sub(m, w->kern, n, w->col_idx, w->col_f, w->CF);
-  double phi = 0, mx = 0;
-  for (int i = 0; i < M; i++) {
-    r[i] = w->CF[i] - d[i];
-    phi += r[i] * r[i];
-    if (fabs(r[i]) > mx) mx = fabs(r[i]);
   }
-  *rmax = mx;
-  return 0.5 * phi;
+  const double x = blk_spring_inverse(m, e, F);
+  double Fx;
+  blk_spring_eval(m, e, x, &Fx, k);
+  return x;
 }
 
-/* Newton direction: (I + C K) Δ = r, K = diag(k) (eq. 8). Only elements with
- * k > 0 couple; the others get Δ_i = r_i − (C K Δ)_i. Symmetric C: the SPD
- * form (I + K½ C K½) y = K½ r, y = K½ Δ, by Cholesky. */
-static int newton_direction(const blk_model *m, blk_work *w, const double *k,
-                            int may_reuse, int *factored) {
-  const int M = m->M;
-  int P = 0;
-  for (int e = 0; e < M; e++)
-    if (k[e] > 0) w->act[P++] = e;
-  /* chord step: the stored factor of (I + K½ C K½) with the old K, if the
-   * contact set is the same */
-  const int reuse = may_reuse && w->fact_valid && P == w->fact_P &&
-                    memcmp(w->act, w->fact_act, (size_t)P * sizeof(int)) == 0;
-  const double *keff = k; /* stiffness the direction is built with */
-  int ok = -1;
-  if (reuse) {
-    for (int a = 0; a < P; a++) w->y[a] = w->fact_sk[a] * w->r[w->act[a]];
-    cholesky_solve(w->A, P, P, w->y);
-    for (int a = 0; a < P; a++) {
-      w->y[a] /= w->fact_sk[a];
-      w->sk[w->act[a]] = w->fact_sk[a] * w->fact_sk[a];
-    }
-    keff = w->sk; /* indexed by element here */
-    ok = 0;
-  } else if (w->symmetric) {
-    for (int a = 0; a < P; a++) w->fact_sk[a] = sqrt(k[w->act[a]]);
-    for (int a = 0; a < P; a++) {
-      const double *Ci = w->C + (size_t)w->act[a] * M;
-      double *Aa = w->A + (size_t)a * P;
-      for (int c = 0; c <= a; c++) Aa[c] = w->fact_sk[a] * Ci[w->act[c]] * w->fact_sk[c];
-      Aa[a] += 1.0;
-      w->y[a] = w->fact_sk[a] * w->r[w->act[a]];
-    }
-    ok = cholesky(w->A, P, P);
-    (*factored)++;
-    w->fact_valid = ok == 0;
-    if (ok == 0) {
-      w->fact_P = P;
-      memcpy(w->fact_act, w->act, (size_t)P * sizeof(int));
-      cholesky_solve(w->A, P, P, w->y);
-      for (int a = 0; a < P; a++) w->y[a] /= w->fact_sk[a];
-    }
+double blk_spring_inverse_from(const blk_model *m, int e, double F, double d0) {
+  if (F <= 0 || m->rigid) return 0;
+  double k;
+  return inverse_from(m, e, F, d0, &k);
+}
+
+/* 1/k used at the contact onset of a spring with k(0) = 0: far softer than
+ * the layer (× its self-compliance), so the element barely moves a Newton
+ * step (1 m/N if the step has no instantaneous compliance). */
+#define BLK_INV_K_CAP 1e8
+
+double blk_dual_element(const blk_model *m, const blk_work *w, int e, double F,
+                        double d_guess, double *d, double *inv_k) {
+  if (m->rigid) {
+    *d = 0;
+    *inv_k = 0;
+    return 0;
   }
-  if (ok != 0) {
-    w->fact_valid = 0;
-    for (int a = 0; a < P; a++) {
-      const double *Ci = w->C + (size_t)w->act[a] * M;
-      double *Aa = w->A + (size_t)a * P;
-      for (int c = 0; c < P; c++) Aa[c] = Ci[w->act[c]] * k[w->act[c]];
-      Aa[a] += 1.0;
-      w->y[a] = w->r[w->act[a]];
-    }
-    if (lu_solve(w->A, P, P, w->piv, w->y)) return -1;
+  const double a = fabs(F);
+  double x = 0, kx;
+  if (a > 0) { /* warm start only from a compression (d_guess < 0 is a gap) */
+    const double d0 = F > 0 ? d_guess : -d_guess;
+    x = inverse_from(m, e, a, d0 > 0 ? d0 : 0, &kx);
+  } else { /* unloaded: k at the onset d = 0+ */
+    const int K = m->n_knots;
+    kx = m->spr_scale[e] * m->spr_k[(size_t)m->spr_table[e] * K];
   }
-  /* Δ = r − C K Δ_A for every element (the active ones reproduce y) */
-  for (int i = 0; i < M; i++) w->delta[i] = w->r[i];
-  for (int a = 0; a < P; a++) w->col_f[a] = keff[w->act[a]] * w->y[a];
-  columns_sub(m, w->kern, P, w->act, w->col_f, w->delta);
-  for (int a = 0; a < P; a++) w->delta[w->act[a]] = w->y[a];
+  *inv_k = kx > 0 ? 1.0 / kx : w->c_self > 0 ? BLK_INV_K_CAP * w->c_self : 1.0;
+  *d = F < 0 ? -x : x;
+  return a * x - blk_spring_energy(m, e, x); /* Ψ = F d − W(d), Legendre */
+}
+
+/* --------------------------------------------------------------- state */
+
+static void *track(blk_work *w, size_t n, size_t size) {
+  void *p = calloc(n ? n : 1, size);
+  if (p) w->bytes += n * size;
+  return p;
+}
+
+/* Relative asymmetry of the step's compliance kernel taken as round-off. */
+#define BLK_EVEN_TOL 1e-10
+
+/* The solver the model asks for (BLK_AUTO stays: chosen per step, blk_step). */
+static int resolve_method(const blk_model *m, int symmetric, blk_method *out,
+                          proto_err *err) {
+  blk_method me = m->solver.method;
+  if (me == BLK_AUTO && !symmetric) me = BLK_NR_PLAIN; /* LU fallback of the primal Newton */
+  if ((me == BLK_CG || me == BLK_NR_DUAL || m->rigid) && !symmetric)
+    return proto_fail(err, "solver: the dual solvers need a symmetric compliance "
+                      "(g(0) even in the offset, reciprocity); this one is not: use "
+                      "newton or line_search with compliant springs");
+  if (me != BLK_CG && me != BLK_AUTO && m->M > BLK_DENSE_MAX)
+    return proto_fail(err, "solver: %d elements exceed the dense limit %d", m->M,
+                      BLK_DENSE_MAX);
+  *out = me;
   return 0;
 }
 
-/* Newton iteration from s->d_rs. Returns iterations used; *conv, *rmax. */
-static int newton(const blk_model *m, blk_state *s, int *conv, double *rmax,
-                  int *cuts, int *factored) {
+int blk_state_create(const blk_model *m, blk_state *s, proto_err *err) {
+  memset(s, 0, sizeof *s);
+  if (blk_model_check(m, err)) return -1;
+  const size_t M = (size_t)m->M, no = (size_t)m->nox * m->noy;
+  blk_work *w = calloc(1, sizeof *w);
+  s->work = w;
+  if (!w) return proto_fail(err, "out of memory");
+  w->bytes = sizeof *w;
+  s->d_rs = track(w, M, sizeof(double));
+  s->force = track(w, M, sizeof(double));
+  s->d_el = track(w, M, sizeof(double));
+  s->d_el_old = track(w, M, sizeof(double));
+  s->attached = track(w, M, sizeof(int));
+  w->kern = track(w, no, sizeof(double));
+  w->b = track(w, M, sizeof(double));
+  w->CF = track(w, M, sizeof(double));
+  w->held = track(w, M, sizeof(int));
+  if (!s->d_rs || !s->force || !s->d_el || !s->d_el_old || !s->attached || !w->kern ||
+      !w->b || !w->CF || !w->held)
+    return proto_fail(err, "out of memory");
+  /* compliance of this step's forces: Δt g(0) (eq. 4) or the static sum */
+  const int qs = m->solver.quasi_static || (!m->g && !m->g_time);
+  const double scale = qs ? 1.0 : 1.0 / m->rate;
+  for (size_t o = 0; o < no; o++)
+    w->kern[o] = scale * (qs ? m->g_static[o] : blk_green_at(m, 0, o));
+  w->c_self = w->kern[(size_t)(m->ny - 1) * m->nox + (m->nx - 1)];
+  /* even, K(Δ) = K(−Δ) (reciprocity), up to the round-off of the closed
+   * forms far out (relative to the largest coefficient): then made exactly
+   * even, so C is exactly symmetric */
+  double kmax = 0, asym = 0;
+  for (size_t o = 0; o < no; o++) {
+    kmax = fmax(kmax, fabs(w->kern[o]));
+    asym = fmax(asym, fabs(w->kern[o] - w->kern[no - 1 - o]));
+  }
+  w->symmetric = asym <= BLK_EVEN_TOL * kmax;
+  for (size_t o = 0; w->symmetric && o < no / 2; o++)
+    w->kern[o] = w->kern[no - 1 - o] = 0.5 * (w->kern[o] + w->kern[no - 1 - o]);
+  if (resolve_method(m, w->symmetric, &w->method, err)) return -1;
+  s->method = w->method;
+  /* auto: the dense dual while few elements are in contact (springs only: for
+   * rigid contact constrained CG was faster at every size measured) */
+  w->auto_dense = w->method == BLK_AUTO && !m->rigid;
+  w->A_cap = w->method == BLK_AUTO ? (m->M < BLK_AUTO_DENSE_CAP ? m->M : BLK_AUTO_DENSE_CAP)
+                                   : m->M;
+  if (blk_fft_init(&w->fft, m, err) || blk_fft_kernel(&w->fft, m, w->kern, 1.0, &w->C_hat, err))
+    return -1;
+  w->bytes += blk_fft_bytes(&w->fft) + blk_kspec_bytes(&w->fft, &w->C_hat);
+  /* matrix-free solver and tangent stiffness vectors */
+  double **cg[] = {&w->g, &w->Dk, &w->dF, &w->wC, &w->rho, &w->z, &w->t, &w->q, &w->qc,
+                   &w->Fn, &w->dn, &w->un, &w->prec};
+  for (size_t i = 0; i < sizeof cg / sizeof *cg; i++)
+    if (!(*cg[i] = track(w, M, sizeof(double)))) return proto_fail(err, "out of memory");
+  if (w->method != BLK_CG && (w->method != BLK_AUTO || w->auto_dense)) {
+    /* dense: the Newton matrix (A_cap × A_cap) and its vectors */
+    double **dv[] = {&w->r, &w->delta, &w->d_try, &w->F_try, &w->k_try, &w->sk, &w->y,
+                     &w->col_f, &w->fact_sk};
+    for (size_t i = 0; i < sizeof dv / sizeof *dv; i++)
+      if (!(*dv[i] = track(w, M, sizeof(double)))) return proto_fail(err, "out of memory");
+    w->col_idx = track(w, M, sizeof(int));
+    w->act = track(w, M, sizeof(int));
+    w->piv = track(w, M, sizeof(int));
+    w->fact_act = track(w, M, sizeof(int));
+    w->A = track(w, (size_t)w->A_cap * w->A_cap, sizeof(double));
+    if (!w->col_idx || !w->act || !w->piv || !w->fact_act || !w->A)
+      return proto_fail(err, "out of memory (dense %d x %d Newton matrix)", w->A_cap, w->A_cap);
+  }
+  if (blk_history_init(m, w, &w->hist, err)) return -1;
+  w->bytes += w->hist.bytes;
+  blk_state_reset(m, s);
+  return 0;
+}
+
+void blk_state_free(blk_state *s) {
   blk_work *w = s->work;
-  const int M = m->M;
-  double *d = s->d_rs, *F = s->force, *k = w->k_try;
-  spring_law(m, w->held, d, F, k);
-  double phi = residual(m, w, d, F, w->r, rmax);
-  int it = 0, refactor = 0;
-  *conv = 0;
-  for (;;) {
-    if (*rmax < m->solver.tol) {
-      *conv = 1;
-      break;
-    }
-    if (it == m->solver.max_iter || !isfinite(*rmax)) break;
-    const int before = *factored;
-    const double r_before = *rmax;
-    const int may_reuse = m->solver.reuse_jacobian && m->solver.method == BLK_NR_PLAIN;
-    if (newton_direction(m, w, k, may_reuse && !refactor, factored)) break;
-    it++;
-    if (m->solver.method == BLK_NR_PLAIN) {
-      for (int e = 0; e < M; e++) d[e] += w->delta[e];
-      spring_law(m, w->held, d, F, k);
-      phi = residual(m, w, d, F, w->r, rmax);
-      /* a chord step that did not cut the residual 4×: refactor next time */
-      refactor = *factored == before && !(*rmax < 0.25 * r_before);
-      continue;
-    }
-    /* Armijo backtracking on ½|r|²; along the Newton direction its slope is −2φ */
-    double lambda = 1.0, phi_try = 0, rmax_try = 0;
-    for (int cut = 0; cut < 30; cut++) {
-      for (int e = 0; e < M; e++) w->d_try[e] = d[e] + lambda * w->delta[e];
-      spring_law(m, w->held, w->d_try, w->F_try, k);
-      phi_try = residual(m, w, w->d_try, w->F_try, w->y, &rmax_try);
-      if (phi_try <= (1.0 - 2e-4 * lambda) * phi) break;
-      lambda *= 0.5;
-      (*cuts)++;
-    }
-    memcpy(d, w->d_try, (size_t)M * sizeof(double));
-    memcpy(F, w->F_try, (size_t)M * sizeof(double));
-    memcpy(w->r, w->y, (size_t)M * sizeof(double));
-    phi = phi_try;
-    *rmax = rmax_try;
+  if (w) {
+    blk_history_free(&w->hist);
+    blk_kspec_free(&w->C_hat);
+    blk_fft_free(&w->fft);
+    double *v[] = {w->kern, w->b, w->CF, w->g, w->Dk, w->dF, w->wC, w->rho, w->z,
+                   w->t, w->q, w->qc, w->Fn, w->dn, w->un, w->prec, w->r, w->delta,
+                   w->d_try, w->F_try, w->k_try, w->sk, w->y, w->col_f, w->fact_sk, w->A};
+    for (size_t i = 0; i < sizeof v / sizeof *v; i++) free(v[i]);
+    free(w->held);
+    free(w->col_idx);
+    free(w->act);
+    free(w->piv);
+    free(w->fact_act);
+    free(w);
   }
-  return it;
+  free(s->d_rs);
+  free(s->force);
+  free(s->d_el);
+  free(s->d_el_old);
+  free(s->attached);
+  memset(s, 0, sizeof *s);
 }
 
+size_t blk_state_bytes(const blk_state *s) { return s->work ? s->work->bytes : 0; }
 
-/* ---------------------------------------------------- robust: dual Newton */
-
-/* Dual objective J(F) = ½FᵀCF − bᵀF + Σ Ψ(F) and its gradient
- * ∇J = CF − b + d(F) = −f (eq. 6: the residual in m). Ψ(F) = F d(F) − W(d(F))
- * (Legendre transform of the spring energy), symmetric for the mirrored
- * tensile branch. Also returns 1/k at d(F) in w->sk. */
-static double dual_eval(const blk_model *m, blk_work *w, const double *F, double *grad,
-                        double *d_of_F) {
-  const int M = m->M;
-  for (int i = 0; i < M; i++) w->CF[i] = 0;
-  for (int p = 0; p < M; p++) {
-    if (F[p] == 0.0) continue;
-    const double *Cp = w->C + (size_t)p * M; /* symmetric C (checked) */
-    for (int i = 0; i < M; i++) w->CF[i] += Cp[i] * F[p];
-  }
-  const double c_self = w->C[0];
-  double J = 0;
-  for (int e = 0; e < M; e++) {
-    const double a = fabs(F[e]);
-    const double d = blk_spring_inverse(m, e, a);
-    double Fd, kd;
-    blk_spring_eval(m, e, d > 0 ? d : 0, &Fd, &kd);
-    if (d <= 0) { /* k at the contact onset (d = 0+) */
-      blk_spring_eval(m, e, 1e-300, &Fd, &kd);
-    }
-    w->sk[e] = kd > 0 ? 1.0 / kd : 1e8 * c_self;
-    const double de = F[e] < 0 ? -d : d;
-    d_of_F[e] = de;
-    grad[e] = w->CF[e] - w->b[e] + de;
-    J += F[e] * (0.5 * w->CF[e] - w->b[e]) + (a * d - blk_spring_energy(m, e, d));
-  }
-  return J;
+void blk_state_reset(const blk_model *m, blk_state *s) {
+  const size_t M = (size_t)m->M;
+  s->n = 0;
+  memset(s->d_rs, 0, M * sizeof(double));
+  memset(s->force, 0, M * sizeof(double));
+  memset(s->d_el, 0, M * sizeof(double));
+  memset(s->d_el_old, 0, M * sizeof(double));
+  memset(s->attached, 0, M * sizeof(int));
+  s->d_road = s->total_force = s->residual = s->stiffness = 0;
+  s->n_contact = s->iterations = s->line_search_cuts = s->products = 0;
+  s->converged = 1;
+  s->factorizations = 0;
+  s->work->fact_valid = 0;
+  blk_history_reset(m, &s->work->hist);
 }
 
-/* Projected Newton (Bertsekas 1982) on J with the bound F ≥ 0 for elements
- * without an adhesive bond. J is strictly convex (C SPD, springs monotone),
- * so Armijo backtracking along the projection arc converges from any start. */
-static int dual_newton(const blk_model *m, blk_state *s, int *conv, double *rmax,
-                       int *cuts) {
-  blk_work *w = s->work;
-  const int M = m->M;
-  double *F = s->force, *grad = w->r, *dF = w->delta, *Ft = w->F_try, *gt = w->y,
-         *dd = w->d_try;
-  for (int e = 0; e < M; e++)
-    if (!(m->adhesion && w->held[e]) && F[e] < 0) F[e] = 0;
-  w->fact_valid = 0; /* w->A is reused below */
-  double J = dual_eval(m, w, F, grad, dd);
-  int it = 0;
-  *conv = 0;
-  for (;;) {
-    /* optimality in m: |f| < tol where F ≠ 0 or bonded, no penetration (f ≤ tol) where F = 0 */
-    double viol = 0;
-    int P = 0;
-    for (int e = 0; e < M; e++) {
-      const int bound = !(m->adhesion && w->held[e]) && F[e] <= 0;
-      double v = bound ? fmax(-grad[e], 0.0) : fabs(grad[e]);
-      if (v > viol) viol = v;
-      if (!(bound && grad[e] > 0)) w->act[P++] = e; /* free set */
-    }
-    *rmax = viol;
-    if (viol < m->solver.tol) {
-      *conv = 1;
-      break;
-    }
-    if (it == m->solver.max_iter || !isfinite(J)) break;
-    it++;
-    /* (C_AA + diag(1/k_A)) ΔF_A = −∇J_A, ΔF = 0 on the binding set */
-    for (int a = 0; a < P; a++) {
-      const double *Ci = w->C + (size_t)w->act[a] * M;
-      double *Aa = w->A + (size_t)a * P;
-      for (int c = 0; c <= a; c++) Aa[c] = Ci[w->act[c]];
-      Aa[a] += w->sk[w->act[a]];
-      gt[a] = -grad[w->act[a]];
-    }
-    if (cholesky(w->A, P, P)) break; /* C not SPD: the dual is not convex */
-    cholesky_solve(w->A, P, P, gt);
-    for (int e = 0; e < M; e++) dF[e] = 0;
-    for (int a = 0; a < P; a++) dF[w->act[a]] = gt[a];
-    double lambda = 1.0, Jt = J;
-    for (int cut = 0; cut < 40; cut++) {
-      double slope = 0;
-      for (int e = 0; e < M; e++) {
-        double v = F[e] + lambda * dF[e];
-        if (!(m->adhesion && w->held[e]) && v < 0) v = 0;
-        Ft[e] = v;
-        slope += grad[e] * (v - F[e]);
-      }
-      Jt = dual_eval(m, w, Ft, gt, dd);
-      /* near the solution the decrease of J drops below its round-off
-       * (|slope| ~ k f² ≪ eps |J|): take the Newton step as it is */
-      if (Jt <= J + 1e-4 * slope || slope >= 0 || -slope < 1e-13 * fabs(J)) break;
-      lambda *= 0.5;
-      (*cuts)++;
-    }
-    memcpy(F, Ft, (size_t)M * sizeof(double));
-    memcpy(grad, gt, (size_t)M * sizeof(double));
-    J = Jt;
-  }
-  /* back to the thesis' variables: compression d(F) in contact, the geometric
-   * overlap b − CF (≤ 0: a gap) elsewhere */
-  dual_eval(m, w, F, grad, dd);
-  for (int e = 0; e < M; e++) {
-    w->CF[e] = w->b[e] - w->CF[e]; /* as residual() leaves it: b − C F */
-    s->d_rs[e] = F[e] != 0.0 ? dd[e] : w->CF[e];
-  }
-  return it;
-}
+/* ---------------------------------------------------------------- step */
 
 int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err) {
   blk_work *w = s->work;
@@ -488,15 +239,41 @@ int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err) {
     w->b[e] = d_road + m->z_road[e] - m->z_free - s->d_el_old[e];
     w->held[e] = s->attached[e];
   }
-  int conv = 0, cuts = 0, iters = 0, factored = 0;
+  if (m->periodic && m->rigid && !m->adhesion) {
+    /* the periodic half-space has zero mean displacement (green/periodic.c):
+     * hard contact beyond full contact has no equilibrium */
+    double mean = 0;
+    for (int e = 0; e < M; e++) mean += w->b[e];
+    mean /= M;
+    if (mean >= 0)
+      return proto_fail(err, "step %lld (d_road = %g m): periodic grid, rigid contact: the "
+                        "mean overlap %g m is not below full contact (the periodic "
+                        "half-space keeps zero mean displacement): no equilibrium",
+                        (long long)s->n + 1, d_road, mean);
+  }
+  int conv = 0, cuts = 0, iters = 0, factored = 0, products = 0;
   double rmax = 0;
   /* adhesion sweeps: solve with the held set fixed, release every held element
    * whose tension exceeds the release force, repeat until none releases */
+  blk_method me = w->method;
+  if (me == BLK_AUTO) {
+    const double P = s->n_contact; /* dense ∝ P³, matrix-free ∝ M log M */
+    me = w->auto_dense && P <= w->A_cap && P * P * P <= BLK_AUTO_KAPPA * M * log2(M + 1.0)
+             ? BLK_NR_DUAL
+             : BLK_CG;
+  }
   for (int sweep = 0; sweep <= M; sweep++) {
-    if (m->solver.method == BLK_NR_DUAL && w->symmetric)
-      iters += dual_newton(m, s, &conv, &rmax, &cuts);
-    else
-      iters += newton(m, s, &conv, &rmax, &cuts, &factored);
+    switch (me) {
+    case BLK_CG: iters += blk_cg_solve(m, s, &conv, &rmax, &products); break;
+    case BLK_NR_DUAL:
+      iters += blk_dense_dual(m, s, &conv, &rmax, &cuts, &factored);
+      if (w->dense_overflow) { /* auto: more free elements than the matrix holds */
+        me = BLK_CG;
+        iters += blk_cg_solve(m, s, &conv, &rmax, &products);
+      }
+      break;
+    default: iters += blk_dense_newton(m, s, &conv, &rmax, &cuts, &factored);
+    }
     if (!m->adhesion) break;
     int released = 0;
     for (int e = 0; e < M; e++)
@@ -516,19 +293,20 @@ int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err) {
       return proto_fail(err, "step %lld (d_road = %g m): element %d (i=%d, j=%d): spring "
                         "force %g N exceeds solver.max_force = %g N: runaway (the time "
                         "stepping is unstable; with point-sampled Green's functions use "
-                        "ZOH samples or a finer rate)", (long long)s->n + 1, d_road, e,
-                        e % m->nx, e / m->nx, s->force[e], m->solver.max_force);
-  /* final forces of this step, contact flags, layer displacement (eq. 4) */
+                        "ZOH samples, a finer rate or softened springs)",
+                        (long long)s->n + 1, d_road, e, e % m->nx, e / m->nx, s->force[e],
+                        m->solver.max_force);
+  /* final forces of this step, contact flags, layer displacement (eq. 4):
+   * every solver leaves w->CF = C F at its final forces */
   double total = 0;
   int nc = 0;
   for (int e = 0; e < M; e++) {
-    s->attached[e] = s->d_rs[e] > 0 || (m->adhesion && w->held[e] && s->force[e] != 0);
+    s->attached[e] = s->force[e] > 0 || (!m->rigid && s->d_rs[e] > 0) ||
+                     (m->adhesion && w->held[e] && s->force[e] != 0);
     nc += s->attached[e];
     total += s->force[e];
+    s->d_el[e] = s->d_el_old[e] + w->CF[e];
   }
-  /* d_el = C F + d_el_old (eq. 4); the last residual evaluation left
-   * w->CF = b − C F at the final forces */
-  for (int e = 0; e < M; e++) s->d_el[e] = s->d_el_old[e] + (w->b[e] - w->CF[e]);
   s->n++;
   s->d_road = d_road;
   s->total_force = total;
@@ -538,6 +316,9 @@ int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err) {
   s->residual = rmax;
   s->line_search_cuts = cuts;
   s->factorizations = factored;
-  blk_history_push(m, &w->hist, s->force, s->d_el_old);
+  s->method = me;
+  s->stiffness = m->solver.tangent ? blk_cg_tangent(m, s, &products) : 0.0;
+  s->products = products;
+  blk_history_push(m, w, &w->hist, s->force, s->d_el_old);
   return 0;
 }

@@ -27,8 +27,14 @@ static int bind_or_fail(void *s, const char *ep, proto_err *err) {
   return proto_fail(err, "bus: cannot bind %s: %s", ep, zmq_strerror(errno));
 }
 
+static void bound(void *s, char *out, size_t cap) {
+  size_t len = cap;
+  if (zmq_getsockopt(s, ZMQ_LAST_ENDPOINT, out, &len) != 0 && cap) out[0] = 0;
+}
+
 cpl_bus *cpl_bus_start(void *ctx, const char *inner, const char *public_ep,
-                       int hwm, proto_err *err) {
+                       int hwm, char *inner_out, char *public_out, size_t cap,
+                       proto_err *err) {
   cpl_bus *b = calloc(1, sizeof *b);
   if (!b) return NULL;
   int linger = 0;
@@ -46,9 +52,11 @@ cpl_bus *cpl_bus_start(void *ctx, const char *inner, const char *public_ep,
   snprintf(ctl, sizeof ctl, "inproc://cosim-bus-control-%p", (void *)b);
   char own[64];
   snprintf(own, sizeof own, "inproc://cosim-bus-in-%p", (void *)b);
-  if (bind_or_fail(b->xsub, inner, err) < 0 ||
-      bind_or_fail(b->xsub, own, err) < 0 ||
-      bind_or_fail(b->xpub, public_ep, err) < 0 ||
+  int ok = bind_or_fail(b->xsub, inner, err) == 0;
+  if (ok) bound(b->xsub, inner_out, cap);
+  ok = ok && bind_or_fail(b->xpub, public_ep, err) == 0;
+  if (ok) bound(b->xpub, public_out, cap);
+  if (!ok || bind_or_fail(b->xsub, own, err) < 0 ||
       bind_or_fail(b->control_thread, ctl, err) < 0 ||
       zmq_connect(b->control_main, ctl) != 0 || zmq_connect(b->pub, own) != 0) {
     cpl_bus_stop(b);

@@ -6,18 +6,40 @@
 
 #include "proto/proto.h"
 
-#define CPL_MAX_PROCS 4
+#define CPL_MAX_PROCS 16
 #define CPL_PATH_LEN 512
+#define CPL_MAX_ARGV 16 /* exec as a list: launcher prefix + participant */
 
-typedef enum { CPL_ROLE_DEM, CPL_ROLE_FEM, CPL_ROLE_BLOCK } cpl_role;
-
+/* One process of the scene. Its role is not part of the scene: the process
+ * says it in its hello (names are free). */
 typedef struct cpl_process {
-  char name[PROTO_NAME_LEN]; /* key under "processes"; also the role */
-  cpl_role role;
-  char exec[CPL_PATH_LEN];     /* as written in the config */
-  char resolved[CPL_PATH_LEN]; /* absolute path found by cpl_resolve_exec */
-  const cJSON *section;        /* processes.<name> (owned by the scene's root) */
+  char name[PROTO_NAME_LEN]; /* key under "processes" */
+  int argc;                  /* exec: one string, or a list (launcher prefix,
+                                e.g. mpirun -np 2, then the participant) */
+  const char *argv[CPL_MAX_ARGV]; /* as written (strings owned by the scene) */
+  char exec[CPL_PATH_LEN];        /* argv joined by spaces, for messages */
+  /* cpl_resolve_exec: argv[0] as an absolute path; and the participant (the
+   * last element) next to the cosim binary if it is there, else as given */
+  char resolved[CPL_PATH_LEN];
+  char participant[CPL_PATH_LEN];
+  const cJSON *section; /* processes.<name> (owned by the scene's root) */
 } cpl_process;
+
+/* coupling.scheme (PROTOCOL.md "Schemes") */
+typedef enum { CPL_SCHEME_SERIAL, CPL_SCHEME_PARALLEL, CPL_SCHEME_IMPLICIT } cpl_scheme;
+typedef enum { CPL_ACCEL_IQN_ILS, CPL_ACCEL_AITKEN, CPL_ACCEL_CONSTANT } cpl_accel_kind;
+
+/* coupling.implicit: iterate each step until the interface fields stop
+ * changing (notes/coupling-schemes.md §2-3). */
+typedef struct cpl_implicit {
+  double tolerance;        /* relative change per field */
+  int64_t max_iterations;  /* per step */
+  cpl_accel_kind acceleration;
+  double relaxation;       /* constant omega; Aitken's first; IQN's initial step */
+  int64_t reuse;           /* IQN-ILS: past steps whose columns are kept */
+  int64_t max_columns;     /* IQN-ILS */
+  double filter;           /* IQN-ILS QR2 limit (Haelterman et al. 2016) */
+} cpl_implicit;
 
 typedef enum { CPL_SCN_NONE, CPL_SCN_TIRE_TRAVEL, CPL_SCN_INDENTATION } cpl_scenario_kind;
 typedef enum {
@@ -58,22 +80,38 @@ typedef struct cpl_scene {
   char bus_monitor[CPL_PATH_LEN]; /* public SUB endpoint, "" = no bus */
   int64_t bus_hwm;
   double handshake_timeout, step_timeout; /* s */
-  char attach_endpoint[CPL_PATH_LEN];
+  char attach_endpoint[CPL_PATH_LEN]; /* port 0: any free port */
+  cpl_scheme scheme;
+  cpl_implicit implicit;
   cpl_scenario scenario;
   int nprocs;
   cpl_process procs[CPL_MAX_PROCS];
 } cpl_scene;
 
 /* Loads and validates the core keys (everything but the inside of each
- * processes.<name> section, which the participant validates itself). */
+ * processes.<name> section, which the participant validates itself).
+ * Whether the processes' roles fit the scenario is known only after their
+ * hellos (cpl_check_roles). */
 int cpl_scene_load(cpl_scene *s, const char *path, int nset,
                    char *const *sets, proto_err *err);
 void cpl_scene_free(cpl_scene *s);
-/* Finds a participant's executable: a path with '/' as given, else next to
- * the cosim binary, else on PATH. Fills p->resolved. */
+/* Finds a process's executable (argv[0]): a path with '/' as given, else
+ * next to the cosim binary, else on PATH. Fills p->resolved and
+ * p->participant (the last element: resolved the same way when it is next
+ * to cosim or given with a '/', else passed on as written). */
 int cpl_resolve_exec(cpl_process *p, proto_err *err);
-/* Runs `<exec> --check-config -` on each section. */
+/* Runs `<participant> --check-config - --name NAME` on each section (the
+ * last element of exec alone: a check needs no launcher). */
 int cpl_check_processes(cpl_scene *s, proto_err *err);
+/* The scenario's needs against the roles the processes announced:
+ * tire_travel needs a dem and exactly one fem, indentation a block; one
+ * coupled surface (at most one fem). roles[i] is process i's role. */
+int cpl_check_roles(const cpl_scene *s, const proto_role *roles, proto_err *err);
+const char *cpl_scheme_name(cpl_scheme s);
+/* The section as a participant sees it (welcome, --check-config): as in the
+ * scene, except that "exec" is one string, the participant (its last
+ * element), whatever launcher prefix the scene gives. Caller frees. */
+cJSON *cpl_section_for_participant(const cpl_process *p);
 
 /* Scenario kinematics. Rim frame at time t: rotation R (row-major 3x3),
  * centre c, angular velocity w, velocity v. `phase` is advanced by

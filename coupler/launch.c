@@ -1,6 +1,9 @@
 /* launch.c — starting participants and making sure none outlives the run
  * (MUSCLE3-style supervision: the first failure stops everything, and the
- * report names the participant and shows the end of its log). */
+ * report names the participant and shows the end of its log). Each child
+ * leads its own process group, so that stopping it stops what it started
+ * too (a launcher such as mpirun and its ranks, a wrapper script and its
+ * participant). */
 #include "internal.h"
 
 #include <errno.h>
@@ -14,12 +17,18 @@
 #include <time.h>
 #include <unistd.h>
 
-int cpl_spawn(cpl_child *c, const char *name, const char *exec,
+int cpl_spawn(cpl_child *c, const char *name, int argc, const char *const *argv,
               const char *endpoint, const char *log_path, proto_err *err) {
   memset(c, 0, sizeof *c);
   snprintf(c->name, sizeof c->name, "%s", name);
-  snprintf(c->exec, sizeof c->exec, "%s", exec);
+  snprintf(c->exec, sizeof c->exec, "%s", argv[argc - 1]);
   snprintf(c->log_path, sizeof c->log_path, "%s", log_path);
+  if (argc < 1 || argc > CPL_MAX_ARGV)
+    return proto_fail(err, "%s: %d exec arguments (1 to %d)", name, argc, CPL_MAX_ARGV);
+  const char *args[CPL_MAX_ARGV + 5];
+  for (int i = 0; i < argc; i++) args[i] = argv[i];
+  const char *extra[] = {"--endpoint", endpoint, "--name", name, NULL};
+  memcpy(args + argc, extra, sizeof extra);
   int log = open(log_path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (log < 0)
     return proto_fail(err, "%s: cannot create log %s: %s", name, log_path,
@@ -31,20 +40,28 @@ int cpl_spawn(cpl_child *c, const char *name, const char *exec,
     return proto_fail(err, "%s: fork failed: %s", name, strerror(errno));
   }
   if (pid == 0) {
-    /* Die with the launcher, whatever kills it; leave Ctrl-C to the
-     * launcher, which stops everyone in order. */
+    /* Die with the launcher, whatever kills it; its own process group, so
+     * that the terminal's Ctrl-C goes to the launcher only (which stops
+     * everyone in order) and a stop reaches the whole group. */
     prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (getppid() != parent) _exit(1);
+    setpgid(0, 0);
     signal(SIGINT, SIG_IGN);
     dup2(log, 1);
     dup2(log, 2);
     int devnull = open("/dev/null", O_RDONLY);
     if (devnull >= 0) dup2(devnull, 0);
     setenv("COSIM_LAUNCHED", "1", 1);
-    execl(exec, exec, "--endpoint", endpoint, "--name", name, (char *)NULL);
-    fprintf(stderr, "cannot execute %s: %s\n", exec, strerror(errno));
+    /* Participants take turns on shared cores (serial scheme): OpenMP
+     * threads that spin after each parallel region steal the cores of the
+     * process computing next (paper-scale tyre, 2 cores, 2 threads each:
+     * 1.8x slower; bench/results/coupling.md). Unless the user chose. */
+    setenv("OMP_WAIT_POLICY", "passive", 0);
+    execv(args[0], (char *const *)args);
+    fprintf(stderr, "cannot execute %s: %s\n", args[0], strerror(errno));
     _exit(127);
   }
+  setpgid(pid, pid); /* also here: no race with the first kill(-pid) */
   close(log);
   c->pid = pid;
   c->running = 1;
@@ -115,12 +132,31 @@ static int wait_all(cpl_child *cs, int n, double seconds) {
   }
 }
 
+/* Signals a child's process group (the child and what it started). */
+static void signal_group(const cpl_child *c, int sig) {
+  if (kill(-c->pid, sig) < 0 && c->running) kill(c->pid, sig);
+}
+
+/* Members of a group whose leader has exited (a wrapper's participant) are
+ * not our children: they are waited for by their group's presence. */
+static int group_alive(const cpl_child *c) { return kill(-c->pid, 0) == 0; }
+
+static int wait_groups(cpl_child *cs, int n, double seconds) {
+  double until = proto_now() + seconds;
+  while (1) {
+    int alive = wait_all(cs, n, 0);
+    for (int i = 0; i < n; i++) alive += !cs[i].running && group_alive(&cs[i]);
+    if (!alive || proto_now() > until) return alive;
+    sleep_ms(10);
+  }
+}
+
 void cpl_stop_all(cpl_child *cs, int n, double grace_s) {
-  if (wait_all(cs, n, grace_s) == 0) return;
+  if (wait_groups(cs, n, grace_s) == 0) return;
   for (int i = 0; i < n; i++)
-    if (cs[i].running) kill(cs[i].pid, SIGTERM);
-  if (wait_all(cs, n, 2.0) == 0) return;
+    if (cs[i].running || group_alive(&cs[i])) signal_group(&cs[i], SIGTERM);
+  if (wait_groups(cs, n, 2.0) == 0) return;
   for (int i = 0; i < n; i++)
-    if (cs[i].running) kill(cs[i].pid, SIGKILL);
-  wait_all(cs, n, 5.0);
+    if (cs[i].running || group_alive(&cs[i])) signal_group(&cs[i], SIGKILL);
+  wait_groups(cs, n, 5.0);
 }

@@ -1,129 +1,156 @@
-/* loop.c — the lock-step loop. Serial (Gauss–Seidel) scheme for the tread on
- * soil: DEM gets the surface at t_{k-1}, returns grain forces; the FEM gets
- * those forces and the rim frame at t_k and returns the surface at t_k.
- * The block gets its road displacement at t_k and returns its force. */
+/* loop.c — the coupling schemes over the schedule (PROTOCOL.md "Schemes";
+ * notes/coupling-schemes.md):
+ *   serial    the stages in order, each committed before the next (the
+ *             grains' forces of step k reach the tread in step k);
+ *   parallel  one stage, every process at once on the last committed fields
+ *             (the tread gets the grains' forces one step late: Jacobi);
+ *   implicit  the parallel stage repeated until the interface fields stop
+ *             changing, accelerated (IQN-ILS, Aitken or constant), the
+ *             processes rolled back between repeats.
+ * Then the rows of the step: each process's series and snapshots, traction,
+ * the coupler's series and timing. */
 #include "run.h"
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
-/* Sends a step request and waits for the matching "done". */
-static int exchange(cpl_runner *r, int i, proto_msg *req, int64_t k) {
-  cpl_peer *p = &r->peers[i];
-  int from;
-  if (cpl_send(r, i, req) < 0) return -1;
-  if (cpl_receive(r, i, r->scene->step_timeout, &p->reply, &from) < 0)
-    return -1;
-  if (strcmp(p->reply.type, "done") != 0 || p->reply.step != k) {
-    r->failed_peer = i;
-    return proto_fail(&r->err, "participant '%s': expected 'done' for step "
-                      "%lld, got '%s' for step %lld", p->proc->name,
-                      (long long)k, p->reply.type, (long long)p->reply.step);
-  }
-  return 0;
-}
+/* ---------------------------------------------------------- implicit */
 
-static void step_request(cpl_runner *r, proto_msg *req, int i, int64_t k,
-                         int output) {
-  proto_msg_reset(req, r->peers[i].proc->name, "step", k,
-                  (double)(k - 1) * r->scene->dt);
-  cJSON *h = proto_msg_header(req);
-  cJSON_AddNumberToObject(h, "dt", r->scene->dt);
-  cJSON_AddBoolToObject(h, "output", output);
-}
+/* The interface vector of the implicit scheme: what one process gives and
+ * another takes within the same step. [surface positions at t_k | surface
+ * forces | road force (force-driven road only)]. The DEM takes the
+ * positions through the secant velocity (d - x_{k-1})/dt, so its surface
+ * moves exactly from the tread's x_{k-1} to its x_k within the step. */
+enum { IF_X, IF_F, IF_ROAD, N_IF };
 
-/* Copies a validated [n,3] f8 array of the reply into dst. */
-static int take_nodes(cpl_runner *r, int i, const char *name, double *dst) {
-  const double *a = proto_msg_get_f8(&r->peers[i].reply, name,
-                                     r->surf.n_nodes, 3, &r->err);
-  if (!a) {
-    r->failed_peer = i;
-    return proto_wrap(&r->err, "participant '%s'", r->peers[i].proc->name);
-  }
-  for (int64_t j = 0; j < 3 * r->surf.n_nodes; j++)
-    if (!isfinite(a[j])) {
-      r->failed_peer = i;
-      return proto_fail(&r->err, "participant '%s': %s[%lld][%lld] is not "
-                        "finite", r->peers[i].proc->name, name,
-                        (long long)(j / 3), (long long)(j % 3));
-    }
-  memcpy(dst, a, sizeof(double) * 3 * (size_t)r->surf.n_nodes);
-  return 0;
-}
-
-static int step_dem(cpl_runner *r, int64_t k, int output) {
-  proto_msg req = {0};
-  step_request(r, &req, r->dem, k, output);
-  if (r->surf.n_nodes > 0) {
-    proto_msg_add_f8(&req, "x", r->surf.n_nodes, 3, r->surf.x);
-    proto_msg_add_f8(&req, "v", r->surf.n_nodes, 3, r->surf.v);
-  }
-  int rc = exchange(r, r->dem, &req, k);
-  proto_msg_free(&req);
-  if (rc == 0 && r->surf.n_nodes > 0)
-    rc = take_nodes(r, r->dem, "nodal_force", r->surf.force);
-  return rc;
-}
-
-static int step_fem(cpl_runner *r, int64_t k, int output) {
-  proto_msg req = {0};
-  step_request(r, &req, r->fem, k, output);
-  proto_msg_add_f8(&req, "nodal_force", r->surf.n_nodes, 3, r->surf.force);
-  proto_msg_add_f8(&req, "rim_R", 3, 3, r->rim.R);
-  proto_msg_add_f8(&req, "rim_c", 3, 0, r->rim.c);
-  proto_msg_add_f8(&req, "rim_omega", 3, 0, r->rim.w);
-  proto_msg_add_f8(&req, "rim_v", 3, 0, r->rim.v);
-  int rc = exchange(r, r->fem, &req, k);
-  proto_msg_free(&req);
-  if (rc == 0) rc = take_nodes(r, r->fem, "x", r->surf.x);
-  if (rc == 0) rc = take_nodes(r, r->fem, "v", r->surf.v);
-  return rc;
-}
-
-/* Road displacement at t_k: prescribed, or the road body moved by the
- * external force against the last contact force (explicit, one-step lag). */
-static double road_at(cpl_runner *r, double t) {
+static int road_coupled(const cpl_runner *r) {
   const cpl_scenario *s = &r->scene->scenario;
-  if (s->kind != CPL_SCN_INDENTATION) return 0;
-  if (s->profile != CPL_PROFILE_FORCE) return cpl_road_displacement(s, t);
-  double a = (s->road_force - r->road_force_last) / s->road_mass;
-  r->road_velocity += a * r->scene->dt;
-  r->d_road += r->road_velocity * r->scene->dt;
-  return r->d_road;
+  return r->n_of_role[PROTO_ROLE_BLOCK] && s->kind == CPL_SCN_INDENTATION &&
+         s->profile == CPL_PROFILE_FORCE;
 }
 
-static int step_block(cpl_runner *r, int64_t k, int output) {
-  proto_msg req = {0};
-  step_request(r, &req, r->block, k, output);
-  r->d_road = road_at(r, (double)k * r->scene->dt);
-  proto_msg_add_f8(&req, "d_road", 1, 0, &r->d_road);
-  int rc = exchange(r, r->block, &req, k);
-  proto_msg_free(&req);
-  if (rc == 0) {
-    const double *f =
-        proto_msg_get_f8(&r->peers[r->block].reply, "force", 1, 0, &r->err);
-    if (!f || !isfinite(f[0])) {
-      r->failed_peer = r->block;
-      return f ? proto_fail(&r->err, "participant '%s': force is not finite",
-                            r->peers[r->block].proc->name)
-               : proto_wrap(&r->err, "participant '%s'",
-                            r->peers[r->block].proc->name);
-    }
-    r->road_force_last = f[0];
-  }
-  return rc;
+static int64_t if_len(const cpl_runner *r, int f) {
+  int surface = r->fem >= 0 && r->n_of_role[PROTO_ROLE_DEM];
+  return f == IF_ROAD ? road_coupled(r) : surface ? 3 * r->surf.n_nodes : 0;
 }
+
+static int implicit_init(cpl_runner *r) {
+  int64_t len[N_IF], total = 0;
+  for (int f = 0; f < N_IF; f++) total += len[f] = if_len(r, f);
+  size_t n3 = sizeof(double) * (size_t)(3 * r->surf.n_nodes + 1);
+  r->xi = calloc((size_t)total + 1, sizeof(double));
+  r->xt = calloc((size_t)total + 1, sizeof(double));
+  r->x_start = calloc(1, n3);
+  r->v_dem = calloc(1, n3);
+  r->f_fem = calloc(1, n3);
+  r->carry = calloc(1, n3);
+  if (!r->xi || !r->xt || !r->x_start || !r->v_dem || !r->f_fem || !r->carry)
+    return proto_fail(&r->err, "out of memory (implicit scheme)");
+  r->accel = cpl_accel_create(&r->scene->implicit, N_IF, len, &r->err);
+  return r->accel ? 0 : -1;
+}
+
+/* Road body by the trapezoidal rule (Newmark average acceleration) with the
+ * force of t_k: the implicit counterpart of road_action in schedule.c. */
+static double road_trapezoid(const cpl_runner *r, double force, double *v, double *a) {
+  const cpl_scenario *s = &r->scene->scenario;
+  const double dt = r->scene->dt;
+  *a = (s->road_force - force) / s->road_mass;
+  *v = r->road.v + 0.5 * dt * (r->road.a + *a);
+  return r->road.d + 0.5 * dt * (r->road.v + *v);
+}
+
+/* Sets the requests' inputs from the iterate xi. */
+static void implicit_inputs(cpl_runner *r) {
+  const int64_t nx = if_len(r, IF_X), nf = if_len(r, IF_F);
+  const double *d = r->xi, *f = r->xi + nx, dt = r->scene->dt;
+  for (int64_t j = 0; j < nx; j++) r->v_dem[j] = (d[j] - r->x_start[j]) / dt;
+  for (int64_t j = 0; j < nf; j++) r->f_fem[j] = f[j] + r->carry[j];
+  r->in[CPL_F_SURF_X] = r->x_start;
+  r->in[CPL_F_SURF_V] = nx ? r->v_dem : r->fields[CPL_F_SURF_V].cur;
+  r->in[CPL_F_SURF_FORCE] = nf ? r->f_fem : r->fields[CPL_F_SURF_FORCE].cur;
+  if (road_coupled(r)) {
+    double v, a;
+    r->road_iter = r->xi[nx + nf];
+    r->fields[CPL_F_ROAD_D].cur[0] = road_trapezoid(r, r->road_iter, &v, &a);
+  }
+}
+
+/* H(xi): what the processes returned, as an interface vector. */
+static void implicit_outputs(cpl_runner *r) {
+  const int64_t nx = if_len(r, IF_X), nf = if_len(r, IF_F);
+  memcpy(r->xt, r->fields[CPL_F_SURF_X].out, sizeof(double) * (size_t)nx);
+  memcpy(r->xt + nx, r->fields[CPL_F_SURF_FORCE].out, sizeof(double) * (size_t)nf);
+  if (road_coupled(r)) r->xt[nx + nf] = r->fields[CPL_F_ROAD_FORCE].out[0];
+}
+
+/* After the last iteration: the processes' last outputs become the fields.
+ * The tread received f_iter + carry while the grains felt f_out: the
+ * difference (at most the tolerance) is carried into the next step's force,
+ * so the impulses balance exactly over the run (one defect in flight). */
+static void implicit_commit(cpl_runner *r) {
+  const int64_t nf = if_len(r, IF_F);
+  const double *f_out = r->fields[CPL_F_SURF_FORCE].out;
+  /* defect so far = old defect + f_out - f_fem, with f_fem = iterate + old */
+  for (int64_t j = 0; j < nf; j++) r->carry[j] += f_out[j] - r->f_fem[j];
+  for (int f = 0; f < CPL_N_FIELDS; f++)
+    if (f != CPL_F_ROAD_D && r->fields[f].given) cpl_field_commit(r, (cpl_field_id)f);
+  if (road_coupled(r)) {
+    double v, a;
+    r->road.d = road_trapezoid(r, r->road_iter, &v, &a);
+    r->road.v = v;
+    r->road.a = a;
+  }
+  cpl_inputs_current(r);
+}
+
+static int implicit_step(cpl_runner *r, int64_t k, int output) {
+  const int64_t nx = if_len(r, IF_X), nf = if_len(r, IF_F);
+  const cpl_field *X = &r->fields[CPL_F_SURF_X], *V = &r->fields[CPL_F_SURF_V];
+  const double dt = r->scene->dt;
+  /* actions once, at the start (with the last step's load) */
+  for (int e = 0; e < r->nex; e++)
+    if (r->ex[e].peer < 0 && !(road_coupled(r) && r->ex[e].action == CPL_ACT_ROAD))
+      cpl_do_action(r, r->ex[e].action, k);
+  /* start: x_{k-1}; guess d_k = x_{k-1} + dt v, forces of the last step */
+  memcpy(r->x_start, X->cur, sizeof(double) * (size_t)nx);
+  for (int64_t j = 0; j < nx; j++) r->xi[j] = X->cur[j] + dt * V->cur[j];
+  memcpy(r->xi + nx, r->fields[CPL_F_SURF_FORCE].cur, sizeof(double) * (size_t)nf);
+  if (road_coupled(r)) r->xi[nx + nf] = r->road.force_last;
+  const double *base[N_IF] = {r->x_start, NULL, NULL};
+  cpl_accel_begin(r->accel);
+  r->converged = 0;
+  int it;
+  for (it = 0; it < r->scene->implicit.max_iterations; it++) {
+    implicit_inputs(r);
+    if (cpl_run_stages(r, 0, cpl_last_stage(r), k, it, output, 0, 0) < 0) return -1;
+    implicit_outputs(r);
+    r->converged = cpl_accel_next(r->accel, r->xi, r->xt, base, r->residual);
+    if (r->converged) break;
+  }
+  r->iterations = it < r->scene->implicit.max_iterations ? it + 1 : it;
+  if (!r->converged) r->steps_unconverged++; /* the last outputs are kept */
+  cpl_accel_end(r->accel);
+  implicit_commit(r);
+  return 0;
+}
+
+/* ---------------------------------------------------------- recording */
 
 /* Traction of seed 000 §5 (T_R: forces against travel, T_H: along it,
  * T_P = T_H - |T_R|), vertical load, sinkage and the torque about the axle,
  * all from the grain forces on the tread nodes. */
+enum { TR_T, TR_TH, TR_TR, TR_TP, TR_LOAD, TR_SINK, TR_TORQUE, N_TR };
+static const char *const traction_cols[N_TR] = {"t", "T_H", "T_R", "T_P",
+                                                "vertical_load", "sinkage", "torque"};
+
 static void traction(const cpl_runner *r, double t, double *row) {
   double th = 0, tr = 0, fz = 0, torque = 0;
-  const cpl_surface *s = &r->surf;
-  for (int64_t i = 0; i < s->n_nodes; i++) {
-    const double *f = &s->force[3 * i], *x = &s->x[3 * i];
+  const double *F = r->fields[CPL_F_SURF_FORCE].cur, *X = r->fields[CPL_F_SURF_X].cur;
+  for (int64_t i = 0; i < r->surf.n_nodes; i++) {
+    const double *f = &F[3 * i], *x = &X[3 * i];
     if (f[0] > 0) th += f[0];
     else tr += f[0];
     fz += f[2];
@@ -131,8 +158,19 @@ static void traction(const cpl_runner *r, double t, double *row) {
     torque += (x[2] - r->rim.c[2]) * f[0] - (x[0] - r->rim.c[0]) * f[2];
   }
   double sinkage = r->scene->scenario.rim_center[2] - r->rim.c[2];
-  double vals[7] = {t, th, tr, th - fabs(tr), fz, sinkage, torque};
+  double vals[N_TR] = {t, th, tr, th - fabs(tr), fz, sinkage, torque};
   memcpy(row, vals, sizeof vals);
+}
+
+static void publish(cpl_runner *r, const char *topic, const char *type, int64_t k,
+                    double t, const char *array, int n, const double *row) {
+  void *pub = cpl_bus_pub(r->bus);
+  if (!pub) return;
+  proto_msg m = {0};
+  proto_msg_reset(&m, topic, type, k, t);
+  proto_msg_add_f8(&m, array, n, 0, row);
+  proto_publish(pub, &m);
+  proto_msg_free(&m);
 }
 
 static int publish_reply(cpl_runner *r, int i, int output) {
@@ -141,11 +179,11 @@ static int publish_reply(cpl_runner *r, int i, int output) {
   const proto_msg *d = &r->peers[i].reply;
   proto_msg m = {0};
   for (int pass = 0; pass < 1 + output; pass++) {
-    const char *prefix = pass == 0 ? "series" : "snap.";
+    const char *prefix = pass == 0 ? PROTO_A_SERIES : PROTO_P_SNAP;
+    const char *what = pass == 0 ? "series" : "snapshot";
     char topic[PROTO_NAME_LEN];
-    snprintf(topic, sizeof topic, "%s.%s", r->peers[i].proc->name,
-             pass == 0 ? "series" : "snapshot");
-    proto_msg_reset(&m, topic, pass == 0 ? "series" : "snapshot", d->step, d->t);
+    snprintf(topic, sizeof topic, "%s.%s", r->peers[i].proc->name, what);
+    proto_msg_reset(&m, topic, what, d->step, d->t);
     for (int a = 0; a < d->narrays; a++)
       if (strncmp(d->arrays[a].name, prefix, strlen(prefix)) == 0)
         proto_msg_add(&m, d->arrays[a].name, d->arrays[a].dtype,
@@ -180,6 +218,14 @@ static void show_progress(cpl_runner *r, int64_t k, double rate, int final) {
   fflush(stderr);
 }
 
+/* The coupler's own series: wall time and, for the implicit scheme, the
+ * iterations of the step, whether it converged and the relative residual
+ * of each interface field at exit. */
+enum { CS_T, CS_WALL, CS_ITER, CS_CONV, CS_RES_X, CS_RES_F, CS_RES_ROAD, N_CS };
+static const char *const coupler_cols[N_CS] = {
+    "t", "wall_s", "iterations", "converged", "residual_x", "residual_force",
+    "residual_road"};
+
 static int record(cpl_runner *r, int64_t k, int output) {
   for (int i = 0; i < r->n; i++) {
     if (cpl_output_done(r->out, r->peers[i].proc->name, &r->peers[i].reply,
@@ -190,47 +236,55 @@ static int record(cpl_runner *r, int64_t k, int output) {
     publish_reply(r, i, output);
   }
   double t = (double)k * r->scene->dt;
-  static const char *const ccols[] = {"t", "wall_s"};
-  double crow[2] = {t, proto_now() - r->wall_start};
-  if (cpl_output_coupler_row(r->out, "series", 2, ccols, crow, &r->err) < 0)
+  double crow[N_CS] = {t, proto_now() - r->wall_start, r->iterations, r->converged,
+                       r->residual[IF_X], r->residual[IF_F], r->residual[IF_ROAD]};
+  if (cpl_output_coupler_row(r->out, PROTO_A_SERIES, N_CS, coupler_cols, crow, &r->err) < 0)
     return -1;
+  publish(r, "coupler.series", "series", k, t, PROTO_A_SERIES, N_CS, crow);
   if (r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL) {
-    static const char *const tcols[] = {"t", "T_H", "T_R", "T_P",
-                                        "vertical_load", "sinkage", "torque"};
-    double row[7];
+    double row[N_TR];
     traction(r, t, row);
-    if (cpl_output_coupler_row(r->out, "traction", 7, tcols, row, &r->err) < 0)
+    if (cpl_output_coupler_row(r->out, "traction", N_TR, traction_cols, row, &r->err) < 0)
       return -1;
   }
   if (output) cpl_output_flush(r->out);
   return 0;
 }
 
-static double vertical_load(const cpl_surface *s) {
-  double fz = 0;
-  for (int64_t i = 0; i < s->n_nodes; i++) fz += s->force[3 * i + 2];
-  return fz;
+/* ---------------------------------------------------------- the loop */
+
+static int one_step(cpl_runner *r, int64_t k, int output) {
+  switch (r->scene->scheme) {
+  case CPL_SCHEME_IMPLICIT:
+    return implicit_step(r, k, output);
+  case CPL_SCHEME_SERIAL:
+  case CPL_SCHEME_PARALLEL:
+    r->iterations = r->converged = 1;
+    return cpl_run_stages(r, 0, cpl_last_stage(r), k, 0, output, 1, 1);
+  }
+  return -1;
 }
 
 int cpl_step_loop(cpl_runner *r) {
   const cpl_scene *s = r->scene;
+  if (s->scheme == CPL_SCHEME_IMPLICIT && implicit_init(r) < 0) return -1;
+  cpl_inputs_current(r);
   double last_shown = proto_now(), start = proto_now();
   for (int64_t k = 1; k <= s->n_steps; k++) {
     int output = (k % s->output_every == 0) || k == s->n_steps;
-    int rc = 0;
-    if (r->dem >= 0) rc = step_dem(r, k, output);
-    if (rc == 0 && r->fem >= 0) {
-      cpl_rim_advance(&r->rim, &s->scenario, s->dt, vertical_load(&r->surf));
-      rc = step_fem(r, k, output);
-    }
-    if (rc == 0 && r->block >= 0) rc = step_block(r, k, output);
+    double t_step = proto_now();
+    r->t_blocked = 0;
+    int rc = one_step(r, k, output);
+    if (rc == 0) r->road.force_last = r->fields[CPL_F_ROAD_FORCE].cur[0];
+    double t_rec = proto_now();
     if (rc == 0) rc = record(r, k, output);
+    double now = proto_now();
+    if (rc == 0) rc = cpl_timing_step(r, k, now - t_step, now - t_rec);
     if (rc < 0) {
       cpl_output_flush(r->out);
       return proto_wrap(&r->err, "step %lld (t = %g s)", (long long)k,
                         (double)(k - 1) * s->dt);
     }
-    double now = proto_now();
     if (now - last_shown > 0.5 || k == s->n_steps) {
       double rate = (double)k / fmax(now - start, 1e-9);
       show_progress(r, k, rate, k == s->n_steps);
@@ -238,5 +292,11 @@ int cpl_step_loop(cpl_runner *r) {
       last_shown = now;
     }
   }
+  if (r->steps_unconverged)
+    fprintf(stderr, "cosim: warning: %lld of %lld steps did not reach "
+            "coupling.implicit.tolerance %g within max_iterations %lld "
+            "(see /coupler/series)\n", (long long)r->steps_unconverged,
+            (long long)s->n_steps, s->implicit.tolerance,
+            (long long)s->implicit.max_iterations);
   return 0;
 }

@@ -10,7 +10,8 @@ static void usage(FILE *f) {
   fprintf(f,
           "usage: cosim run CONFIG [--set KEY.PATH=VALUE]... [--attach] [--quiet]\n"
           "       cosim check CONFIG [--set KEY.PATH=VALUE]...\n"
-          "       cosim monitor ENDPOINT [--topic PREFIX]... [--count N] [--timeout S]\n"
+          "       cosim monitor ENDPOINT|OUTPUT_DIR [--topic PREFIX]... [--count N] [--timeout S]\n"
+          "       cosim roles [--json]\n"
           "       cosim road|springs|green ARGS...   (forwarded to cosim_green)\n"
           "\n"
           "run      starts the participants the scene names, couples them step by\n"
@@ -18,7 +19,10 @@ static void usage(FILE *f) {
           "         participants started by hand on coupling.attach_endpoint.\n"
           "check    validates the scene (core keys here, each process section by\n"
           "         its own executable) without running it.\n"
-          "monitor  prints what is published on a run's monitor bus.\n"
+          "monitor  prints what is published on a run's monitor bus (the endpoint,\n"
+          "         or the run's output.dir, whose endpoints.json says where it is).\n"
+          "roles    the role table: each role's messages and arrays (--json: for\n"
+          "         other languages).\n"
           "Exit codes: 0 ok, 1 bad config or usage, 3 a participant failed,\n"
           "4 output error, 130 interrupted.\n");
 }
@@ -82,11 +86,53 @@ static int cmd_run(const cli *c) {
     cpl_scene_free(&s);
     return 1;
   }
-  cpl_run_opts opts = {.attach = c->attach,
+  cpl_run_opts opts = {.attach = c->attach, .quiet = c->quiet,
                        .progress = !c->quiet && isatty(2)};
   int rc = cpl_run(&s, &opts);
   cpl_scene_free(&s);
   return rc;
+}
+
+/* `cosim roles [--json]`: the role table (proto/roles.c). */
+static int cmd_roles(int argc, char **argv) {
+  int json = argc > 2 && strcmp(argv[2], "--json") == 0;
+  if (argc > 2 + json) {
+    fprintf(stderr, "usage: cosim roles [--json]\n");
+    return 1;
+  }
+  if (json) {
+    cJSON *t = proto_role_table_json();
+    char *text = t ? cJSON_Print(t) : NULL;
+    cJSON_Delete(t);
+    if (!text) return 4;
+    printf("%s\n", text);
+    free(text);
+    return 0;
+  }
+  int n;
+  const proto_array_spec *t = proto_role_table(&n);
+  for (int r = 0; r < PROTO_N_ROLES; r++) {
+    printf("role %s\n", proto_role_name((proto_role)r));
+    for (int i = 0; i < n; i++) {
+      if ((int)t[i].role != r) continue;
+      char shape[64];
+      size_t len = (size_t)snprintf(shape, sizeof shape, "[");
+      for (int d = 0; d < t[i].ndim; d++) {
+        const int64_t v = t[i].dims[d];
+        if (v > 0)
+          len += (size_t)snprintf(shape + len, sizeof shape - len, "%s%lld", d ? "," : "",
+                                  (long long)v);
+        else
+          len += (size_t)snprintf(shape + len, sizeof shape - len, "%s%s", d ? "," : "",
+                                  v == PROTO_DIM_NODES ? "n" : "m");
+      }
+      snprintf(shape + len, sizeof shape - len, "]");
+      printf("  %-8s %-12s %s %-6s %-6s%s\n    %s\n", proto_msg_type(t[i].msg),
+             t[i].name, proto_dtype_name(t[i].dtype), shape, t[i].units,
+             t[i].when == PROTO_WHEN_SURFACE ? " (with a surface)" : "", t[i].meaning);
+    }
+  }
+  return 0;
 }
 
 /* `cosim road|springs|green ...` runs the cosim_green tool next to us. */
@@ -110,6 +156,7 @@ int cpl_main(int argc, char **argv) {
   }
   const char *cmd = argv[1];
   if (strcmp(cmd, "monitor") == 0) return cpl_monitor_main(argc - 1, argv + 1);
+  if (strcmp(cmd, "roles") == 0) return cmd_roles(argc, argv);
   if (strcmp(cmd, "road") == 0 || strcmp(cmd, "springs") == 0 ||
       strcmp(cmd, "green") == 0)
     return forward_green(argv);

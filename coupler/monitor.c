@@ -26,6 +26,24 @@ static void print_array(const proto_array *a) {
   if (n > 8) printf(",...");
 }
 
+/* The monitor endpoint a run bound, from OUTPUT_DIR/endpoints.json. */
+static int endpoint_from_dir(const char *dir, char *out, size_t cap) {
+  char path[CPL_PATH_LEN + 32];
+  snprintf(path, sizeof path, "%s/%s", dir, CPL_ENDPOINTS_FILE);
+  proto_err err = {{0}};
+  cJSON *o = proto_json_load(path, &err);
+  const cJSON *bus = o ? cJSON_GetObjectItemCaseSensitive(o, "bus_monitor") : NULL;
+  int rc = cJSON_IsString(bus) && bus->valuestring[0] ? 0 : -1;
+  if (rc == 0) snprintf(out, cap, "%s", bus->valuestring);
+  else if (o)
+    fprintf(stderr, "cosim monitor: %s: the run has no monitor bus (bus.monitor)\n", path);
+  else
+    fprintf(stderr, "cosim monitor: '%s' is neither an endpoint (tcp://, ipc://) "
+            "nor a run's output directory: %s\n", dir, err.msg);
+  cJSON_Delete(o);
+  return rc;
+}
+
 int cpl_monitor_main(int argc, char **argv) {
   const char *endpoint = NULL;
   const char *topics[16];
@@ -48,8 +66,14 @@ int cpl_monitor_main(int argc, char **argv) {
     }
   }
   if (!endpoint) {
-    fprintf(stderr, "cosim monitor: ENDPOINT is required (the scene's bus.monitor)\n");
+    fprintf(stderr, "cosim monitor: ENDPOINT (the scene's bus.monitor) or a run's "
+            "output directory is required\n");
     return 1;
+  }
+  char found[CPL_PATH_LEN];
+  if (!strstr(endpoint, "://")) { /* a run's output.dir: its endpoints.json */
+    if (endpoint_from_dir(endpoint, found, sizeof found) < 0) return 1;
+    endpoint = found;
   }
   signal(SIGINT, on_int);
   signal(SIGTERM, on_int);

@@ -97,7 +97,7 @@ static out_part *part(cpl_output *o, const char *name) {
 /* The dataset whose last row the run's summary shows: a participant's
  * "series", the coupler's "traction" (tyre scenes). */
 static int is_summary(const out_part *p, const char *ds) {
-  return strcmp(ds, strcmp(p->name, "coupler") == 0 ? "traction" : "series") == 0;
+  return strcmp(ds, strcmp(p->name, "coupler") == 0 ? "traction" : PROTO_A_SERIES) == 0;
 }
 
 static void keep_last(out_part *p, const char *ds, int ncols, const double *row) {
@@ -163,7 +163,7 @@ static int declare_snapshot(cpl_output *o, out_part *p, const cJSON *snap,
   snprintf(p->geometry, sizeof p->geometry, "%s", geom->valuestring);
   if (cJSON_IsString(cells)) {
     char name[PROTO_NAME_LEN + 8];
-    snprintf(name, sizeof name, "mesh.%s", cells->valuestring);
+    snprintf(name, sizeof name, "%s%s", PROTO_P_MESH, cells->valuestring);
     const proto_array *a = proto_msg_find(ready, name);
     if (!a || a->ndim != 2)
       return proto_fail(err, "%s: ready.snapshot.cells names '%s', which the "
@@ -187,19 +187,20 @@ int cpl_output_participant(cpl_output *o, const char *name,
   out_part *p = part(o, name);
   if (!p) return proto_fail(err, "too many participants");
   if (declare_series(o, p, cJSON_GetObjectItemCaseSensitive(ready->header,
-                                                            "series"),
+                                                            PROTO_H_SERIES),
                      err) < 0)
     return -1;
   char group[CPL_PATH_LEN];
   snprintf(group, sizeof group, "/%s/mesh", name);
   for (int i = 0; i < ready->narrays; i++) {
     const proto_array *a = &ready->arrays[i];
-    if (strncmp(a->name, "mesh.", 5) != 0) continue;
+    const size_t plen = strlen(PROTO_P_MESH);
+    if (strncmp(a->name, PROTO_P_MESH, plen) != 0) continue;
     proto_array copy = *a;
-    snprintf(copy.name, sizeof copy.name, "%s", a->name + 5);
+    snprintf(copy.name, sizeof copy.name, "%s", a->name + plen);
     if (proto_h5_write_array(o->h5, group, &copy, err) < 0) return -1;
   }
-  const cJSON *snap = cJSON_GetObjectItemCaseSensitive(ready->header, "snapshot");
+  const cJSON *snap = cJSON_GetObjectItemCaseSensitive(ready->header, PROTO_H_SNAPSHOT);
   if (cJSON_IsObject(snap) && declare_snapshot(o, p, snap, ready, err) < 0)
     return -1;
   return 0;
@@ -214,9 +215,10 @@ static out_set *find_set(out_part *p, const char *name) {
 static int append_series(out_part *p, const proto_msg *done, proto_err *err) {
   for (int i = 0; i < done->narrays; i++) {
     const proto_array *a = &done->arrays[i];
-    const char *ds = strcmp(a->name, "series") == 0 ? "series"
-                     : strncmp(a->name, "series.", 7) == 0 ? a->name + 7
-                                                          : NULL;
+    const size_t plen = strlen(PROTO_P_SERIES);
+    const char *ds = strcmp(a->name, PROTO_A_SERIES) == 0 ? PROTO_A_SERIES
+                     : strncmp(a->name, PROTO_P_SERIES, plen) == 0 ? a->name + plen
+                                                                   : NULL;
     if (!ds) continue;
     out_set *set = find_set(p, ds);
     if (!set)
@@ -231,7 +233,7 @@ static int append_series(out_part *p, const proto_msg *done, proto_err *err) {
       if (!isfinite(row[c]))
         return proto_fail(err, "%s: %s column %d (%s) is %g at t = %g s "
                           "(the solver blew up; see its log)", p->name, ds, c,
-                          strcmp(ds, "series") == 0 ? p->columns[c] : "-",
+                          strcmp(ds, PROTO_A_SERIES) == 0 ? p->columns[c] : "-",
                           row[c], done->t);
     keep_last(p, ds, set->ncols, a->data);
   }
@@ -244,12 +246,13 @@ static int write_snapshot(cpl_output *o, out_part *p, const proto_msg *done,
   snprintf(group, sizeof group, "/%s/steps/%lld", p->name, (long long)done->step);
   const proto_array *geometry = NULL;
   char gname[PROTO_NAME_LEN + 8];
-  snprintf(gname, sizeof gname, "snap.%s", p->geometry);
+  snprintf(gname, sizeof gname, "%s%s", PROTO_P_SNAP, p->geometry);
   for (int i = 0; i < done->narrays; i++) {
     const proto_array *a = &done->arrays[i];
-    if (strncmp(a->name, "snap.", 5) != 0) continue;
+    const size_t plen = strlen(PROTO_P_SNAP);
+    if (strncmp(a->name, PROTO_P_SNAP, plen) != 0) continue;
     proto_array copy = *a;
-    snprintf(copy.name, sizeof copy.name, "%s", a->name + 5);
+    snprintf(copy.name, sizeof copy.name, "%s", a->name + plen);
     if (proto_h5_write_array(o->h5, group, &copy, err) < 0) return -1;
     if (strcmp(a->name, gname) == 0) geometry = a;
   }
@@ -261,7 +264,7 @@ static int write_snapshot(cpl_output *o, out_part *p, const proto_msg *done,
   snprintf(geo, sizeof geo, "%s/%s", group, p->geometry);
   for (int i = 0; i < p->nattrs; i++) {
     char an[PROTO_NAME_LEN + 8];
-    snprintf(an, sizeof an, "snap.%s", p->attrs[i]);
+    snprintf(an, sizeof an, "%s%s", PROTO_P_SNAP, p->attrs[i]);
     const proto_array *a = proto_msg_find(done, an);
     if (!a) continue;
     snprintf(paths[n], sizeof paths[n], "%s/%s", group, p->attrs[i]);
@@ -303,6 +306,14 @@ int cpl_output_coupler_row(cpl_output *o, const char *dataset, int ncols,
 }
 
 int cpl_output_flush(cpl_output *o) { return o ? proto_h5_flush(o->h5) : 0; }
+
+int cpl_output_endpoints(cpl_output *o, const char *control, const char *bus,
+                         proto_err *err) {
+  return proto_h5_attr_str(o->h5, "/", "control_endpoint", control, err) < 0 ||
+                 proto_h5_attr_str(o->h5, "/", "bus_monitor", bus, err) < 0
+             ? -1
+             : 0;
+}
 
 int cpl_output_summary(const cpl_output *o, char *out, size_t cap) {
   size_t len = 0;

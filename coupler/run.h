@@ -1,26 +1,97 @@
 /* run.h — the state of one coupled run, shared by run.c (setup, handshake,
- * teardown) and loop.c (the lock-step exchange). Internal to the coupler. */
+ * teardown), schedule.c (the exchanges of a step, walked as data), loop.c
+ * (the schemes), accel.c (implicit acceleration) and timing.c. Internal to
+ * the coupler. */
 #ifndef COSIM_COUPLER_RUN_H
 #define COSIM_COUPLER_RUN_H
 
+#include <stdio.h>
+
 #include "internal.h"
+
+/* ------------------------------------------------------------ fields
+ * What the coupler holds between the processes (PROTOCOL.md "Schedule"):
+ * the coupled surface, the rim frame and the road. Each field has its
+ * current value (`cur`, what requests read unless the scheme points them
+ * elsewhere) and an output buffer (`out`, where replies land, summed over
+ * the processes that give it); a stage's outputs are committed by swapping
+ * the two, so that a buffer still being sent is never overwritten. */
+typedef enum cpl_field_id {
+  CPL_F_SURF_X,     /* [n,3] surface positions (t_{k-1} in requests) */
+  CPL_F_SURF_V,     /* [n,3] surface velocity over the step */
+  CPL_F_SURF_FORCE, /* [n,3] force of the grains on the surface nodes */
+  CPL_F_RIM_R,      /* [3,3] the rim frame at t_k (scenario) */
+  CPL_F_RIM_C,
+  CPL_F_RIM_OMEGA,
+  CPL_F_RIM_V,
+  CPL_F_ROAD_D,     /* [1] road displacement at t_k (scenario / road body) */
+  CPL_F_ROAD_FORCE, /* [1] force of the blocks on the road */
+  CPL_N_FIELDS
+} cpl_field_id;
+
+typedef struct cpl_field {
+  const char *name;
+  int64_t len;      /* doubles */
+  double *cur, *out;
+  int given;        /* outputs of this step: number of processes that gave it */
+} cpl_field;
+
+/* A role-table array bound to a field: requests read in[field]; replies are
+ * summed (several processes of one role: forces add) or copied into out. */
+typedef struct cpl_binding {
+  proto_role role;
+  proto_msg_kind msg; /* PROTO_MSG_STEP (request) or PROTO_MSG_DONE (reply) */
+  const char *array;
+  cpl_field_id field;
+  int sum;
+} cpl_binding;
+
+/* ------------------------------------------------------------ schedule
+ * The step as data: exchanges in order. All requests of one stage are sent
+ * before any reply is awaited (processes of a stage compute at the same
+ * time); a coupler action runs before the stage's requests. */
+typedef enum cpl_action {
+  CPL_ACT_NONE,
+  CPL_ACT_RIM,  /* advance the rim frame by the scenario (uses the vertical load) */
+  CPL_ACT_ROAD  /* road displacement of t_k: profile, or the road body */
+} cpl_action;
+
+typedef struct cpl_exchange {
+  int stage;
+  int peer;          /* process index, or -1: a coupler action */
+  cpl_action action;
+} cpl_exchange;
+
+#define CPL_MAX_EXCHANGES (CPL_MAX_PROCS + 4)
 
 typedef struct cpl_peer {
   cpl_process *proc;
-  int connected; /* hello received */
-  int stopped;   /* bye received or known gone */
-  proto_msg reply;
+  proto_role role;   /* from its hello */
+  int connected;     /* hello received */
+  int stopped;       /* bye received or known gone */
+  int rollback;      /* ready.rollback: it can repeat a step */
+  proto_dims dims;   /* the role table's n, m for this process */
+  proto_msg reply;   /* its last reply (kept for output until the next step) */
+  /* timing of the current step (timing.c) */
+  double t_sent, busy, compute;
 } cpl_peer;
 
-/* The shared surface of the tread: node positions in the rim frame at rest,
- * and the current world positions/velocities and grain forces on them. */
+/* The shared surface of the tread: node positions in the rim frame at rest
+ * (from the fem's ready) and the triangles. Its world values are fields. */
 typedef struct cpl_surface {
   int64_t n_nodes, n_tris;
   double *x0;    /* [n,3] rim frame (owned) */
   int32_t *tri;  /* [m,3] */
-  double *x, *v; /* [n,3] world, current */
-  double *force; /* [n,3] world: grains on the tread */
 } cpl_surface;
+
+/* The road body of the force-driven indentation (seed 002 fig. 49). */
+typedef struct cpl_road {
+  double d, v, a;     /* displacement, velocity, acceleration at t_{k-1} */
+  double force_last;  /* contact force of the last step */
+} cpl_road;
+
+typedef struct cpl_timing cpl_timing;
+typedef struct cpl_accel cpl_accel;
 
 typedef struct cpl_runner {
   cpl_scene *scene;
@@ -31,28 +102,99 @@ typedef struct cpl_runner {
   char run_dir[CPL_PATH_LEN];
   char ctl_endpoint[CPL_PATH_LEN];
   char bus_inner[CPL_PATH_LEN];
+  char bus_public[CPL_PATH_LEN]; /* actual monitor endpoint (port 0 resolved) */
   int n;
   cpl_peer peers[CPL_MAX_PROCS];
   cpl_child children[CPL_MAX_PROCS];
   int nchildren;
-  int dem, fem, block; /* peer indices or -1 */
+  int n_of_role[PROTO_N_ROLES];
+  int fem;           /* the process giving the surface, or -1 */
+  /* fields and the step's exchanges */
   cpl_surface surf;
+  cpl_field fields[CPL_N_FIELDS];
+  const double *in[CPL_N_FIELDS]; /* what requests send (set by the scheme) */
+  int nex;
+  cpl_exchange ex[CPL_MAX_EXCHANGES];
   cpl_rim rim;
-  double d_road, road_velocity, road_force_last; /* block road body */
-  double wall_start;
+  cpl_road road;
+  /* implicit scheme (loop.c) */
+  cpl_accel *accel;
+  double *xi, *xt;        /* interface vector: iterate and H(iterate) */
+  double *x_start;        /* surface positions at t_{k-1} */
+  double *v_dem;          /* secant velocity (d - x_start)/dt the DEM moves at */
+  double *f_fem;          /* force the FEM gets: iterate + carried defect */
+  double *carry;          /* impulse defect of the last step / dt */
+  double road_iter;       /* road force iterate */
+  int iterations, converged;
+  double residual[3];     /* relative residual per interface field at exit */
+  int64_t steps_unconverged;
+  /* timing */
+  cpl_timing *timing;
+  double wall_start, t_blocked; /* t_blocked: time in receive this step */
+  proto_msg inbox; /* receive buffer, swapped into the sender's reply slot */
   int failed_peer; /* index of the participant that failed, or -1 */
   proto_err err;
 } cpl_runner;
 
-/* Receives the next message from `expect` (a peer index, or -1 for any
- * peer), watching the children, the deadline and Ctrl-C. The sender's index
- * goes to *from. Returns -1 with r->err set and r->failed_peer naming the
- * culprit when one can be named. */
+/* run.c: receives the next message from `expect` (a peer index, or -1 for
+ * any peer), watching the children, the deadline and Ctrl-C. The sender's
+ * index goes to *from. Returns -1 with r->err set and r->failed_peer naming
+ * the culprit when one can be named. */
 int cpl_receive(cpl_runner *r, int expect, double timeout_s, proto_msg *m,
                 int *from);
 int cpl_send(cpl_runner *r, int peer, const proto_msg *m);
-/* The lock-step loop over all steps (loop.c). */
+
+/* schedule.c */
+/* Allocates the fields for a surface of n nodes (n may be 0). */
+int cpl_fields_init(cpl_runner *r, int64_t n, proto_err *err);
+void cpl_fields_free(cpl_runner *r);
+/* Builds the exchange list of the scheme from the processes' roles. */
+void cpl_schedule_build(cpl_runner *r);
+/* Prints the schedule ("who gives what to whom"), one line per stage. */
+void cpl_schedule_print(const cpl_runner *r, FILE *f);
+/* Runs the stages of the schedule from `first` to `last`: its actions (if
+ * actions), all requests of a stage, then all its replies; outputs are
+ * summed/copied into the fields' out buffers in exchange order
+ * (deterministic), then, if commit, swapped in. */
+int cpl_run_stages(cpl_runner *r, int first, int last, int64_t k, int iteration,
+                   int output, int commit, int actions);
+int cpl_last_stage(const cpl_runner *r);
+/* Sets r->in to the fields' current values (serial, parallel). */
+void cpl_inputs_current(cpl_runner *r);
+void cpl_field_commit(cpl_runner *r, cpl_field_id id);
+/* Runs a coupler action for step k (scenario; road body). */
+void cpl_do_action(cpl_runner *r, cpl_action a, int64_t k);
+double cpl_vertical_load(const cpl_runner *r);
+
+/* loop.c: the loop over all steps. */
 int cpl_step_loop(cpl_runner *r);
+
+/* accel.c: acceleration of the implicit scheme on a vector of nf fields
+ * (lengths len[f]). One time step: cpl_accel_begin; then per iteration
+ * cpl_accel_next(x = input used, xt = H(x)) which tests convergence (per
+ * field, ||xt_f - x_f|| <= tol ||xt_f - base_f||; base NULL = 0) and, if not
+ * converged, overwrites x with the next input; cpl_accel_end at the end. */
+#define CPL_ACCEL_MAX_FIELDS 4
+cpl_accel *cpl_accel_create(const cpl_implicit *opt, int nf, const int64_t *len,
+                            proto_err *err);
+void cpl_accel_free(cpl_accel *a);
+void cpl_accel_begin(cpl_accel *a);
+/* Returns 1 converged, 0 not (x updated). res[f]: relative residuals. */
+int cpl_accel_next(cpl_accel *a, double *x, const double *xt,
+                   const double *const *base, double *res);
+void cpl_accel_end(cpl_accel *a);
+int cpl_accel_columns(const cpl_accel *a);
+
+/* timing.c: compute / transfer+encode / waiting per process and step, the
+ * coupler's own mapping and output time; /coupler/timing rows; the
+ * end-of-run table. */
+cpl_timing *cpl_timing_create(const cpl_runner *r);
+void cpl_timing_free(cpl_timing *t);
+/* A reply of peer i arrived at `now` (compute seconds from its header). */
+void cpl_timing_reply(cpl_runner *r, int i, double now, double compute);
+/* Closes step k: wall and output seconds; appends the row, publishes it. */
+int cpl_timing_step(cpl_runner *r, int64_t k, double wall, double output_s);
+void cpl_timing_print(const cpl_runner *r, FILE *f);
 
 /* Set by the SIGINT/SIGTERM handler: the only process-wide state, because a
  * signal handler can reach nothing else. */

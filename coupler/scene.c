@@ -14,7 +14,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-static const char *const role_names[] = {"dem", "fem", "block", NULL};
+static const char *const scheme_names[] = {"serial", "parallel", "implicit", NULL};
+static const char *const accel_names[] = {"iqn-ils", "aitken", "constant", NULL};
+
+const char *cpl_scheme_name(cpl_scheme s) {
+  return (unsigned)s <= CPL_SCHEME_IMPLICIT ? scheme_names[s] : "?";
+}
 
 static int read_time(proto_cfg *root, cpl_scene *s) {
   proto_cfg c;
@@ -62,23 +67,57 @@ static int read_bus(proto_cfg *root, cpl_scene *s) {
   return proto_cfg_end(&c);
 }
 
+/* coupling.implicit (notes/coupling-schemes.md §2-3). */
+static int read_implicit(proto_cfg *parent, cpl_scene *s) {
+  cpl_implicit *im = &s->implicit;
+  im->tolerance = 1e-6;
+  im->max_iterations = 50;
+  im->acceleration = CPL_ACCEL_IQN_ILS;
+  im->relaxation = 0.5;
+  im->reuse = 8;        /* preCICE: 10 */
+  im->max_columns = 40; /* preCICE: 100; fewer keep the least squares cheap */
+  im->filter = 1e-2;    /* QR2 limit (preCICE's QR3 default) */
+  if (!parent) return 0;
+  proto_cfg c;
+  int rc = proto_cfg_child(parent, "implicit", PROTO_OPTIONAL, &c);
+  if (rc != 0) return rc < 0 ? -1 : 0;
+  int accel = 0;
+  if (proto_cfg_num(&c, "tolerance", PROTO_OPTIONAL, 1e-15, 1, &im->tolerance) < 0 ||
+      proto_cfg_int(&c, "max_iterations", PROTO_OPTIONAL, 1, 100000,
+                    &im->max_iterations) < 0 ||
+      proto_cfg_enum(&c, "acceleration", PROTO_OPTIONAL, accel_names, &accel) < 0 ||
+      proto_cfg_num(&c, "relaxation", PROTO_OPTIONAL, 1e-6, 1, &im->relaxation) < 0 ||
+      proto_cfg_int(&c, "reuse", PROTO_OPTIONAL, 0, 1000, &im->reuse) < 0 ||
+      proto_cfg_int(&c, "max_columns", PROTO_OPTIONAL, 1, 1000, &im->max_columns) < 0 ||
+      proto_cfg_num(&c, "filter", PROTO_OPTIONAL, 0, 1, &im->filter) < 0)
+    return -1;
+  im->acceleration = (cpl_accel_kind)accel;
+  return proto_cfg_end(&c);
+}
+
 static int read_coupling(proto_cfg *root, cpl_scene *s) {
   proto_cfg c;
-  static const char *const schemes[] = {"serial", NULL};
   int scheme = 0;
   s->handshake_timeout = 10;
   s->step_timeout = 60;
-  snprintf(s->attach_endpoint, sizeof s->attach_endpoint, "tcp://127.0.0.1:5570");
+  snprintf(s->attach_endpoint, sizeof s->attach_endpoint, "tcp://127.0.0.1:0");
   int rc = proto_cfg_child(root, "coupling", PROTO_OPTIONAL, &c);
-  if (rc != 0) return rc < 0 ? -1 : 0;
-  if (proto_cfg_enum(&c, "scheme", PROTO_OPTIONAL, schemes, &scheme) < 0 ||
+  if (rc < 0) return -1;
+  if (rc > 0) return read_implicit(NULL, s);
+  if (proto_cfg_enum(&c, "scheme", PROTO_OPTIONAL, scheme_names, &scheme) < 0 ||
       proto_cfg_num(&c, "handshake_timeout", PROTO_OPTIONAL, 0.1, 86400,
                     &s->handshake_timeout) < 0 ||
       proto_cfg_num(&c, "step_timeout", PROTO_OPTIONAL, 0.1, 86400,
                     &s->step_timeout) < 0 ||
       proto_cfg_str(&c, "attach_endpoint", PROTO_OPTIONAL, s->attach_endpoint,
-                    sizeof s->attach_endpoint) < 0)
+                    sizeof s->attach_endpoint) < 0 ||
+      read_implicit(&c, s) < 0)
     return -1;
+  s->scheme = (cpl_scheme)scheme;
+  const char *ep = s->attach_endpoint;
+  if (strncmp(ep, "tcp://", 6) != 0 || !strrchr(ep + 6, ':'))
+    return proto_fail(c.err, "coupling.attach_endpoint: expected tcp://HOST:PORT "
+                      "(PORT 0: any free port), got '%s'", ep);
   return proto_cfg_end(&c);
 }
 
@@ -145,45 +184,87 @@ static int read_scenario(proto_cfg *root, cpl_scene *s) {
   return proto_cfg_end(&c);
 }
 
+/* exec: "name_or_path", or ["launcher", "args"..., "participant"]. */
+static int read_exec(const cJSON *exec, cpl_process *p, proto_err *err) {
+  if (!exec)
+    return proto_fail(err, "processes.%s.exec: required key is missing", p->name);
+  const cJSON *one = cJSON_IsString(exec) ? exec : NULL;
+  int n = one ? 1 : cJSON_IsArray(exec) ? cJSON_GetArraySize(exec) : 0;
+  if (n < 1 || n > CPL_MAX_ARGV)
+    return proto_fail(err, "processes.%s.exec: expected the name or path of an "
+                      "executable, or a list of 1 to %d strings (a launcher "
+                      "prefix, then the participant)", p->name, CPL_MAX_ARGV);
+  size_t len = 0;
+  for (int i = 0; i < n; i++) {
+    const cJSON *a = one ? one : cJSON_GetArrayItem(exec, i);
+    if (!cJSON_IsString(a) || !a->valuestring[0] ||
+        strlen(a->valuestring) >= CPL_PATH_LEN) {
+      if (one)
+        return proto_fail(err, "processes.%s.exec: expected the name or path "
+                          "of an executable", p->name);
+      return proto_fail(err, "processes.%s.exec[%d]: expected a non-empty "
+                        "string", p->name, i);
+    }
+    p->argv[i] = a->valuestring;
+    if (len < sizeof p->exec)
+      len += (size_t)snprintf(p->exec + len, sizeof p->exec - len, "%s%s",
+                              i ? " " : "", a->valuestring);
+  }
+  p->argc = n;
+  return 0;
+}
+
 static int read_processes(proto_cfg *root, cpl_scene *s) {
   proto_cfg c;
   if (proto_cfg_child(root, "processes", PROTO_REQUIRED, &c) != 0) return -1;
   for (const cJSON *it = c.obj->child; it; it = it->next) {
-    int role = -1;
-    for (int r = 0; role_names[r]; r++)
-      if (strcmp(it->string, role_names[r]) == 0) role = r;
-    if (role < 0)
-      return proto_fail(c.err, "processes.%s: unknown process (expected one "
-                        "of: dem, fem, block)", it->string);
+    for (int i = 0; i < s->nprocs; i++)
+      if (strcmp(s->procs[i].name, it->string) == 0)
+        return proto_fail(c.err, "processes.%s: duplicate key (each process "
+                          "name may appear once)", it->string);
+    if (s->nprocs == CPL_MAX_PROCS)
+      return proto_fail(c.err, "processes: more than %d processes", CPL_MAX_PROCS);
+    if (!it->string[0] || strlen(it->string) >= PROTO_NAME_LEN - 16 ||
+        strpbrk(it->string, "/ .\"\\"))
+      return proto_fail(c.err, "processes.%s: a process name has 1 to %d "
+                        "characters, without '/', '.', spaces or quotes",
+                        it->string, PROTO_NAME_LEN - 17);
     cpl_process *p = &s->procs[s->nprocs++];
+    memset(p, 0, sizeof *p);
     snprintf(p->name, sizeof p->name, "%s", it->string);
-    p->role = (cpl_role)role;
     proto_cfg sec;
     if (proto_cfg_child(&c, it->string, PROTO_REQUIRED, &sec) != 0) return -1;
     p->section = sec.obj;
-    const cJSON *exec = cJSON_GetObjectItemCaseSensitive(sec.obj, "exec");
-    if (!exec)
-      return proto_fail(c.err, "processes.%s.exec: required key is missing",
-                        p->name);
-    if (!cJSON_IsString(exec) || !exec->valuestring[0] ||
-        strlen(exec->valuestring) >= sizeof p->exec)
-      return proto_fail(c.err, "processes.%s.exec: expected the name or path "
-                        "of an executable", p->name);
-    snprintf(p->exec, sizeof p->exec, "%s", exec->valuestring);
+    if (read_exec(cJSON_GetObjectItemCaseSensitive(sec.obj, "exec"), p, c.err) < 0)
+      return -1;
   }
   if (s->nprocs == 0)
     return proto_fail(c.err, "processes: the scene names no process");
   return 0;
 }
 
-static int check_combination(cpl_scene *s, proto_err *err) {
-  int has[3] = {0};
-  for (int i = 0; i < s->nprocs; i++) has[s->procs[i].role] = 1;
-  if (s->scenario.kind == CPL_SCN_TIRE_TRAVEL && !(has[0] && has[1]))
-    return proto_fail(err, "scenario.kind: 'tire_travel' needs processes.dem "
-                      "and processes.fem");
-  if (s->scenario.kind == CPL_SCN_INDENTATION && !has[2])
-    return proto_fail(err, "scenario.kind: 'indentation' needs processes.block");
+int cpl_check_roles(const cpl_scene *s, const proto_role *roles, proto_err *err) {
+  int count[PROTO_N_ROLES] = {0};
+  char have[512] = "";
+  size_t len = 0;
+  for (int i = 0; i < s->nprocs; i++) {
+    count[roles[i]]++;
+    if (len < sizeof have)
+      len += (size_t)snprintf(have + len, sizeof have - len, "%s%s (%s)",
+                              i ? ", " : "", s->procs[i].name,
+                              proto_role_name(roles[i]));
+  }
+  if (count[PROTO_ROLE_FEM] > 1)
+    return proto_fail(err, "processes: %d processes of role fem; a scene has "
+                      "one coupled surface, so at most one (processes: %s)",
+                      count[PROTO_ROLE_FEM], have);
+  if (s->scenario.kind == CPL_SCN_TIRE_TRAVEL &&
+      !(count[PROTO_ROLE_DEM] && count[PROTO_ROLE_FEM]))
+    return proto_fail(err, "scenario.kind: 'tire_travel' needs a process of "
+                      "role dem and one of role fem (processes: %s)", have);
+  if (s->scenario.kind == CPL_SCN_INDENTATION && !count[PROTO_ROLE_BLOCK])
+    return proto_fail(err, "scenario.kind: 'indentation' needs a process of "
+                      "role block (processes: %s)", have);
   return 0;
 }
 
@@ -206,7 +287,7 @@ int cpl_scene_load(cpl_scene *s, const char *path, int nset,
   if (read_time(&root, s) < 0 || read_output(&root, s) < 0 ||
       read_bus(&root, s) < 0 || read_coupling(&root, s) < 0 ||
       read_scenario(&root, s) < 0 || read_processes(&root, s) < 0 ||
-      proto_cfg_end(&root) < 0 || check_combination(s, err) < 0)
+      proto_cfg_end(&root) < 0)
     return proto_wrap(err, "%s", path);
   return 0;
 }
@@ -223,44 +304,79 @@ static int executable(const char *path) {
   return stat(path, &st) == 0 && S_ISREG(st.st_mode) && access(path, X_OK) == 0;
 }
 
-int cpl_resolve_exec(cpl_process *p, proto_err *err) {
-  if (strchr(p->exec, '/')) {
-    if (!executable(p->exec))
-      return proto_fail(err, "processes.%s.exec: '%s' is not an executable "
-                        "file", p->name, p->exec);
-    if (!realpath(p->exec, p->resolved))
-      return proto_fail(err, "processes.%s.exec: %s", p->name, strerror(errno));
+/* A path with '/' as given (must be executable), else next to the cosim
+ * binary, else on PATH (if search_path). 0 found, -1 not found. */
+static int find_exec(const char *name, int search_path, char *out, char *self) {
+  if (strchr(name, '/')) {
+    if (!executable(name) || !realpath(name, out)) return -1;
     return 0;
   }
-  char self[CPL_PATH_LEN] = {0}, cand[2 * CPL_PATH_LEN];
-  ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+  char cand[2 * CPL_PATH_LEN];
+  ssize_t n = readlink("/proc/self/exe", self, CPL_PATH_LEN - 1);
   if (n > 0) {
+    self[n] = 0;
     char *slash = strrchr(self, '/');
     if (slash) *slash = 0;
-    snprintf(cand, sizeof cand, "%s/%s", self, p->exec);
+    snprintf(cand, sizeof cand, "%s/%s", self, name);
     if (executable(cand)) {
-      snprintf(p->resolved, sizeof p->resolved, "%s", cand);
+      snprintf(out, CPL_PATH_LEN, "%s", cand);
       return 0;
     }
   }
-  const char *path = getenv("PATH");
+  const char *path = search_path ? getenv("PATH") : NULL;
   while (path && *path) {
     size_t len = strcspn(path, ":");
-    snprintf(cand, sizeof cand, "%.*s/%s", (int)len, path, p->exec);
+    snprintf(cand, sizeof cand, "%.*s/%s", (int)len, path, name);
     if (len && executable(cand)) {
-      snprintf(p->resolved, sizeof p->resolved, "%s", cand);
+      snprintf(out, CPL_PATH_LEN, "%s", cand);
       return 0;
     }
     path += len + (path[len] == ':');
   }
-  return proto_fail(err, "processes.%s.exec: '%s' not found (looked in %s "
-                    "and on PATH)", p->name, p->exec, self);
+  return -1;
 }
 
-/* Runs `exec --check-config - --name NAME` with the section on stdin and
+int cpl_resolve_exec(cpl_process *p, proto_err *err) {
+  char self[CPL_PATH_LEN] = "";
+  const char *first = p->argv[0], *last = p->argv[p->argc - 1];
+  const char *key = p->argc > 1 ? "exec[0]" : "exec";
+  if (find_exec(first, 1, p->resolved, self) < 0) {
+    if (strchr(first, '/'))
+      return proto_fail(err, "processes.%s.%s: '%s' is not an executable file",
+                        p->name, key, first);
+    return proto_fail(err, "processes.%s.%s: '%s' not found (looked in %s and on "
+                      "PATH)", p->name, key, first, self);
+  }
+  if (p->argc == 1) {
+    snprintf(p->participant, sizeof p->participant, "%s", p->resolved);
+    return 0;
+  }
+  /* behind a launcher: the participant is resolved if it is ours (next to
+   * cosim) or a path; otherwise the launcher finds it (e.g. on its PATH) */
+  if (find_exec(last, 0, p->participant, self) < 0) {
+    if (strchr(last, '/'))
+      return proto_fail(err, "processes.%s.exec[%d]: '%s' is not an executable "
+                        "file", p->name, p->argc - 1, last);
+    snprintf(p->participant, sizeof p->participant, "%s", last);
+  }
+  return 0;
+}
+
+cJSON *cpl_section_for_participant(const cpl_process *p) {
+  cJSON *sec = cJSON_Duplicate(p->section, 1);
+  if (sec && p->argc > 1)
+    cJSON_ReplaceItemInObjectCaseSensitive(sec, "exec",
+                                           cJSON_CreateString(p->argv[p->argc - 1]));
+  return sec;
+}
+
+/* Runs `participant --check-config - --name NAME` (the last element of exec
+ * alone: checking a section needs no launcher) with the section on stdin and
  * returns its verdict; its stderr becomes the error message. */
 static int check_one(const cpl_process *p, proto_err *err) {
-  char *text = cJSON_PrintUnformatted(p->section);
+  cJSON *sec = cpl_section_for_participant(p);
+  char *text = sec ? cJSON_PrintUnformatted(sec) : NULL;
+  cJSON_Delete(sec);
   int in[2], out[2];
   if (!text || pipe(in) < 0 || pipe(out) < 0) {
     free(text);
@@ -273,8 +389,8 @@ static int check_one(const cpl_process *p, proto_err *err) {
     dup2(out[1], 1);
     close(in[1]);
     close(out[0]);
-    execl(p->resolved, p->resolved, "--check-config", "-", "--name", p->name,
-          (char *)NULL);
+    execlp(p->participant, p->participant, "--check-config", "-", "--name",
+           p->name, (char *)NULL);
     _exit(127);
   }
   close(in[0]);

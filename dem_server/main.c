@@ -1,5 +1,10 @@
 /* dem_server — the DEM as a cosim participant (role "dem", proto/PROTOCOL.md).
- * Sub-steps inside one coupling step when its own dt is smaller. */
+ * Sub-steps inside one coupling step when its own dt is smaller; what it
+ * returns then stands for the whole step (the role table): the nodal force
+ * and the wall forces are the impulse over the step divided by dt, the mean
+ * of the sub-steps' forces, so the tread receives exactly the impulse the
+ * grains lost. The surface moves at the given velocity within the step
+ * (dem_mesh_set_nodes, then dem_step moves it by v dt per sub-step). */
 #include "dem_server/dem.h"
 
 #include <math.h>
@@ -16,9 +21,14 @@ typedef struct dem_app {
   int surface;         /* mesh index of the coupled FEM surface, -1 if none */
   int threads_logged;  /* thread count last written to the log */
   double series[6];
-  double *wall_row;    /* t, then Fx Fy Fz per wall */
+  double *wall_row;    /* t, then Fx Fy Fz per wall (means over the step) */
+  double *surface_force; /* [n*3] nodal force, mean over the step's sub-steps */
   double *snap_x, *snap_v, *snap_w, *snap_r;
 } dem_app;
+
+enum { SNAP_X, SNAP_V, SNAP_OMEGA, SNAP_R, N_SNAP };
+static const char *const SNAP[N_SNAP] = {"x", "v", "omega", "r"};
+static const char *const WALL_FORCES = "wall_forces";
 
 static const char *const SERIES[] = {"t", "kinetic_energy", "contacts", "max_overlap_ratio",
                                      "elastic_energy", "coordination"};
@@ -41,14 +51,14 @@ static int configure(void *user, const proto_run_info *info, const cJSON *sectio
 
 static int add_surface(dem_app *a, const proto_msg *welcome, proto_err *err) {
   a->surface = -1;
-  if (!proto_msg_find(welcome, "surface_x0")) return 0;
-  const double *x0 = proto_msg_get_f8(welcome, "surface_x0", -1, 3, err);
-  const int64_t tshape[2] = {-1, 3};
-  const proto_array *tri = proto_msg_get(welcome, "surface_tri", PROTO_I4, 2, tshape, err);
-  if (!x0 || !tri) return -1;
-  const proto_array *xa = proto_msg_find(welcome, "surface_x0");
+  /* checked against the role table by the participant loop */
+  const proto_array *xa = proto_msg_find(welcome, PROTO_A_SURFACE_X0);
+  const proto_array *tri = proto_msg_find(welcome, PROTO_A_SURFACE_TRI);
+  if (!xa) return 0;
   a->surface = a->model.n_meshes;
-  return dem_model_set_surface(&a->model, (int)xa->shape[0], x0, (int)tri->shape[0],
+  a->surface_force = calloc(3 * (size_t)xa->shape[0], sizeof(double));
+  if (!a->surface_force) return proto_fail(err, "out of memory");
+  return dem_model_set_surface(&a->model, (int)xa->shape[0], xa->data, (int)tri->shape[0],
                                (const int32_t *)tri->data, err);
 }
 
@@ -84,13 +94,12 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   if (!a->wall_row || !a->snap_x || !a->snap_v || !a->snap_w || !a->snap_r)
     return proto_fail(err, "out of memory");
   dem_gather(&a->state, a->state.radius, 1, a->snap_r);
-  const char *attrs[] = {"v", "omega", "r"};
-  if (proto_ready_series(ready, "series", 6, SERIES) < 0 ||
-      proto_ready_snapshot(ready, "points", "x", NULL, 3, attrs) < 0)
+  if (proto_ready_series(ready, PROTO_A_SERIES, 6, SERIES) < 0 ||
+      proto_ready_snapshot(ready, "points", SNAP[SNAP_X], NULL, 3, SNAP + SNAP_V) < 0)
     return proto_fail(err, "out of memory");
   cJSON *h = proto_msg_header(ready);
-  cJSON *series = cJSON_GetObjectItemCaseSensitive(h, "series");
-  cJSON *wf = cJSON_AddArrayToObject(series, "wall_forces");
+  cJSON *series = cJSON_GetObjectItemCaseSensitive(h, PROTO_H_SERIES);
+  cJSON *wf = cJSON_AddArrayToObject(series, WALL_FORCES);
   cJSON_AddItemToArray(wf, cJSON_CreateString("t"));
   for (int w = 0; w < m->n_walls; w++)
     for (int k = 0; k < 3; k++) {
@@ -115,71 +124,103 @@ static void publish_summary(dem_app *a, proto_peer *peer, int64_t step, double t
   snprintf(topic, sizeof topic, "%s.summary", a->name);
   proto_msg_reset(&m, topic, "summary", step, t);
   cJSON_AddItemToObject(proto_msg_header(&m), "columns", cJSON_CreateStringArray(SERIES, 6));
-  proto_msg_add_f8(&m, "series", 6, 0, a->series);
+  proto_msg_add_f8(&m, PROTO_A_SERIES, 6, 0, a->series);
   proto_peer_publish(peer, &m);
   proto_msg_free(&m);
 }
 
-static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *reply, proto_err *err) {
+/* The mean over the step's sub-steps, in place: the impulse/dt of the role
+ * table. One sub-step: the sub-step's force itself, bit for bit. */
+static void accumulate(double *sum, const double *f, size_t n, long long k) {
+  if (k == 0) memcpy(sum, f, n * sizeof(double));
+  else
+    for (size_t i = 0; i < n; i++) sum[i] += f[i];
+}
+
+static void to_mean(double *sum, size_t n, long long nsub) {
+  if (nsub == 1) return;
+  for (size_t i = 0; i < n; i++) sum[i] /= (double)nsub;
+}
+
+static int step(void *user, proto_peer *peer, const proto_step_info *info, const proto_msg *req,
+                proto_msg *reply, proto_err *err) {
   dem_app *a = user;
   dem_model *m = &a->model;
   dem_state *s = &a->state;
-  const cJSON *hdt = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "dt") : NULL;
-  const double dt = cJSON_IsNumber(hdt) ? hdt->valuedouble : a->run_dt;
-  if (!(dt > 0)) return proto_fail(err, "step %lld: no coupling dt", (long long)req->step);
+  const double dt = info->dt;
   if (fabs(dt - a->run_dt) > 1e-12 * dt) { /* coupling step changed: re-split it */
     if (dem_model_set_dt(m, dt, err)) return -1;
     a->run_dt = dt;
   }
-  if (a->surface >= 0) {
-    const int nn = m->meshes[a->surface].n_nodes;
-    const double *x = proto_msg_get_f8(req, "x", nn, 3, err);
-    const double *v = x ? proto_msg_get_f8(req, "v", nn, 3, err) : NULL;
-    if (!x || !v) return -1;
-    dem_mesh_set_nodes(m, s, a->surface, x, v);
-  }
+  const size_t nn3 = a->surface >= 0 ? 3 * (size_t)m->meshes[a->surface].n_nodes : 0;
+  const size_t nw3 = 3 * (size_t)m->n_walls;
+  if (a->surface >= 0) /* checked against the role table by the participant loop */
+    dem_mesh_set_nodes(m, s, a->surface, proto_msg_data(req, PROTO_A_X),
+                       proto_msg_data(req, PROTO_A_V));
+  /* equal sub-steps m->dt = dt/nsub (dem_model_set_dt): the impulse/dt of a
+   * force sampled once per sub-step is the mean of the samples */
   long long nsub = llround(dt / m->dt);
   if (nsub < 1) nsub = 1;
-  for (long long k = 0; k < nsub; k++)
-    if (dem_step(m, s, err)) return proto_wrap(err, "coupling step %lld", (long long)req->step);
+  for (long long k = 0; k < nsub; k++) {
+    if (dem_step(m, s, err)) return proto_wrap(err, "coupling step %lld", (long long)info->k);
+    if (nn3) accumulate(a->surface_force, s->mesh_force[a->surface], nn3, k);
+    accumulate(a->wall_row + 1, s->wall_force, nw3, k);
+  }
+  to_mean(a->surface_force, nn3, nsub);
+  to_mean(a->wall_row + 1, nw3, nsub);
   log_threads(a);
-  const double t = req->t + dt;
+  const double t = info->t_end;
   double row[6] = {t, s->kinetic_energy, (double)s->contacts, s->max_overlap_ratio,
                    s->elastic_energy, dem_coordination(m, s)};
   memcpy(a->series, row, sizeof row);
-  publish_summary(a, peer, req->step, t);
+  publish_summary(a, peer, info->k, t);
   a->wall_row[0] = t;
-  memcpy(a->wall_row + 1, s->wall_force, sizeof(double) * 3 * (size_t)m->n_walls);
-  if (proto_msg_add_f8(reply, "series", 6, 0, a->series) ||
-      proto_msg_add_f8(reply, "series.wall_forces", 1 + 3 * m->n_walls, 0, a->wall_row))
+  if (proto_msg_add_f8(reply, PROTO_A_SERIES, 6, 0, a->series) ||
+      proto_msg_add_prefixed(reply, PROTO_P_SERIES, WALL_FORCES, PROTO_F8, 1 + (int64_t)nw3, 0,
+                             a->wall_row))
     return proto_fail(err, "reply full");
   if (a->surface >= 0 &&
-      proto_msg_add_f8(reply, "nodal_force", m->meshes[a->surface].n_nodes, 3, s->mesh_force[a->surface]))
+      proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, m->meshes[a->surface].n_nodes, 3, a->surface_force))
     return proto_fail(err, "reply full");
-  const cJSON *out = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "output") : NULL;
-  if (cJSON_IsTrue(out)) {
+  if (info->output) {
     dem_gather(s, s->x, 3, a->snap_x);
     dem_gather(s, s->v, 3, a->snap_v);
     dem_gather(s, s->omega, 3, a->snap_w);
-    int n = s->n;
-    if (proto_msg_add_f8(reply, "snap.x", n, 3, a->snap_x) || proto_msg_add_f8(reply, "snap.v", n, 3, a->snap_v) ||
-        proto_msg_add_f8(reply, "snap.omega", n, 3, a->snap_w) || proto_msg_add_f8(reply, "snap.r", n, 0, a->snap_r))
-      return proto_fail(err, "reply full");
+    const int n = s->n;
+    const double *snap[N_SNAP] = {a->snap_x, a->snap_v, a->snap_w, a->snap_r};
+    for (int k = 0; k < N_SNAP; k++)
+      if (proto_msg_add_prefixed(reply, PROTO_P_SNAP, SNAP[k], PROTO_F8, n, k == SNAP_R ? 0 : 3, snap[k]))
+        return proto_fail(err, "reply full");
   }
   return 0;
+}
+
+/* The whole changing state (rollback of the implicit scheme, checkpoints):
+ * dem_state_export/import. surface_force and wall_row are rebuilt by every
+ * step, the model does not change. */
+static int state_save(void *user, proto_msg *state, proto_err *err) {
+  dem_app *a = user;
+  return dem_state_export(&a->model, &a->state, state, err);
+}
+
+static int state_load(void *user, const proto_msg *state, proto_err *err) {
+  dem_app *a = user;
+  return dem_state_import(&a->model, &a->state, state, err);
 }
 
 static void finish(void *user) {
   dem_app *a = user;
   if (a->have_state) dem_state_free(&a->state);
   if (a->have_model) dem_model_free(&a->model);
-  free(a->wall_row); free(a->snap_x); free(a->snap_v); free(a->snap_w); free(a->snap_r);
+  free(a->wall_row); free(a->surface_force); free(a->snap_x); free(a->snap_v); free(a->snap_w); free(a->snap_r);
   memset(a, 0, sizeof *a);
 }
 
 int main(int argc, char **argv) {
   dem_openmp_env(argv); /* short barrier spin: the machine may be shared */
   static dem_app app;
-  const proto_participant_ops ops = {"dem", configure, init, step, finish};
+  const proto_participant_ops ops = {.role = PROTO_ROLE_DEM, .configure = configure, .init = init,
+                                     .step = step, .finish = finish, .state_save = state_save,
+                                     .state_load = state_load};
   return proto_participant_main(argc, argv, &ops, &app);
 }

@@ -15,6 +15,14 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* snapshot arrays (snap.<name>) and the mesh arrays written once (mesh.<name>) */
+enum { SNAP_X, SNAP_U, SNAP_V, SNAP_STRAIN, SNAP_STRESS, N_SNAP };
+static const char *const SNAP[N_SNAP] = {"x", "u", "v", "strain", "stress"};
+static const char *const MESH_X0 = "x0", *const MESH_CELLS = "cells";
+/* state arrays (state.<name>) */
+static const char *const ST_U = "u", *const ST_V = "v", *const ST_V_HALF = "v_half",
+                  *const ST_FINT = "fint", *const ST_SCALARS = "scalars";
+
 typedef struct server {
   fem_config cfg;
   fem_model md;
@@ -29,6 +37,7 @@ typedef struct server {
   double *surf_x0;      /* [n_surf*3] rim frame, after the static solve */
   double *x_out, *v_out; /* [n_surf*3] world */
   double series[5];
+  double scalars[8];    /* state_save: the scalar part of fem_state */
   /* snapshots */
   int32_t *cells;       /* [n_elems*npe] VTK order */
   double *mesh_x0, *snap_x, *snap_v, *strain, *stress, *voigt;
@@ -168,10 +177,9 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   if (build_surface(s, err) || alloc_snapshots(s, err)) return -1;
 
   static const char *const cols[] = {"t", "strain_energy", "kinetic_energy", "dt_sub", "sub_steps"};
-  static const char *const attrs[] = {"u", "v", "strain", "stress"};
-  if (proto_ready_series(ready, "series", 5, cols) < 0 ||
-      proto_ready_snapshot(ready, md->npe == 10 ? "tet10" : "tet4", "x", "cells", 4,
-                           attrs) < 0)
+  if (proto_ready_series(ready, PROTO_A_SERIES, 5, cols) < 0 ||
+      proto_ready_snapshot(ready, md->npe == 10 ? "tet10" : "tet4", SNAP[SNAP_X], MESH_CELLS,
+                           4, SNAP + SNAP_U) < 0)
     return proto_fail(err, "out of memory");
   cJSON *h = proto_msg_header(ready);
   cJSON *info = cJSON_AddObjectToObject(h, "fem");
@@ -179,10 +187,12 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   cJSON_AddNumberToObject(info, "nodes", md->mesh.n_nodes);
   cJSON_AddNumberToObject(info, "elements", md->mesh.n_elems);
   cJSON_AddNumberToObject(info, "equations", md->n_eq);
-  if (proto_msg_add_f8(ready, "surface_x0", s->n_surf, 3, s->surf_x0) ||
-      proto_msg_add_i4(ready, "surface_tri", s->n_tri, 3, s->surf_tri) ||
-      proto_msg_add_f8(ready, "mesh.x0", md->mesh.n_nodes, 3, s->mesh_x0) ||
-      proto_msg_add_i4(ready, "mesh.cells", md->mesh.n_elems, md->npe, s->cells))
+  if (proto_msg_add_f8(ready, PROTO_A_SURFACE_X0, s->n_surf, 3, s->surf_x0) ||
+      proto_msg_add_i4(ready, PROTO_A_SURFACE_TRI, s->n_tri, 3, s->surf_tri) ||
+      proto_msg_add_prefixed(ready, PROTO_P_MESH, MESH_X0, PROTO_F8, md->mesh.n_nodes, 3,
+                             s->mesh_x0) ||
+      proto_msg_add_prefixed(ready, PROTO_P_MESH, MESH_CELLS, PROTO_I4, md->mesh.n_elems,
+                             md->npe, s->cells))
     return proto_fail(err, "ready message full");
   return 0;
 }
@@ -211,21 +221,20 @@ static void to_world(const server *s, const double *R, const double *c, const do
   }
 }
 
-static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *reply,
-                proto_err *err) {
+static int step(void *user, proto_peer *peer, const proto_step_info *info,
+                const proto_msg *req, proto_msg *reply, proto_err *err) {
   (void)peer;
   server *s = user;
   fem_model *md = &s->md;
-  const double *f = proto_msg_get_f8(req, "nodal_force", s->n_surf, 3, err);
-  const double *R = f ? proto_msg_get_f8(req, "rim_R", 3, 3, err) : NULL;
-  const double *c = R ? proto_msg_get_f8(req, "rim_c", 3, 0, err) : NULL;
-  const double *w = c ? proto_msg_get_f8(req, "rim_omega", 3, 0, err) : NULL;
-  const double *vc = w ? proto_msg_get_f8(req, "rim_v", 3, 0, err) : NULL;
-  if (!vc) return -1;
-  const cJSON *jdt = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "dt") : NULL;
-  double span = cJSON_IsNumber(jdt) && jdt->valuedouble > 0 ? jdt->valuedouble : s->span;
-  if (!(span > 0)) return proto_fail(err, "step request without a positive dt");
-  /* external force in the rim frame: pressure + R^T g m + R^T f */
+  /* checked against the role table by the participant loop */
+  const double *f = proto_msg_data(req, PROTO_A_NODAL_FORCE);
+  const double *R = proto_msg_data(req, PROTO_A_RIM_R);
+  const double *c = proto_msg_data(req, PROTO_A_RIM_C);
+  const double *w = proto_msg_data(req, PROTO_A_RIM_OMEGA);
+  const double *vc = proto_msg_data(req, PROTO_A_RIM_V);
+  const double span = info->dt;
+  /* external force in the rim frame: pressure + R^T g m + R^T f, constant
+   * over the coupling step (the role table: f is the step's mean force) */
   double g[3];
   rot_t(R, s->cfg.gravity, g);
   double *b = s->cfg.mode == FEM_EXPLICIT ? s->st.b : s->b_qs;
@@ -257,17 +266,16 @@ static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *r
   }
   for (int32_t i = 0; i < s->n_surf; i++)
     to_world(s, R, c, w, vc, s->surf_node[i], s->x_out + 3 * (size_t)i, s->v_out + 3 * (size_t)i);
-  s->series[0] = reply->t;
+  s->series[0] = info->t_end;
   s->series[1] = s->st.strain;
   s->series[2] = s->st.kinetic;
   s->series[3] = s->st.dt_sub;
   s->series[4] = s->cfg.mode == FEM_EXPLICIT ? (double)(int64_t)(span / s->st.dt_sub + 0.5) : 1;
-  if (proto_msg_add_f8(reply, "x", s->n_surf, 3, s->x_out) ||
-      proto_msg_add_f8(reply, "v", s->n_surf, 3, s->v_out) ||
-      proto_msg_add_f8(reply, "series", 5, 0, s->series))
+  if (proto_msg_add_f8(reply, PROTO_A_X, s->n_surf, 3, s->x_out) ||
+      proto_msg_add_f8(reply, PROTO_A_V, s->n_surf, 3, s->v_out) ||
+      proto_msg_add_f8(reply, PROTO_A_SERIES, 5, 0, s->series))
     return proto_fail(err, "reply full");
-  const cJSON *out = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "output") : NULL;
-  if (cJSON_IsTrue(out)) {
+  if (info->output) {
     const int32_t nn = md->mesh.n_nodes, ne = md->mesh.n_elems;
     for (int32_t n = 0; n < nn; n++)
       to_world(s, R, c, w, vc, n, s->snap_x + 3 * (size_t)n, s->snap_v + 3 * (size_t)n);
@@ -279,13 +287,55 @@ static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *r
     fem_element_strain_stress(md, s->st.u, NULL, s->voigt);
     for (int32_t e = 0; e < ne; e++)
       for (int k = 0; k < 6; k++) s->stress[6 * (size_t)e + k] = s->voigt[6 * (size_t)e + perm[k]];
-    if (proto_msg_add_f8(reply, "snap.x", nn, 3, s->snap_x) ||
-        proto_msg_add_f8(reply, "snap.u", nn, 3, s->st.u) ||
-        proto_msg_add_f8(reply, "snap.v", nn, 3, s->snap_v) ||
-        proto_msg_add_f8(reply, "snap.strain", ne, 6, s->strain) ||
-        proto_msg_add_f8(reply, "snap.stress", ne, 6, s->stress))
-      return proto_fail(err, "reply full");
+    const double *snap[N_SNAP] = {s->snap_x, s->st.u, s->snap_v, s->strain, s->stress};
+    const int64_t rows[N_SNAP] = {nn, nn, nn, ne, ne}, cols[N_SNAP] = {3, 3, 3, 6, 6};
+    for (int a = 0; a < N_SNAP; a++)
+      if (proto_msg_add_prefixed(reply, PROTO_P_SNAP, SNAP[a], PROTO_F8, rows[a], cols[a], snap[a]))
+        return proto_fail(err, "reply full");
   }
+  return 0;
+}
+
+/* ----------------------------------------------------------------- state */
+
+/* The whole changing state (rollback of the implicit scheme, checkpoints):
+ * u, v, v_half, K u and the scalars of fem_state. st.b is rebuilt by every
+ * step from its request; quasi-static mode changes only u and v. */
+static int state_save(void *user, proto_msg *state, proto_err *err) {
+  server *s = user;
+  const fem_state *st = &s->st;
+  const int64_t nd = s->md.n_dof;
+  const double sc[8] = {st->t, st->energy, st->work_ext, st->work_abs, st->kinetic,
+                        st->strain, st->dt_sub, (double)st->n_sub};
+  memcpy(s->scalars, sc, sizeof sc);
+  if (proto_msg_add_prefixed(state, PROTO_P_STATE, ST_U, PROTO_F8, nd, 0, st->u) ||
+      proto_msg_add_prefixed(state, PROTO_P_STATE, ST_V, PROTO_F8, nd, 0, st->v) ||
+      proto_msg_add_prefixed(state, PROTO_P_STATE, ST_V_HALF, PROTO_F8, nd, 0, st->v_half) ||
+      proto_msg_add_prefixed(state, PROTO_P_STATE, ST_FINT, PROTO_F8, nd, 0, st->fint) ||
+      proto_msg_add_prefixed(state, PROTO_P_STATE, ST_SCALARS, PROTO_F8, 8, 0, s->scalars))
+    return proto_fail(err, "state message full");
+  return 0;
+}
+
+static int state_load(void *user, const proto_msg *state, proto_err *err) {
+  server *s = user;
+  fem_state *st = &s->st;
+  const size_t nd = (size_t)s->md.n_dof;
+  double sc[8];
+  if (proto_state_get(state, ST_U, PROTO_F8, nd, st->u, err) ||
+      proto_state_get(state, ST_V, PROTO_F8, nd, st->v, err) ||
+      proto_state_get(state, ST_V_HALF, PROTO_F8, nd, st->v_half, err) ||
+      proto_state_get(state, ST_FINT, PROTO_F8, nd, st->fint, err) ||
+      proto_state_get(state, ST_SCALARS, PROTO_F8, 8, sc, err))
+    return -1;
+  st->t = sc[0];
+  st->energy = sc[1];
+  st->work_ext = sc[2];
+  st->work_abs = sc[3];
+  st->kinetic = sc[4];
+  st->strain = sc[5];
+  st->dt_sub = sc[6];
+  st->n_sub = (int64_t)sc[7];
   return 0;
 }
 
@@ -303,6 +353,12 @@ static void finish(void *user) {
 
 int main(int argc, char **argv) {
   static server s;
-  static const proto_participant_ops ops = {"fem", configure, init, step, finish};
+  static const proto_participant_ops ops = {.role = PROTO_ROLE_FEM,
+                                            .configure = configure,
+                                            .init = init,
+                                            .step = step,
+                                            .finish = finish,
+                                            .state_save = state_save,
+                                            .state_load = state_load};
   return proto_participant_main(argc, argv, &ops, &s);
 }

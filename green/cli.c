@@ -2,7 +2,6 @@
  * `cosim road|springs|green ...`): writes road.h5, springs.h5 and green.h5
  * (green/FORMATS.md) with progress on a terminal. */
 #include <getopt.h>
-#include <hdf5.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -10,7 +9,6 @@
 #include <unistd.h>
 
 #include "green/green.h"
-#include "green/h5util.h"
 
 static void progress(void *user, double fraction, const char *what) {
   const char *stage = user;
@@ -48,6 +46,24 @@ static int pair(const char *opt, const char *s, int *a, int *b, proto_err *err) 
   if (sscanf(s, "%dx%d", a, b) == 2 && *a > 0 && *b > 0) return 0;
   if (sscanf(s, "%d", a) == 1 && *a > 0) { *b = *a; return 0; }
   return proto_fail(err, "--%s = '%s': expected N or NXxNY", opt, s);
+}
+
+/* --size DX or DXxDY (m): square or rectangular elements */
+static int size_pair(const char *s, double *dx, double *dy, proto_err *err) {
+  char *end;
+  const double a = strtod(s, &end);
+  double b = a;
+  if (end != s && *end == 'x') {
+    const char *t = end + 1;
+    b = strtod(t, &end);
+    if (end == t) b = NAN;
+  }
+  if (end == s || *end || !(a > 0) || !(b > 0) || !isfinite(a) || !isfinite(b))
+    return proto_fail(err, "--size = '%s': expected DX or DXxDY in m, > 0 (e.g. 1e-3 or "
+                      "1.5e-3x1e-3)", s);
+  *dx = a;
+  *dy = b;
+  return 0;
 }
 
 static int has_suffix(const char *s, const char *suf) {
@@ -191,7 +207,7 @@ static int cmd_green(int argc, char **argv, proto_err *err) {
     switch (c) {
     case 'm': model = optarg; break;
     case 'e': rc = pair("elements", optarg, &g.nx, &g.ny, err); break;
-    case 's': rc = positive("size", optarg, &g.dx, err); g.dy = g.dx; break;
+    case 's': rc = size_pair(optarg, &g.dx, &g.dy, err); break;
     case 'h': rc = num("thickness", optarg, &h, err);
       if (!rc && !(h > 0)) rc = proto_fail(err, "--thickness = %s: must be > 0", optarg);
       break;
@@ -221,10 +237,12 @@ static int cmd_green(int argc, char **argv, proto_err *err) {
   int rc = 0;
   if (strcmp(model, "love") == 0) {
     grn_static_love(&g, mat.E[0], mat.nu, stat);
-    rc = grn_write_green(out, &g, 1, 0, "static", "halfspace-love", NULL, stat, 0, &mat, err);
+    rc = grn_write_green(out, &g, 1, 0, "static", "halfspace-love", NULL, stat, NULL, 0, 0,
+                         &mat, err);
   } else if (strcmp(model, "layer") == 0) {
     rc = grn_static_layer(&g, h, mat.E[0], mat.nu, o.pad, stat, err);
-    if (!rc) rc = grn_write_green(out, &g, 1, 0, "static", "layer", NULL, stat, h, &mat, err);
+    if (!rc)
+      rc = grn_write_green(out, &g, 1, 0, "static", "layer", NULL, stat, NULL, 0, h, &mat, err);
   } else if (strcmp(model, "dynamic") == 0) {
     double *gz = malloc((size_t)o.Q * nk * sizeof *gz), *gp = malloc((size_t)o.Q * nk * sizeof *gp);
     double *sum = malloc(nk * sizeof *sum);
@@ -253,23 +271,16 @@ static int cmd_green(int argc, char **argv, proto_err *err) {
                         "(raise --Q or check the loss-factor table)\n", 100 * worst, o.Q);
       char model_s[64];
       snprintf(model_s, sizeof model_s, "layer-dynamic");
-      rc = grn_write_green(out, &g, o.Q, o.rate, "zoh", model_s, gz, sum, h, &mat, err);
-      hid_t f = rc ? -1 : H5Fopen(out, H5F_ACC_RDWR, H5P_DEFAULT);
-      if (f >= 0) {
-        hid_t grp = H5Gopen2(f, "/green", H5P_DEFAULT);
-        hsize_t d2[2] = {(hsize_t)(2 * g.ny - 1), (hsize_t)(2 * g.nx - 1)};
-        rc = grn_h5_write(grp, "static_relaxed", 2, d2, stat, err);
-        grn_h5_attr_d(grp, "sum_check", worst);
-        H5Gclose(grp);
-        H5Fclose(f);
-      }
+      rc = grn_write_green(out, &g, o.Q, o.rate, "zoh", model_s, gz, sum, stat, worst, h, &mat,
+                           err);
       if (!rc && out_point) {
         for (int m = 0; m < nk; m++) {
           double sp = 0;
           for (int k = 0; k < o.Q; k++) sp += gp[(size_t)k * nk + m] / o.rate;
           sum[m] = sp;
         }
-        rc = grn_write_green(out_point, &g, o.Q, o.rate, "point", model_s, gp, sum, h, &mat, err);
+        rc = grn_write_green(out_point, &g, o.Q, o.rate, "point", model_s, gp, sum, stat, worst_p,
+                             h, &mat, err);
         if (!rc) fprintf(stderr, "green: wrote %s\n", out_point);
       }
     }
@@ -294,7 +305,7 @@ static void usage(void) {
       "                           [--film relief|THICKNESS] [--d-max-frac 0.5]\n"
       "                           [--release-force 0.6] [--no-poly]\n"
       "       cosim_green green   [--model dynamic|layer|love] [--elements 20[x20]]\n"
-      "                           [--size 1e-3] [--thickness 0.01] [--E E] [--nu 0.499]\n"
+      "                           [--size 1e-3|DXxDY] [--thickness 0.01] [--E E] [--nu 0.499]\n"
       "                           [--rho 1300] [--table f_E_eta.txt] [--Q 512] [--rate 51200]\n"
       "                           [--out green.h5] [--out-point green_point.h5]\n"
       "                           [--oversample 4] [--period-factor 4] [--pad N]\n"

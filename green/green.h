@@ -23,6 +23,9 @@ double grn_love_compliance(double x, double y, double a, double b, double E,
 double grn_love_smoothed(double x, double y, double a, double b, double c,
                          double E, double nu);
 
+/* Smallest n' >= n whose only prime factors are 2, 3, 5 (fast FFT sizes). */
+int grn_fft_size(int n);
+
 /* ------------------------------------------------------------ elements */
 
 typedef struct grn_grid {
@@ -32,6 +35,11 @@ typedef struct grn_grid {
 
 /* Love coefficients for every offset: C[(dj+ny-1)(2nx-1) + di+nx-1], m/N. */
 void grn_static_love(const grn_grid *g, double E, double nu, double *C);
+/* The same for a half-space whose load repeats over nx·dx × ny·dy (periodic
+ * road): C(Δ) = C(Δ − n) in the same layout. The uniform mode is set to zero
+ * mean displacement per period (the image sum of 1/r diverges): periodic.c. */
+int grn_static_love_periodic(const grn_grid *g, double E, double nu, double *C,
+                             proto_err *err);
 
 /* Static surface stiffness (Pa/m) of a layer of thickness h bonded to a rigid
  * base, frictionless free top, at wavenumber q (notes §2.2, checked in
@@ -232,10 +240,13 @@ void grn_springs_free(grn_springs *sp);
 
 /* ------------------------------------------------------------ files */
 
+/* green.h5 (FORMATS.md), the one writer: gk [Q][2ny−1][2nx−1] (NULL: static
+ * only), stat the static compliance, stat_relaxed (dynamic files, may be
+ * NULL) the independent f = 0 layer and sum_check its deviation. */
 int grn_write_green(const char *path, const grn_grid *g, int Q, double rate,
                     const char *sampling, const char *model, const double *gk,
-                    const double *stat, double h, const grn_material *mat,
-                    proto_err *err);
+                    const double *stat, const double *stat_relaxed, double sum_check,
+                    double h, const grn_material *mat, proto_err *err);
 int grn_write_springs(const char *path, const grn_springs *sp,
                       const char *film_rule, proto_err *err);
 

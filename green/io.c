@@ -8,8 +8,8 @@
 
 int grn_write_green(const char *path, const grn_grid *g, int Q, double rate,
                     const char *sampling, const char *model, const double *gk,
-                    const double *stat, double h, const grn_material *mat,
-                    proto_err *err) {
+                    const double *stat, const double *stat_relaxed, double sum_check,
+                    double h, const grn_material *mat, proto_err *err) {
   hid_t f = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
   if (f < 0)
     return proto_fail(err, "%s: cannot create", path);
@@ -22,6 +22,10 @@ int grn_write_green(const char *path, const grn_grid *g, int Q, double rate,
   }
   hsize_t d2[2] = {wy, wx};
   if (!rc) rc |= grn_h5_write(grp, "static", 2, d2, stat, err);
+  if (!rc && stat_relaxed) {
+    rc |= grn_h5_write(grp, "static_relaxed", 2, d2, stat_relaxed, err);
+    grn_h5_attr_d(grp, "sum_check", sum_check);
+  }
   grn_h5_attr_i(grp, "nx", g->nx);
   grn_h5_attr_i(grp, "ny", g->ny);
   grn_h5_attr_d(grp, "dx", g->dx);

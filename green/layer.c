@@ -117,7 +117,7 @@ int grn_layer_dynamic(double q, double omega, double h, double rho, double mu_re
 
 /* ---------------------------------------------------------------- FFT box */
 
-static int good_fft_size(int n) {
+int grn_fft_size(int n) {
   for (;; n++) {
     int m = n;
     while (m % 2 == 0) m /= 2;
@@ -136,8 +136,8 @@ int grn_box_init(grn_box *b, const grn_grid *g, double h, int pad) {
   const double reach = 6.0 * fmax(h, b->c); /* layer response decays over ~h */
   int px = pad > 0 ? pad : (int)ceil(reach / g->dx);
   int py = pad > 0 ? pad : (int)ceil(reach / g->dy);
-  b->Px = good_fft_size(2 * g->nx - 1 + 2 * px);
-  b->Py = good_fft_size(2 * g->ny - 1 + 2 * py);
+  b->Px = grn_fft_size(2 * g->nx - 1 + 2 * px);
+  b->Py = grn_fft_size(2 * g->ny - 1 + 2 * py);
   /* alias shells so the remainder is resolved to q·min(c, 2h) >= 12
    * (e^-12 = 6e-6 of the half-space term) */
   const double lc = fmin(b->c, 2 * h);

@@ -350,3 +350,17 @@ int proto_cfg_end(proto_cfg *c) {
   }
   return 0;
 }
+
+int proto_cfg_unused(const proto_cfg *c, char *out, size_t cap) {
+  int i = 0, n = 0;
+  size_t len = 0;
+  if (cap) out[0] = 0;
+  for (const cJSON *it = c->obj ? c->obj->child : NULL; it; it = it->next, i++) {
+    if (i < 64 && (c->used & ((uint64_t)1 << i))) continue;
+    if (len < cap)
+      len += (size_t)snprintf(out + len, cap - len, "%s%s", n ? ", " : "",
+                              it->string ? it->string : "?");
+    n++;
+  }
+  return n;
+}

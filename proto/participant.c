@@ -1,5 +1,8 @@
 /* participant.c — the loop every solver process runs (PROTOCOL.md, "Control
- * channel"): hello → welcome → configure/init → ready → step... → stop. */
+ * channel"): hello → welcome → configure/init → ready → step... → stop.
+ * Messages are checked against the role table both ways; the state is saved
+ * at each step start when the coupler may repeat steps (implicit scheme) and
+ * restored for a repeat; each reply carries the seconds step() took. */
 #include "proto.h"
 
 #include <errno.h>
@@ -9,12 +12,28 @@
 #include <unistd.h>
 #include <zmq.h>
 
+/* A deep copy of the state arrays at the start of a step (rollback). The
+ * arena only grows, so a steady run allocates nothing per step. */
+typedef struct state_copy {
+  proto_msg live;   /* what state_save added (points at the participant's buffers) */
+  proto_msg saved;  /* the same arrays, pointing into arena */
+  unsigned char *arena;
+  size_t cap;
+  int64_t step;     /* the step whose start it holds; -1 = none */
+} state_copy;
+
 struct proto_peer {
   void *ctx;
   void *dealer;
   void *bus; /* PUB to the coupler's bus proxy, or NULL */
   char name[PROTO_NAME_LEN];
+  proto_role role;
   double idle_timeout_s; /* exit when the coupler is silent this long */
+  pid_t parent;          /* the launcher (or wrapper) that started us */
+  int rollback;          /* welcome run.rollback: the coupler may repeat steps */
+  double run_dt;         /* welcome run.dt: a step request without dt uses it */
+  proto_dims dims;       /* the role table's n, m as this conversation bound them */
+  state_copy state;
 };
 
 int proto_peer_publish(proto_peer *peer, const proto_msg *m) {
@@ -46,6 +65,21 @@ int proto_ready_snapshot(proto_msg *ready, const char *kind,
   return attrs && cJSON_AddItemToObject(snap, "attributes", attrs) ? 0 : -1;
 }
 
+int proto_state_get(const proto_msg *state, const char *name, proto_dtype dtype,
+                    size_t count, void *dst, proto_err *err) {
+  char full[PROTO_NAME_LEN];
+  snprintf(full, sizeof full, "%s%s", PROTO_P_STATE, name);
+  const proto_array *a = proto_msg_find(state, full);
+  if (!a) return proto_fail(err, "state: missing array '%s'", full);
+  size_t want = count * proto_dtype_size(dtype);
+  if (a->dtype != dtype || a->nbytes != want)
+    return proto_fail(err, "state: array '%s' is %s with %zu bytes, expected %s "
+                      "with %zu bytes", full, proto_dtype_name(a->dtype),
+                      a->nbytes, proto_dtype_name(dtype), want);
+  if (want) memcpy(dst, a->data, want);
+  return 0;
+}
+
 static void usage(const char *prog, const char *role) {
   fprintf(stderr,
           "usage: %s --endpoint ENDPOINT --name NAME\n"
@@ -75,20 +109,20 @@ static int parse_args(int argc, char **argv, const proto_participant_ops *ops,
                        : strcmp(opt, "--check-config") == 0 ? &a->check
                                                             : NULL;
     if (strcmp(opt, "-h") == 0 || strcmp(opt, "--help") == 0) {
-      usage(argv[0], ops->role);
+      usage(argv[0], proto_role_name(ops->role));
       return 1;
     }
     if (!dst || i + 1 >= argc) {
       fprintf(stderr, "%s: unknown or incomplete option '%s'\n", argv[0], opt);
-      usage(argv[0], ops->role);
+      usage(argv[0], proto_role_name(ops->role));
       return -1;
     }
     *dst = argv[++i];
   }
-  if (!a->name) a->name = ops->role;
+  if (!a->name) a->name = proto_role_name(ops->role);
   if (!a->check && !a->endpoint) {
     fprintf(stderr, "%s: --endpoint is required\n", argv[0]);
-    usage(argv[0], ops->role);
+    usage(argv[0], proto_role_name(ops->role));
     return -1;
   }
   return 0;
@@ -134,7 +168,7 @@ static int send_simple(proto_peer *p, const char *type, int64_t step,
                        double t, const char *message) {
   proto_msg m = {0};
   proto_msg_reset(&m, p->name, type, step, t);
-  if (message) cJSON_AddStringToObject(proto_msg_header(&m), "message", message);
+  if (message) cJSON_AddStringToObject(proto_msg_header(&m), PROTO_H_MESSAGE, message);
   proto_err err;
   int rc = proto_send(p->dealer, &m, 0, &err);
   proto_msg_free(&m);
@@ -153,7 +187,8 @@ static int wait_message(proto_peer *p, proto_msg *m, double timeout_s,
                         timeout_s);
     int r = proto_poll_in(p->dealer, left > 0.25 ? 250 : (int)(left * 1000) + 1);
     if (r > 0) return proto_recv(p->dealer, m, NULL, err);
-    if (getppid() == 1 && getenv("COSIM_LAUNCHED"))
+    /* the launcher (or a wrapper between it and us, e.g. mpirun) is gone */
+    if (getppid() != p->parent && getenv("COSIM_LAUNCHED"))
       return proto_fail(err, "the launcher died; exiting");
   }
 }
@@ -176,26 +211,31 @@ static int handshake(proto_peer *p, const proto_participant_ops *ops,
   if (env) hello_timeout = atof(env);
   if (wait_message(p, welcome, hello_timeout, err) < 0)
     return proto_wrap(err, "waiting for welcome");
-  if (strcmp(welcome->type, "welcome") != 0)
+  if (strcmp(welcome->type, proto_msg_type(PROTO_MSG_WELCOME)) != 0)
     return proto_fail(err, "expected 'welcome', got '%s'", welcome->type);
-  const cJSON *run = cJSON_GetObjectItemCaseSensitive(welcome->header, "run");
+  const cJSON *run = cJSON_GetObjectItemCaseSensitive(welcome->header, PROTO_H_RUN);
   const cJSON *section =
-      cJSON_GetObjectItemCaseSensitive(welcome->header, "config");
+      cJSON_GetObjectItemCaseSensitive(welcome->header, PROTO_H_CONFIG);
   if (!cJSON_IsObject(run) || !cJSON_IsObject(section))
     return proto_fail(err, "welcome lacks 'run' or 'config'");
+  if (proto_role_check(p->role, PROTO_MSG_WELCOME, welcome, &p->dims, err) < 0)
+    return -1;
   char key_path[PROTO_NAME_LEN + 16];
   snprintf(key_path, sizeof key_path, "processes.%s", p->name);
   const char *outdir = json_str(run, "output_dir");
+  p->rollback = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(run, PROTO_H_ROLLBACK));
   proto_run_info info = {
       .name = p->name,
       .key_path = key_path,
       .output_dir = outdir ? outdir : ".",
-      .dt = json_num(run, "dt", 0),
+      .dt = json_num(run, PROTO_H_DT, 0),
       .t_end = json_num(run, "t_end", 0),
       .n_steps = (int64_t)json_num(run, "n_steps", 0),
       .output_every = (int64_t)json_num(run, "output_every", 0),
+      .rollback = p->rollback,
   };
   p->idle_timeout_s = json_num(run, "idle_timeout_s", 600);
+  p->run_dt = info.dt;
   const char *bus = json_str(run, "bus");
   if (bus && bus[0]) {
     p->bus = zmq_socket(p->ctx, ZMQ_PUB);
@@ -208,12 +248,134 @@ static int handshake(proto_peer *p, const proto_participant_ops *ops,
   }
   if (ops->configure(user, &info, section, err) < 0) return -1;
   proto_msg ready = {0};
-  proto_msg_reset(&ready, p->name, "ready", 0, 0);
-  cJSON_AddStringToObject(proto_msg_header(&ready), "role", ops->role);
+  proto_msg_reset(&ready, p->name, proto_msg_type(PROTO_MSG_READY), 0, 0);
+  cJSON *h = proto_msg_header(&ready);
+  cJSON_AddStringToObject(h, PROTO_H_ROLE, proto_role_name(p->role));
+  cJSON_AddBoolToObject(h, PROTO_H_ROLLBACK, ops->state_save && ops->state_load);
   int rc = ops->init ? ops->init(user, welcome, &ready, err) : 0;
+  if (rc == 0 && proto_role_check(p->role, PROTO_MSG_READY, &ready, &p->dims, err) < 0)
+    rc = proto_wrap(err, "the ready message built by init()");
   if (rc == 0) rc = proto_send(p->dealer, &ready, 0, err);
   proto_msg_free(&ready);
   return rc;
+}
+
+/* Copies what state_save produced into the arena (grown only when needed). */
+static int state_take(proto_peer *p, const proto_participant_ops *ops,
+                      void *user, int64_t k, proto_err *err) {
+  state_copy *c = &p->state;
+  proto_msg_reset(&c->live, p->name, proto_msg_type(PROTO_MSG_STATE), k, 0);
+  if (ops->state_save(user, &c->live, err) < 0)
+    return proto_wrap(err, "state_save at the start of step %lld", (long long)k);
+  size_t total = 0, plen = strlen(PROTO_P_STATE);
+  for (int i = 0; i < c->live.narrays; i++) {
+    if (strncmp(c->live.arrays[i].name, PROTO_P_STATE, plen) != 0)
+      return proto_fail(err, "state_save added '%s': state arrays are named "
+                         "%s<x>", c->live.arrays[i].name, PROTO_P_STATE);
+    total += (c->live.arrays[i].nbytes + 7) & ~(size_t)7;
+  }
+  if (total > c->cap) {
+    unsigned char *bigger = realloc(c->arena, total);
+    if (!bigger) return proto_fail(err, "out of memory for a %zu-byte state copy", total);
+    c->arena = bigger;
+    c->cap = total;
+  }
+  proto_msg_reset(&c->saved, p->name, proto_msg_type(PROTO_MSG_STATE), k, 0);
+  size_t off = 0;
+  for (int i = 0; i < c->live.narrays; i++) {
+    proto_array a = c->live.arrays[i];
+    if (a.nbytes) memcpy(c->arena + off, a.data, a.nbytes);
+    a.data = c->arena + off;
+    c->saved.arrays[c->saved.narrays++] = a;
+    off += (a.nbytes + 7) & ~(size_t)7;
+  }
+  c->step = k;
+  return 0;
+}
+
+/* Rollback before a repeat of step k (iteration >= 1). */
+static int state_restore(proto_peer *p, const proto_participant_ops *ops,
+                         void *user, const proto_step_info *si, proto_err *err) {
+  if (!ops->state_load || !p->rollback)
+    return proto_fail(err, "the coupler asked for iteration %d of step %lld, but "
+                      "%s", si->iteration, (long long)si->k,
+                      ops->state_load ? "the welcome did not announce rollback"
+                                      : "this participant cannot roll back "
+                                        "(no state_save/state_load)");
+  if (p->state.step != si->k)
+    return proto_fail(err, "iteration %d of step %lld requested, but the saved "
+                      "state is that of step %lld", si->iteration,
+                      (long long)si->k, (long long)p->state.step);
+  if (ops->state_load(user, &p->state.saved, err) < 0)
+    return proto_wrap(err, "state_load for iteration %d of step %lld",
+                      si->iteration, (long long)si->k);
+  return 0;
+}
+
+static int parse_step(const proto_peer *p, const proto_msg *req,
+                      proto_step_info *si, proto_err *err) {
+  const cJSON *h = req->header;
+  const cJSON *dt = cJSON_GetObjectItemCaseSensitive(h, PROTO_H_DT);
+  const cJSON *it = cJSON_GetObjectItemCaseSensitive(h, PROTO_H_ITERATION);
+  double step_dt = dt ? (cJSON_IsNumber(dt) ? dt->valuedouble : -1) : p->run_dt;
+  if (!(step_dt > 0))
+    return proto_fail(err, "step %lld: header field 'dt' must be a positive "
+                      "number", (long long)req->step);
+  if (it && (!cJSON_IsNumber(it) || it->valuedouble < 0))
+    return proto_fail(err, "step %lld: header field 'iteration' must be a "
+                      "number >= 0", (long long)req->step);
+  si->k = req->step;
+  si->t = req->t;
+  si->dt = step_dt;
+  si->t_end = req->t + si->dt;
+  si->output = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(h, PROTO_H_OUTPUT));
+  si->iteration = it ? (int)it->valuedouble : 0;
+  return 0;
+}
+
+/* One step request → rollback if repeated, state copy if first, step(),
+ * checks, reply with the compute seconds. */
+static int do_step(proto_peer *p, const proto_participant_ops *ops, void *user,
+                   const proto_msg *req, proto_msg *reply, proto_err *err) {
+  proto_step_info si;
+  if (parse_step(p, req, &si, err) < 0) return -1;
+  if (proto_role_check(p->role, PROTO_MSG_STEP, req, &p->dims, err) < 0)
+    return proto_wrap(err, "step %lld", (long long)si.k);
+  double t0 = proto_now();
+  if (si.iteration > 0) {
+    if (state_restore(p, ops, user, &si, err) < 0) return -1;
+  } else if (p->rollback && ops->state_save) {
+    if (state_take(p, ops, user, si.k, err) < 0) return -1;
+  }
+  proto_msg_reset(reply, p->name, proto_msg_type(PROTO_MSG_DONE), si.k, si.t_end);
+  if (ops->step(user, p, &si, req, reply, err) < 0)
+    return proto_wrap(err, "step %lld (t = %g s)", (long long)si.k, si.t);
+  double compute = proto_now() - t0;
+  if (proto_role_check(p->role, PROTO_MSG_DONE, reply, &p->dims, err) < 0)
+    return proto_wrap(err, "the reply step() built for step %lld", (long long)si.k);
+  cJSON *h = proto_msg_header(reply);
+  cJSON_AddNumberToObject(h, PROTO_H_ITERATION, si.iteration);
+  cJSON_AddNumberToObject(h, PROTO_H_COMPUTE_S, compute);
+  return proto_send(p->dealer, reply, 0, err);
+}
+
+/* checkpoint → state (the live arrays, zero-copy: valid until the next
+ * request, lock-step); restore → restored. */
+static int do_state(proto_peer *p, const proto_participant_ops *ops, void *user,
+                    const proto_msg *req, proto_msg *reply, proto_err *err) {
+  int kind = proto_msg_kind_parse(req->type);
+  if (!ops->state_save || !ops->state_load)
+    return proto_fail(err, "'%s' requested, but this participant has no "
+                      "state_save/state_load", req->type);
+  if (kind == PROTO_MSG_CHECKPOINT) {
+    proto_msg_reset(reply, p->name, proto_msg_type(PROTO_MSG_STATE), req->step, req->t);
+    if (ops->state_save(user, reply, err) < 0) return proto_wrap(err, "state_save");
+  } else {
+    if (ops->state_load(user, req, err) < 0) return proto_wrap(err, "state_load");
+    proto_msg_reset(reply, p->name, proto_msg_type(PROTO_MSG_RESTORED), req->step, req->t);
+    p->state.step = -1;
+  }
+  return proto_send(p->dealer, reply, 0, err);
 }
 
 /* Steps until "stop". Returns 0 on a clean stop. */
@@ -226,19 +388,17 @@ static int step_loop(proto_peer *p, const proto_participant_ops *ops,
       rc = -1;
       break;
     }
-    if (strcmp(req.type, "stop") == 0) {
-      send_simple(p, "bye", req.step, req.t, NULL);
+    int kind = proto_msg_kind_parse(req.type);
+    if (kind == PROTO_MSG_STOP) {
+      send_simple(p, proto_msg_type(PROTO_MSG_BYE), req.step, req.t, NULL);
       break;
     }
-    if (strcmp(req.type, "step") != 0) {
+    if (kind == PROTO_MSG_STEP)
+      rc = do_step(p, ops, user, &req, &reply, err);
+    else if (kind == PROTO_MSG_CHECKPOINT || kind == PROTO_MSG_RESTORE)
+      rc = do_state(p, ops, user, &req, &reply, err);
+    else
       rc = proto_fail(err, "unexpected message '%s' from the coupler", req.type);
-      break;
-    }
-    double dt = json_num(req.header, "dt", 0);
-    proto_msg_reset(&reply, p->name, "done", req.step, req.t + dt);
-    rc = ops->step(user, p, &req, &reply, err);
-    if (rc < 0) proto_wrap(err, "step %lld (t = %g s)", (long long)req.step, req.t);
-    if (rc == 0) rc = proto_send(p->dealer, &reply, 0, err);
   }
   proto_msg_free(&req);
   proto_msg_free(&reply);
@@ -254,6 +414,10 @@ int proto_participant_main(int argc, char **argv,
 
   proto_peer p = {0};
   snprintf(p.name, sizeof p.name, "%s", a.name);
+  p.role = ops->role;
+  p.parent = getppid();
+  p.state.step = -1;
+  proto_dims_init(&p.dims);
   p.ctx = zmq_ctx_new();
   p.dealer = zmq_socket(p.ctx, ZMQ_DEALER);
   int linger = 2000;
@@ -267,20 +431,24 @@ int proto_participant_main(int argc, char **argv,
                     zmq_strerror(errno));
   } else {
     proto_msg hello = {0};
-    proto_msg_reset(&hello, p.name, "hello", 0, 0);
-    cJSON_AddStringToObject(proto_msg_header(&hello), "role", ops->role);
-    cJSON_AddStringToObject(proto_msg_header(&hello), "name", p.name);
-    cJSON_AddNumberToObject(proto_msg_header(&hello), "pid", (double)getpid());
+    proto_msg_reset(&hello, p.name, proto_msg_type(PROTO_MSG_HELLO), 0, 0);
+    cJSON *h = proto_msg_header(&hello);
+    cJSON_AddStringToObject(h, PROTO_H_ROLE, proto_role_name(p.role));
+    cJSON_AddStringToObject(h, PROTO_H_NAME, p.name);
+    cJSON_AddNumberToObject(h, PROTO_H_PID, (double)getpid());
     rc = proto_send(p.dealer, &hello, 0, &err);
     proto_msg_free(&hello);
   }
   if (rc == 0) rc = handshake(&p, ops, user, &welcome, &err);
   if (rc == 0) rc = step_loop(&p, ops, user, &err);
   if (rc < 0) {
-    fprintf(stderr, "%s (%s): error: %s\n", p.name, ops->role, err.msg);
-    send_simple(&p, "error", 0, 0, err.msg);
+    fprintf(stderr, "%s (%s): error: %s\n", p.name, proto_role_name(p.role), err.msg);
+    send_simple(&p, proto_msg_type(PROTO_MSG_ERROR), 0, 0, err.msg);
   }
   proto_msg_free(&welcome);
+  proto_msg_free(&p.state.live);
+  proto_msg_free(&p.state.saved);
+  free(p.state.arena);
   if (ops->finish) ops->finish(user);
   if (p.bus) zmq_close(p.bus);
   zmq_close(p.dealer);

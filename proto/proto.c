@@ -44,6 +44,14 @@ double proto_now(void) {
 static const char *const dtype_names[] = {"f8", "i4", "i8", "u1"};
 static const size_t dtype_sizes[] = {8, 4, 8, 1};
 
+size_t proto_dtype_size(proto_dtype d) {
+  return (unsigned)d <= PROTO_U1 ? dtype_sizes[d] : 0;
+}
+
+const char *proto_dtype_name(proto_dtype d) {
+  return (unsigned)d <= PROTO_U1 ? dtype_names[d] : "?";
+}
+
 /* Received frames, owned by the message; arrays point into them (or into
  * `aligned` copies when a frame's data was not 8-byte aligned). Kept across
  * receives so that a message reused in a loop allocates nothing. */
@@ -133,6 +141,15 @@ int proto_msg_add_f8(proto_msg *m, const char *name, int64_t rows, int64_t cols,
 int proto_msg_add_i4(proto_msg *m, const char *name, int64_t rows, int64_t cols,
                      const int32_t *data) {
   return add_2d(m, name, PROTO_I4, rows, cols, data);
+}
+
+int proto_msg_add_prefixed(proto_msg *m, const char *prefix, const char *name,
+                           proto_dtype dtype, int64_t rows, int64_t cols,
+                           const void *data) {
+  char full[PROTO_NAME_LEN];
+  if (snprintf(full, sizeof full, "%s%s", prefix, name) >= (int)sizeof full)
+    return -1;
+  return add_2d(m, full, dtype, rows, cols, data);
 }
 
 const proto_array *proto_msg_find(const proto_msg *m, const char *name) {

@@ -3,11 +3,13 @@
  * What lives here, shared by every other part:
  *   1. errors        proto_err: a message buffer every fallible call fills
  *   2. messages      multipart [topic][JSON header][raw array]... (PROTOCOL.md)
- *   3. participants  proto_participant_main(): the handshake/step loop a solver
- *                    process plugs into with three callbacks
- *   4. config        JSON loading with line/column errors and a key reader that
+ *   3. role table    what each role (dem, fem, block) exchanges: array names,
+ *                    dtypes, shapes, meaning; checked by both sides
+ *   4. participants  proto_participant_main(): the handshake/step loop a solver
+ *                    process plugs into with callbacks (step, state save/load)
+ *   5. config        JSON loading with line/column errors and a key reader that
  *                    names the key path in every error and rejects unknown keys
- *   5. output        HDF5 time series / snapshots and the XDMF companion file
+ *   6. output        HDF5 time series / snapshots and the XDMF companion file
  *
  * Nothing here knows any physics. Units are SI unless a comment says otherwise.
  */
@@ -43,7 +45,7 @@ typedef enum proto_dtype {
   PROTO_U1 = 3  /* bytes, "u1" */
 } proto_dtype;
 
-#define PROTO_MAX_ARRAYS 32
+#define PROTO_MAX_ARRAYS 64
 #define PROTO_MAX_NDIM 3
 #define PROTO_NAME_LEN 48
 
@@ -129,17 +131,137 @@ double proto_now(void);
  * a full queue drops the message (slow monitors never slow a run). */
 int proto_publish(void *pub, const proto_msg *m);
 
+/* ------------------------------------------------------------- role table
+ *
+ * The contract between the coupler and each role, declared once (roles.c):
+ * for every role and message the arrays it carries (name, dtype, shape with
+ * symbolic dims, units, when present, meaning over a sub-stepped coupling
+ * step). proto_participant_main and the coupler both validate against it;
+ * `cosim roles --json` prints it for other languages. PROTOCOL.md explains
+ * it in prose. */
+
+typedef enum proto_role {
+  PROTO_ROLE_DEM = 0,   /* grains: gets the surface, returns nodal forces */
+  PROTO_ROLE_FEM = 1,   /* the tread: gets forces + rim frame, returns the surface */
+  PROTO_ROLE_BLOCK = 2, /* tread block on the road: gets d_road, returns force */
+  PROTO_N_ROLES
+} proto_role;
+
+/* Message types, in the order of a run (PROTOCOL.md "Control channel"). */
+typedef enum proto_msg_kind {
+  PROTO_MSG_HELLO, PROTO_MSG_WELCOME, PROTO_MSG_READY, PROTO_MSG_STEP,
+  PROTO_MSG_DONE, PROTO_MSG_STOP, PROTO_MSG_BYE, PROTO_MSG_ERROR,
+  /* checkpoint/restart (issue 11 builds on these): the coupler asks for the
+   * participant's state and gets it back as arrays "state.<x>" */
+  PROTO_MSG_CHECKPOINT, PROTO_MSG_STATE, PROTO_MSG_RESTORE, PROTO_MSG_RESTORED,
+  PROTO_N_MSGS
+} proto_msg_kind;
+
+/* Array names of the role table. */
+#define PROTO_A_SURFACE_X0 "surface_x0"
+#define PROTO_A_SURFACE_TRI "surface_tri"
+#define PROTO_A_NODAL_FORCE "nodal_force"
+#define PROTO_A_RIM_R "rim_R"
+#define PROTO_A_RIM_C "rim_c"
+#define PROTO_A_RIM_OMEGA "rim_omega"
+#define PROTO_A_RIM_V "rim_v"
+#define PROTO_A_X "x"
+#define PROTO_A_V "v"
+#define PROTO_A_D_ROAD "d_road"
+#define PROTO_A_FORCE "force"
+/* Participant-defined arrays, by prefix (PROTOCOL.md "Series", "Snapshots") */
+#define PROTO_A_SERIES "series"  /* the row of the "series" dataset */
+#define PROTO_P_SERIES "series." /* rows of further datasets */
+#define PROTO_P_SNAP "snap."     /* snapshot arrays at output steps */
+#define PROTO_P_MESH "mesh."     /* written once from ready */
+#define PROTO_P_STATE "state."   /* the participant's whole changing state */
+
+/* Header keys beyond the fixed ones (v, type, step, t, arrays). */
+#define PROTO_H_ROLE "role"           /* hello, ready: role name */
+#define PROTO_H_NAME "name"           /* hello */
+#define PROTO_H_PID "pid"             /* hello */
+#define PROTO_H_CONFIG "config"       /* welcome: the process's section */
+#define PROTO_H_RUN "run"             /* welcome: run information */
+#define PROTO_H_DT "dt"               /* step: coupling step, s */
+#define PROTO_H_OUTPUT "output"       /* step: snapshot wanted (bool) */
+#define PROTO_H_ITERATION "iteration" /* step, done: 0, or n >= 1 = repeat n of step k */
+#define PROTO_H_COMPUTE_S "compute_s" /* done: seconds spent in the participant's step */
+#define PROTO_H_ROLLBACK "rollback"   /* ready: true if state_save/state_load exist */
+#define PROTO_H_SERIES "series"       /* ready: {dataset: [column names]} */
+#define PROTO_H_SNAPSHOT "snapshot"   /* ready: how to show snapshots */
+#define PROTO_H_MESSAGE "message"     /* error */
+
+/* Symbolic dimensions of the table (a positive dim is literal). */
+enum { PROTO_DIM_NODES = -1, /* n: surface nodes (bound by surface_x0) */
+       PROTO_DIM_TRIS = -2   /* m: surface triangles (bound by surface_tri) */ };
+
+typedef enum proto_when {
+  PROTO_WHEN_ALWAYS = 0,
+  PROTO_WHEN_SURFACE = 1 /* only when the participant has a coupled surface */
+} proto_when;
+
+typedef struct proto_array_spec {
+  proto_role role;
+  proto_msg_kind msg;
+  const char *name;
+  proto_dtype dtype;
+  int ndim;
+  int64_t dims[PROTO_MAX_NDIM]; /* > 0 literal, or PROTO_DIM_* */
+  const char *units;
+  proto_when when;
+  const char *meaning; /* incl. its meaning over a sub-stepped coupling step */
+} proto_array_spec;
+
+/* The table; *n gets its length. */
+const proto_array_spec *proto_role_table(int *n);
+const char *proto_role_name(proto_role r);  /* "dem", "fem", "block" */
+int proto_role_parse(const char *name);     /* -1 if unknown */
+const char *proto_msg_type(proto_msg_kind k); /* "hello", ... */
+int proto_msg_kind_parse(const char *type);   /* -1 if unknown */
+const char *proto_dtype_name(proto_dtype d);  /* "f8", ... */
+size_t proto_dtype_size(proto_dtype d);       /* bytes per element */
+/* The table as JSON (caller frees): {"version", "roles": {role: {msg: [...]}},
+ * "messages", "dims"}. */
+cJSON *proto_role_table_json(void);
+
+/* Sizes the table's symbolic dims refer to, as one side of a conversation
+ * knows them. A dim < 0 is unbound: the first array that has it binds it. */
+typedef struct proto_dims {
+  int64_t nodes, tris; /* -1 until bound */
+  int surface;         /* a coupled surface exists (WHEN_SURFACE arrays due) */
+} proto_dims;
+void proto_dims_init(proto_dims *d);
+/* Checks message m (kind of role) against the table: every array the table
+ * lists for it (and due under d->surface) is present with its dtype and
+ * shape. In welcome/ready, the presence of any WHEN_SURFACE array sets
+ * d->surface. Errors name the array, the expected shape with its symbols
+ * and values, and its meaning. Arrays the table does not list (series,
+ * snap., mesh., state.) are not checked here. */
+int proto_role_check(proto_role role, proto_msg_kind kind, const proto_msg *m,
+                     proto_dims *d, proto_err *err);
+/* Data of an array already checked by proto_role_check (NULL if absent). */
+const void *proto_msg_data(const proto_msg *m, const char *name);
+
 /* ------------------------------------------------------------ participants
  *
  * A solver process is `int main(int c, char **v) { return
  * proto_participant_main(c, v, &ops, &my_state); }`. The loop:
- *   connect a DEALER (identity = --name) to --endpoint, send "hello",
- *   receive "welcome" (carries this process's config section), call
- *   configure(), reply "ready" (+ whatever init() adds, e.g. a surface mesh),
- *   then answer each "step" with step(), until "stop" (reply "bye").
+ *   connect a DEALER (identity = --name) to --endpoint, send "hello" with
+ *   the role, receive "welcome" (this process's config section and run
+ *   information), call configure() and init(), reply "ready", then answer
+ *   each "step" with step(), until "stop" (reply "bye").
+ * Requests and replies are checked against the role table, both ways.
  * Any callback error is sent back as an "error" message and the process
  * exits non-zero. The process also exits when the coupler is silent for
  * longer than the deadline given in "welcome", or its parent dies.
+ *
+ * Rollback (implicit coupling): when the run may repeat a step (welcome
+ * run.rollback), the loop calls state_save at the start of every step and
+ * keeps a deep copy of those arrays (buffers grown only when needed); a step
+ * request with iteration >= 1 restores that copy with state_load before
+ * step() runs again. A participant without state_save/state_load says so in
+ * ready ("rollback": false) and the coupler refuses the implicit scheme for
+ * it by name. The same callbacks answer "checkpoint" and "restore".
  *
  * Command line: NAME --endpoint EP --name NAME [--check-config FILE|-]
  * --check-config validates a config section (JSON, "-" = stdin) and exits
@@ -155,10 +277,22 @@ typedef struct proto_run_info {
   double t_end;           /* end time, s */
   int64_t n_steps;
   int64_t output_every;   /* snapshot every this many steps */
+  int rollback;           /* the coupler may repeat steps (implicit scheme) */
 } proto_run_info;
 
+/* One step request, parsed (the callback never reads the header). */
+typedef struct proto_step_info {
+  int64_t k;     /* step number, >= 1 */
+  double t;      /* t_{k-1}: the step advances from t to t + dt */
+  double dt;     /* coupling step, s */
+  double t_end;  /* t_k = t + dt (the reply's t) */
+  int output;    /* add snapshot arrays "snap.<name>" to the reply */
+  int iteration; /* 0; n >= 1: the n-th repeat of step k (state already
+                    restored to the start of step k by the loop) */
+} proto_step_info;
+
 typedef struct proto_participant_ops {
-  const char *role; /* "dem", "fem", "block" (stubs use the role they stand in for) */
+  proto_role role; /* stubs use the role they stand in for */
   /* Parses and validates this process's config section into the solver's
    * model. Errors name the key path (use proto_cfg_*). Called for
    * --check-config too (then info->dt etc. may be 0). */
@@ -166,16 +300,25 @@ typedef struct proto_participant_ops {
                    proto_err *err);
   /* Called after configure with the coupler's welcome message (which may
    * carry arrays, e.g. the FEM surface for the DEM). Adds to `ready` what
-   * the coupler needs: header "series" = {"series": [column names], ...},
-   * and arrays (surface mesh ...). May be NULL. */
+   * the coupler needs: series declarations (proto_ready_series), arrays
+   * (surface mesh ...). May be NULL. */
   int (*init)(void *user, const proto_msg *welcome, proto_msg *ready,
               proto_err *err);
-  /* One coupling step: read the request's arrays, advance, fill the reply.
-   * Arrays added to the reply must stay valid until the next call. */
-  int (*step)(void *user, proto_peer *peer, const proto_msg *request,
-              proto_msg *reply, proto_err *err);
+  /* One coupling step: read the request's arrays (already checked against
+   * the role table: use proto_msg_data), advance, fill the reply. Arrays
+   * added to the reply must stay valid until the next call. */
+  int (*step)(void *user, proto_peer *peer, const proto_step_info *info,
+              const proto_msg *request, proto_msg *reply, proto_err *err);
   /* Frees everything (always called once, also after errors). May be NULL. */
   void (*finish)(void *user);
+  /* Optional. Adds arrays named "state.<x>" that together are the whole
+   * changing state (pointing at the participant's own buffers: the loop
+   * copies them). Equal state in, equal results out: anything step()
+   * depends on and changes belongs here. */
+  int (*state_save)(void *user, proto_msg *state, proto_err *err);
+  /* Optional. Restores the arrays state_save produced (checked by name,
+   * dtype and size by the participant). */
+  int (*state_load)(void *user, const proto_msg *state, proto_err *err);
 } proto_participant_ops;
 
 /* Declarations for the ready message (PROTOCOL.md "Series", "Snapshots"):
@@ -187,6 +330,15 @@ int proto_ready_series(proto_msg *ready, const char *dataset, int ncols,
 int proto_ready_snapshot(proto_msg *ready, const char *kind,
                          const char *geometry, const char *cells, int nattrs,
                          const char *const *attributes);
+/* Adds an f8 array under a prefix: "<prefix><name>" (PROTO_P_SNAP,
+ * PROTO_P_STATE, PROTO_P_SERIES, PROTO_P_MESH). cols == 0: 1-D. */
+int proto_msg_add_prefixed(proto_msg *m, const char *prefix, const char *name,
+                           proto_dtype dtype, int64_t rows, int64_t cols,
+                           const void *data);
+/* For state_load: the array "state.<name>" with exactly `count` elements of
+ * dtype, copied into dst; errors name the array. */
+int proto_state_get(const proto_msg *state, const char *name, proto_dtype dtype,
+                    size_t count, void *dst, proto_err *err);
 
 int proto_participant_main(int argc, char **argv,
                            const proto_participant_ops *ops, void *user);
@@ -250,6 +402,9 @@ void proto_cfg_subpath(const proto_cfg *c, const char *key, int index,
                        char *out, size_t cap);
 /* Reports the first unknown key: "<path>.<key>: unknown key". */
 int proto_cfg_end(proto_cfg *c);
+/* The keys nobody asked for, comma-separated into out; returns how many.
+ * For stubs, which accept the section of the solver they stand in for. */
+int proto_cfg_unused(const proto_cfg *c, char *out, size_t cap);
 
 /* ------------------------------------------------------------------ output
  *

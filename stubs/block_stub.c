@@ -1,15 +1,23 @@
 /* block_stub — a linear spring that speaks the block role (PROTOCOL.md):
  * force = stiffness · max(0, d_road − gap).
- * Config: {"exec": "block_stub", "stiffness": 1e6, "gap": 0} */
+ * Config: {"exec": "block_stub", "stiffness": 1e6, "gap": 0}; other keys
+ * (a contact_block section) are named in the log and ignored. */
 #include <string.h>
 
-#include "proto/proto.h"
+#include "stubs/stub.h"
+
+#define STIFFNESS_DEFAULT 1e6 /* N/m, when standing in for contact_block */
+
+enum { COL_T, COL_D, COL_F, COL_NC, COL_IT, NCOL };
+static const char *const columns[NCOL] = {"t", "d_road", "force",
+                                          "points_in_contact", "iterations"};
+static const char *const STATE_FORCE = "force";
 
 typedef struct block_stub {
   double stiffness; /* N/m */
   double gap;       /* m */
   double force;
-  double series[5]; /* t, d_road, force, points_in_contact, iterations */
+  double series[NCOL];
 } block_stub;
 
 static int configure(void *user, const proto_run_info *info,
@@ -17,41 +25,60 @@ static int configure(void *user, const proto_run_info *info,
   block_stub *s = user;
   proto_cfg c;
   char exec[256];
+  s->stiffness = STIFFNESS_DEFAULT;
   if (proto_cfg_open(&c, section, info->key_path, err) < 0 ||
       proto_cfg_str(&c, "exec", PROTO_OPTIONAL, exec, sizeof exec) < 0 ||
-      proto_cfg_num(&c, "stiffness", PROTO_REQUIRED, 0, 1e15, &s->stiffness) < 0 ||
+      proto_cfg_num(&c, "stiffness", PROTO_OPTIONAL, 0, 1e15, &s->stiffness) < 0 ||
       proto_cfg_num(&c, "gap", PROTO_OPTIONAL, -1, 1, &s->gap) < 0)
     return -1;
-  return proto_cfg_end(&c);
+  return stub_cfg_end(&c, "block_stub");
 }
 
 static int init(void *user, const proto_msg *welcome, proto_msg *ready,
                 proto_err *err) {
   (void)user;
   (void)welcome;
-  const char *cols[] = {"t", "d_road", "force", "points_in_contact", "iterations"};
-  if (proto_ready_series(ready, "series", 5, cols) < 0)
+  if (proto_ready_series(ready, PROTO_A_SERIES, NCOL, columns) < 0)
     return proto_fail(err, "out of memory");
   return 0;
 }
 
-static int step(void *user, proto_peer *peer, const proto_msg *req,
-                proto_msg *reply, proto_err *err) {
+static int step(void *user, proto_peer *peer, const proto_step_info *info,
+                const proto_msg *req, proto_msg *reply, proto_err *err) {
   (void)peer;
   block_stub *s = user;
-  const double *d = proto_msg_get_f8(req, "d_road", 1, 0, err);
-  if (!d) return -1;
-  double pen = d[0] - s->gap;
+  const double d = *(const double *)proto_msg_data(req, PROTO_A_D_ROAD);
+  double pen = d - s->gap;
   s->force = pen > 0 ? s->stiffness * pen : 0;
-  double row[5] = {reply->t, d[0], s->force, pen > 0 ? 1 : 0, 0};
+  double row[NCOL] = {info->t_end, d, s->force, pen > 0 ? 1 : 0, 0};
   memcpy(s->series, row, sizeof row);
-  proto_msg_add_f8(reply, "force", 1, 0, &s->force);
-  proto_msg_add_f8(reply, "series", 5, 0, s->series);
+  if (proto_msg_add_f8(reply, PROTO_A_FORCE, 1, 0, &s->force) < 0 ||
+      proto_msg_add_f8(reply, PROTO_A_SERIES, NCOL, 0, s->series) < 0)
+    return proto_fail(err, "reply full");
   return 0;
+}
+
+/* The spring has no memory; the last force is its whole state. */
+static int state_save(void *user, proto_msg *state, proto_err *err) {
+  block_stub *s = user;
+  return proto_msg_add_prefixed(state, PROTO_P_STATE, STATE_FORCE, PROTO_F8, 1,
+                                0, &s->force) < 0
+             ? proto_fail(err, "state message full")
+             : 0;
+}
+
+static int state_load(void *user, const proto_msg *state, proto_err *err) {
+  block_stub *s = user;
+  return proto_state_get(state, STATE_FORCE, PROTO_F8, 1, &s->force, err);
 }
 
 int main(int argc, char **argv) {
   block_stub s = {0};
-  proto_participant_ops ops = {"block", configure, init, step, NULL};
+  const proto_participant_ops ops = {.role = PROTO_ROLE_BLOCK,
+                                     .configure = configure,
+                                     .init = init,
+                                     .step = step,
+                                     .state_save = state_save,
+                                     .state_load = state_load};
   return proto_participant_main(argc, argv, &ops, &s);
 }

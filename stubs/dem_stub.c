@@ -1,19 +1,27 @@
 /* dem_stub — prescribed grain forces that speak the dem role (PROTOCOL.md):
  * every surface node gets force_per_node, ramped linearly from zero over
- * ramp_time. It echoes the surface it receives as its snapshot.
+ * ramp_time. As the role table says, the reply is the impulse over the step
+ * divided by dt: force_per_node times the mean of the ramp over
+ * [t_{k-1}, t_k]. It echoes the surface it receives as its snapshot.
  * Config: {"exec": "dem_stub", "force_per_node": [fx, fy, fz],
- *          "ramp_time": 0.0} */
+ *          "ramp_time": 0.0}; other keys (a dem_server section) are named in
+ * the log and ignored (then the force is zero). */
 #include <stdlib.h>
 #include <string.h>
 
-#include "proto/proto.h"
+#include "stubs/stub.h"
+
+enum { COL_T, COL_FX, COL_FY, COL_FZ, COL_N, NCOL };
+static const char *const columns[NCOL] = {"t", "force_x", "force_y", "force_z",
+                                          "n_nodes"};
+static const char *const SNAP_ATTRS[] = {PROTO_A_NODAL_FORCE};
 
 typedef struct dem_stub {
   double force_per_node[3]; /* N */
   double ramp_time;         /* s */
   int64_t n_nodes;
   double *force;
-  double series[5]; /* t, Fx, Fy, Fz, n_nodes */
+  double series[NCOL];
 } dem_stub;
 
 static int configure(void *user, const proto_run_info *info,
@@ -27,53 +35,57 @@ static int configure(void *user, const proto_run_info *info,
                     3, NULL) < 0 ||
       proto_cfg_num(&c, "ramp_time", PROTO_OPTIONAL, 0, 1e9, &s->ramp_time) < 0)
     return -1;
-  return proto_cfg_end(&c);
+  return stub_cfg_end(&c, "dem_stub");
 }
 
 static int init(void *user, const proto_msg *welcome, proto_msg *ready,
                 proto_err *err) {
   dem_stub *s = user;
-  const proto_array *x0 = proto_msg_find(welcome, "surface_x0");
-  if (x0) {
-    if (!proto_msg_get_f8(welcome, "surface_x0", -1, 3, err)) return -1;
+  const proto_array *x0 = proto_msg_find(welcome, PROTO_A_SURFACE_X0);
+  if (x0) { /* checked against the role table by the participant loop */
     s->n_nodes = x0->shape[0];
     s->force = calloc((size_t)s->n_nodes * 3, sizeof(double));
     if (!s->force) return proto_fail(err, "out of memory");
   }
-  const char *cols[] = {"t", "force_x", "force_y", "force_z", "n_nodes"};
-  const char *attrs[] = {"nodal_force"};
-  if (proto_ready_series(ready, "series", 5, cols) < 0 ||
+  if (proto_ready_series(ready, PROTO_A_SERIES, NCOL, columns) < 0 ||
       (s->n_nodes > 0 &&
-       proto_ready_snapshot(ready, "points", "x", NULL, 1, attrs) < 0))
+       proto_ready_snapshot(ready, "points", PROTO_A_X, NULL, 1, SNAP_ATTRS) < 0))
     return proto_fail(err, "out of memory");
   return 0;
 }
 
-static int step(void *user, proto_peer *peer, const proto_msg *req,
-                proto_msg *reply, proto_err *err) {
+/* ∫_0^t min(τ/T, 1) dτ */
+static double ramp_integral(double t, double T) {
+  if (T <= 0) return t;
+  return t <= T ? 0.5 * t * t / T : 0.5 * T + (t - T);
+}
+
+static int step(void *user, proto_peer *peer, const proto_step_info *info,
+                const proto_msg *req, proto_msg *reply, proto_err *err) {
   (void)peer;
   dem_stub *s = user;
-  double t = reply->t;
-  double ramp = s->ramp_time > 0 && t < s->ramp_time ? t / s->ramp_time : 1.0;
+  double ramp = (ramp_integral(info->t_end, s->ramp_time) -
+                 ramp_integral(info->t, s->ramp_time)) / info->dt;
   double total[3] = {0, 0, 0};
   if (s->n_nodes > 0) {
-    const double *x = proto_msg_get_f8(req, "x", s->n_nodes, 3, err);
-    if (!x || !proto_msg_get_f8(req, "v", s->n_nodes, 3, err)) return -1;
+    const double *x = proto_msg_data(req, PROTO_A_X);
     for (int64_t i = 0; i < s->n_nodes; i++)
       for (int a = 0; a < 3; a++) {
         s->force[3 * i + a] = ramp * s->force_per_node[a];
         total[a] += s->force[3 * i + a];
       }
-    proto_msg_add_f8(reply, "nodal_force", s->n_nodes, 3, s->force);
-    const cJSON *out = cJSON_GetObjectItemCaseSensitive(req->header, "output");
-    if (cJSON_IsTrue(out)) {
-      proto_msg_add_f8(reply, "snap.x", s->n_nodes, 3, x);
-      proto_msg_add_f8(reply, "snap.nodal_force", s->n_nodes, 3, s->force);
-    }
+    if (proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, s->n_nodes, 3, s->force) < 0 ||
+        (info->output &&
+         (proto_msg_add_prefixed(reply, PROTO_P_SNAP, PROTO_A_X, PROTO_F8,
+                                 s->n_nodes, 3, x) < 0 ||
+          proto_msg_add_prefixed(reply, PROTO_P_SNAP, PROTO_A_NODAL_FORCE,
+                                 PROTO_F8, s->n_nodes, 3, s->force) < 0)))
+      return proto_fail(err, "reply full");
   }
-  double row[5] = {t, total[0], total[1], total[2], (double)s->n_nodes};
+  double row[NCOL] = {info->t_end, total[0], total[1], total[2], (double)s->n_nodes};
   memcpy(s->series, row, sizeof row);
-  proto_msg_add_f8(reply, "series", 5, 0, s->series);
+  if (proto_msg_add_f8(reply, PROTO_A_SERIES, NCOL, 0, s->series) < 0)
+    return proto_fail(err, "reply full");
   return 0;
 }
 
@@ -85,6 +97,12 @@ static void finish(void *user) {
 
 int main(int argc, char **argv) {
   dem_stub s = {0};
-  proto_participant_ops ops = {"dem", configure, init, step, finish};
+  const proto_participant_ops ops = {.role = PROTO_ROLE_DEM,
+                                     .configure = configure,
+                                     .init = init,
+                                     .step = step,
+                                     .finish = finish,
+                                     .state_save = stub_state_none_save,
+                                     .state_load = stub_state_none_load};
   return proto_participant_main(argc, argv, &ops, &s);
 }

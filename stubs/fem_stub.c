@@ -4,26 +4,32 @@
  * a test can check what the other side sent.
  * Config: {"exec": "fem_stub", "surface": {"plane": {"size": [lx, ly],
  *          "n": [nx, ny], "z": z0}} | {"nodes": [[x,y,z]...],
- *          "triangles": [[i,j,k]...]}} */
+ *          "triangles": [[i,j,k]...]}}. Without "surface" (standing in for
+ * fem_server, whose other keys are named in the log and ignored) it is the
+ * default plane: a tread-sized patch at the bottom of the 165/65 R13 tyre. */
 #include <stdlib.h>
 #include <string.h>
 
-#include "proto/proto.h"
+#include "stubs/stub.h"
+
+/* default surface: 0.2 m x 0.165 m (tread width), 8 x 8 cells, 0.272 m
+ * (outer radius of the 165/65 R13 tread, seed 000) below the rim centre */
+static const double PLANE_SIZE[2] = {0.2, 0.165}, PLANE_N[2] = {8, 8};
+#define PLANE_Z (-0.272)
+
+enum { COL_T, COL_FX, COL_FY, COL_FZ, COL_N, NCOL };
+static const char *const columns[NCOL] = {"t", "force_x", "force_y", "force_z",
+                                          "n_nodes"};
 
 typedef struct fem_stub {
   int64_t n_nodes, n_tris;
   double *x0, *x, *v;
   int32_t *tri;
-  double series[5]; /* t, Fx, Fy, Fz, n_nodes */
+  double series[NCOL];
 } fem_stub;
 
-static int plane(fem_stub *s, proto_cfg *c) {
-  double size[2] = {1, 1}, n[2] = {4, 4}, z = 0;
-  if (proto_cfg_vec(c, "size", PROTO_REQUIRED, size, 2, 2, NULL) < 0 ||
-      proto_cfg_vec(c, "n", PROTO_REQUIRED, n, 2, 2, NULL) < 0 ||
-      proto_cfg_num(c, "z", PROTO_OPTIONAL, -1e6, 1e6, &z) < 0 ||
-      proto_cfg_end(c) < 0)
-    return -1;
+static int plane_mesh(fem_stub *s, const double *size, const double *n, double z,
+                      proto_cfg *c) {
   int nx = (int)n[0], ny = (int)n[1];
   if (nx < 1 || ny < 1 || nx > 4096 || ny > 4096 || n[0] != nx || n[1] != ny)
     return proto_fail(c->err, "%s.n: expected two integers in [1, 4096]", c->path);
@@ -51,6 +57,16 @@ static int plane(fem_stub *s, proto_cfg *c) {
       t += 6;
     }
   return 0;
+}
+
+static int plane(fem_stub *s, proto_cfg *c) {
+  double size[2] = {1, 1}, n[2] = {4, 4}, z = 0;
+  if (proto_cfg_vec(c, "size", PROTO_REQUIRED, size, 2, 2, NULL) < 0 ||
+      proto_cfg_vec(c, "n", PROTO_REQUIRED, n, 2, 2, NULL) < 0 ||
+      proto_cfg_num(c, "z", PROTO_OPTIONAL, -1e6, 1e6, &z) < 0 ||
+      proto_cfg_end(c) < 0)
+    return -1;
+  return plane_mesh(s, size, n, z, c);
 }
 
 static int explicit_mesh(fem_stub *s, proto_cfg *c) {
@@ -100,14 +116,20 @@ static int configure(void *user, const proto_run_info *info,
   proto_cfg c, surf, sub;
   char exec[256];
   if (proto_cfg_open(&c, section, info->key_path, err) < 0 ||
-      proto_cfg_str(&c, "exec", PROTO_OPTIONAL, exec, sizeof exec) < 0 ||
-      proto_cfg_child(&c, "surface", PROTO_REQUIRED, &surf) != 0)
+      proto_cfg_str(&c, "exec", PROTO_OPTIONAL, exec, sizeof exec) < 0)
     return -1;
-  int rc = proto_cfg_child(&surf, "plane", PROTO_OPTIONAL, &sub);
+  int rc = proto_cfg_child(&c, "surface", PROTO_OPTIONAL, &surf);
   if (rc < 0) return -1;
-  if (rc == 0) rc = plane(s, &sub);
-  else rc = explicit_mesh(s, &surf);
-  if (rc < 0 || proto_cfg_end(&surf) < 0 || proto_cfg_end(&c) < 0) return -1;
+  if (rc > 0) { /* standing in for a solver: the default patch */
+    rc = plane_mesh(s, PLANE_SIZE, PLANE_N, PLANE_Z, &c);
+  } else {
+    rc = proto_cfg_child(&surf, "plane", PROTO_OPTIONAL, &sub);
+    if (rc < 0) return -1;
+    if (rc == 0) rc = plane(s, &sub);
+    else rc = explicit_mesh(s, &surf);
+    if (rc == 0) rc = proto_cfg_end(&surf);
+  }
+  if (rc < 0 || stub_cfg_end(&c, "fem_stub") < 0) return -1;
   s->x = calloc((size_t)s->n_nodes * 3, sizeof(double));
   s->v = calloc((size_t)s->n_nodes * 3, sizeof(double));
   return s->x && s->v ? 0 : proto_fail(err, "out of memory");
@@ -117,24 +139,23 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready,
                 proto_err *err) {
   (void)welcome;
   fem_stub *s = user;
-  const char *cols[] = {"t", "force_x", "force_y", "force_z", "n_nodes"};
-  if (proto_msg_add_f8(ready, "surface_x0", s->n_nodes, 3, s->x0) < 0 ||
-      proto_msg_add_i4(ready, "surface_tri", s->n_tris, 3, s->tri) < 0 ||
-      proto_ready_series(ready, "series", 5, cols) < 0)
+  if (proto_msg_add_f8(ready, PROTO_A_SURFACE_X0, s->n_nodes, 3, s->x0) < 0 ||
+      proto_msg_add_i4(ready, PROTO_A_SURFACE_TRI, s->n_tris, 3, s->tri) < 0 ||
+      proto_ready_series(ready, PROTO_A_SERIES, NCOL, columns) < 0)
     return proto_fail(err, "cannot build the ready message");
   return 0;
 }
 
-static int step(void *user, proto_peer *peer, const proto_msg *req,
-                proto_msg *reply, proto_err *err) {
+static int step(void *user, proto_peer *peer, const proto_step_info *info,
+                const proto_msg *req, proto_msg *reply, proto_err *err) {
   (void)peer;
   fem_stub *s = user;
-  const double *f = proto_msg_get_f8(req, "nodal_force", s->n_nodes, 3, err);
-  const double *R = f ? proto_msg_get_f8(req, "rim_R", 3, 3, err) : NULL;
-  const double *c = R ? proto_msg_get_f8(req, "rim_c", 3, 0, err) : NULL;
-  const double *w = c ? proto_msg_get_f8(req, "rim_omega", 3, 0, err) : NULL;
-  const double *vr = w ? proto_msg_get_f8(req, "rim_v", 3, 0, err) : NULL;
-  if (!vr) return -1;
+  /* checked against the role table by the participant loop */
+  const double *f = proto_msg_data(req, PROTO_A_NODAL_FORCE);
+  const double *R = proto_msg_data(req, PROTO_A_RIM_R);
+  const double *c = proto_msg_data(req, PROTO_A_RIM_C);
+  const double *w = proto_msg_data(req, PROTO_A_RIM_OMEGA);
+  const double *vr = proto_msg_data(req, PROTO_A_RIM_V);
   double F[3] = {0, 0, 0};
   for (int64_t i = 0; i < s->n_nodes; i++) {
     const double *X = &s->x0[3 * i];
@@ -148,11 +169,12 @@ static int step(void *user, proto_peer *peer, const proto_msg *req,
     v[1] = vr[1] + w[2] * r[0] - w[0] * r[2];
     v[2] = vr[2] + w[0] * r[1] - w[1] * r[0];
   }
-  double row[5] = {reply->t, F[0], F[1], F[2], (double)s->n_nodes};
+  double row[NCOL] = {info->t_end, F[0], F[1], F[2], (double)s->n_nodes};
   memcpy(s->series, row, sizeof row);
-  proto_msg_add_f8(reply, "x", s->n_nodes, 3, s->x);
-  proto_msg_add_f8(reply, "v", s->n_nodes, 3, s->v);
-  proto_msg_add_f8(reply, "series", 5, 0, s->series);
+  if (proto_msg_add_f8(reply, PROTO_A_X, s->n_nodes, 3, s->x) < 0 ||
+      proto_msg_add_f8(reply, PROTO_A_V, s->n_nodes, 3, s->v) < 0 ||
+      proto_msg_add_f8(reply, PROTO_A_SERIES, NCOL, 0, s->series) < 0)
+    return proto_fail(err, "reply full");
   return 0;
 }
 
@@ -167,6 +189,12 @@ static void finish(void *user) {
 
 int main(int argc, char **argv) {
   fem_stub s = {0};
-  proto_participant_ops ops = {"fem", configure, init, step, finish};
+  const proto_participant_ops ops = {.role = PROTO_ROLE_FEM,
+                                     .configure = configure,
+                                     .init = init,
+                                     .step = step,
+                                     .finish = finish,
+                                     .state_save = stub_state_none_save,
+                                     .state_load = stub_state_none_load};
   return proto_participant_main(argc, argv, &ops, &s);
 }

@@ -105,8 +105,10 @@ int main(int argc, char **argv) {
     return 1;
   }
   FILE *out = csv ? fopen(csv, "w") : NULL;
-  if (out) fprintf(out, "step,t,d_road,force,contacts,iterations,converged,residual,cuts,k_max\n");
-  long total_it = 0, max_it = 0, n_fail = 0, n_fact = 0;
+  if (out)
+    fprintf(out, "step,t,d_road,force,contacts,iterations,converged,residual,cuts,k_max,"
+                 "stiffness,products\n");
+  long total_it = 0, max_it = 0, n_fail = 0, n_fact = 0, n_prod = 0;
   double first_fail_d = NAN, Fmax = 0, Fmin = 0;
   const double t0 = proto_now(), c0 = cpu_seconds();
   int rc = 0;
@@ -121,6 +123,7 @@ int main(int argc, char **argv) {
     n_done = n;
     total_it += s.iterations;
     n_fact += s.factorizations;
+    n_prod += s.products;
     if (s.iterations > max_it) max_it = s.iterations;
     if (!s.converged) {
       if (!n_fail) first_fail_d = d;
@@ -136,15 +139,16 @@ int main(int argc, char **argv) {
       if (ke > k_max) k_max = ke;
     }
     if (out)
-      fprintf(out, "%ld,%.9e,%.9e,%.9e,%d,%d,%d,%.3e,%d,%.4e\n", n, t, d, s.total_force,
-              s.n_contact, s.iterations, s.converged, s.residual, s.line_search_cuts, k_max);
+      fprintf(out, "%ld,%.9e,%.9e,%.9e,%d,%d,%d,%.3e,%d,%.4e,%.9e,%d\n", n, t, d,
+              s.total_force, s.n_contact, s.iterations, s.converged, s.residual,
+              s.line_search_cuts, k_max, s.stiffness, s.products);
   }
   const double wall = proto_now() - t0, cpu = cpu_seconds() - c0;
   printf("%s: steps %ld  wall %.3f s  cpu %.3f s  iterations/step %.2f (max %ld)  factorizations/step "
-         "%.2f  not converged %ld (first at d = %.4g mm)  F max %.4g N  F min %.4g N  F end "
-         "%.4g N  contacts %d\n",
+         "%.2f  products/step %.2f  not converged %ld (first at d = %.4g mm)  F max %.4g N  "
+         "F min %.4g N  F end %.4g N  contacts %d\n",
          label, n_done, wall, cpu, (double)total_it / (n_done ? n_done : 1), max_it,
-         (double)n_fact / (n_done ? n_done : 1), n_fail,
+         (double)n_fact / (n_done ? n_done : 1), (double)n_prod / (n_done ? n_done : 1), n_fail,
          first_fail_d * 1e3, Fmax, Fmin, s.total_force, s.n_contact);
   if (out) fclose(out);
   blk_state_free(&s);

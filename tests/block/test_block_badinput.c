@@ -1,12 +1,12 @@
 /* Bad input gives clear errors (issue 5): Green's functions of the wrong
  * shape (in memory and in a green.h5 file), non-monotone spring tables, NaN
  * heights, and config sections with bad keys. */
-#include <hdf5.h>
 #include <math.h>
 #include <string.h>
 
 #include "blk_test.h"
 #include "contact_block/blk.h"
+#include "green/green.h"
 
 static proto_err err;
 
@@ -19,33 +19,17 @@ static proto_err err;
     printf("ok: %s\n    -> %s\n", #call, err.msg);                                 \
   } while (0)
 
-static void write_green(const char *path, int Q, int noy, int nox) {
-  hid_t f = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
-  hid_t g = H5Gcreate2(f, "/green", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  double rate = 51200;
-  hid_t sp = H5Screate(H5S_SCALAR);
-  hid_t a = H5Acreate2(g, "rate", H5T_NATIVE_DOUBLE, sp, H5P_DEFAULT, H5P_DEFAULT);
-  H5Awrite(a, H5T_NATIVE_DOUBLE, &rate);
-  H5Aclose(a);
-  H5Sclose(sp);
-  hsize_t d3[3] = {(hsize_t)Q, (hsize_t)noy, (hsize_t)nox}, d2[2] = {d3[1], d3[2]};
-  double *buf = calloc((size_t)Q * noy * nox, sizeof(double));
-  for (int i = 0; i < Q * noy * nox; i++) buf[i] = 1e-3;
-  hid_t s3 = H5Screate_simple(3, d3, NULL), s2 = H5Screate_simple(2, d2, NULL);
-  hid_t ds = H5Dcreate2(f, "/green/g", H5T_NATIVE_DOUBLE, s3, H5P_DEFAULT, H5P_DEFAULT,
-                        H5P_DEFAULT);
-  H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf);
-  H5Dclose(ds);
-  ds = H5Dcreate2(f, "/green/static", H5T_NATIVE_DOUBLE, s2, H5P_DEFAULT, H5P_DEFAULT,
-                  H5P_DEFAULT);
-  for (int i = 0; i < noy * nox; i++) buf[i] = Q * 1e-3 / rate; /* = Δt Σ g */
-  H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf);
-  H5Dclose(ds);
-  H5Sclose(s3);
-  H5Sclose(s2);
-  H5Gclose(g);
-  H5Fclose(f);
+/* green.h5 through its one writer (green/io.c): a 10 x ny grid of Q
+ * samples with g = 1e-3 and static = Δt Σ g, element size dx x dy. */
+static void write_green(const char *path, int Q, int ny, double dx, double dy) {
+  const grn_grid g = {10, ny, dx, dy};
+  const int no = (2 * ny - 1) * 19;
+  double *buf = malloc(sizeof(double) * (size_t)Q * no), *st = malloc(sizeof(double) * no);
+  for (int i = 0; i < Q * no; i++) buf[i] = 1e-3;
+  for (int i = 0; i < no; i++) st[i] = Q * 1e-3 / 51200;
+  OK(grn_write_green(path, &g, Q, 51200, "zoh", "test", buf, st, NULL, 0, 0, NULL, &err));
   free(buf);
+  free(st);
 }
 
 static int config_error(const char *json, const char *needle) {
@@ -63,8 +47,10 @@ int main(void) {
   /* Green's functions of the wrong shape */
   double g[4 * 19 * 17] = {0}, st[19 * 17] = {0};
   EXPECT_ERR(blk_green_set(&m, 4, 51200, 19, 17, g, st, "zoh", "x", &err), "[19, 19]");
-  write_green("/tmp/blk_test_bad_green.h5", 4, 21, 19);
+  write_green("/tmp/blk_test_bad_green.h5", 4, 11, 1e-3, 1e-3); /* offsets [21, 19] */
   EXPECT_ERR(blk_green_load(&m, "/tmp/blk_test_bad_green.h5", &err), "offset grid");
+  write_green("/tmp/blk_test_bad_green.h5", 4, 10, 1e-3, 1.2e-3); /* rectangular elements */
+  EXPECT_ERR(blk_green_load(&m, "/tmp/blk_test_bad_green.h5", &err), "0.001 x 0.0012 m");
   EXPECT_ERR(blk_green_load(&m, "/nonexistent/green.h5", &err), "cannot open");
   /* static compliance inconsistent with the time sum of g */
   {
@@ -78,9 +64,20 @@ int main(void) {
     OK(blk_green_set(&m, 4, 51200, 19, 19, g2, st2, "zoh", "x", &err));
   }
   /* a correctly shaped file loads */
-  write_green("/tmp/blk_test_bad_green.h5", 4, 19, 19);
+  write_green("/tmp/blk_test_bad_green.h5", 4, 10, 1e-3, 1e-3);
   OK(blk_green_load(&m, "/tmp/blk_test_bad_green.h5", &err));
   CHECK(m.Q == 4 && m.rate == 51200, "loaded Q %d rate %g", m.Q, m.rate);
+  /* a periodic grid refuses Green's functions that are not periodic */
+  {
+    blk_model mp;
+    OK(blk_model_init(&mp, 10, 10, 1e-3, 1e-3, &err));
+    mp.periodic = 1;
+    OK(blk_green_load(&mp, "/tmp/blk_test_bad_green.h5", &err));
+    double kk = 1e5;
+    OK(blk_springs_linear(&mp, &kk, 0, &err));
+    EXPECT_ERR(blk_model_check(&mp, &err), "grid.periodic");
+    blk_model_free(&mp);
+  }
   remove("/tmp/blk_test_bad_green.h5");
   /* non-monotone spring table: element 3's force drops at knot 2 */
   enum { K = 4 };
@@ -126,6 +123,25 @@ int main(void) {
   config_error("{\"springs\":{\"kind\":\"linear\",\"k\":1e5},\"green\":{\"kind\":\"file\","
                "\"file\":\"/nonexistent/g.h5\"}}",
                "processes.block.green");
+  /* issue 14: the new keys */
+  config_error("{\"grid\":{\"nx\":5000},\"springs\":{\"kind\":\"rigid\"},"
+               "\"green\":{\"kind\":\"halfspace\"}}", "processes.block.grid.nx");
+  config_error("{\"springs\":{\"kind\":\"rigid\"},\"green\":{\"kind\":\"halfspace\"},"
+               "\"solver\":{\"quasi_static\":true,\"method\":\"newton\"}}",
+               "rigid springs (hard contact) need dual_newton");
+  config_error("{\"springs\":{\"kind\":\"stiffening\",\"soften\":{\"count\":300}},"
+               "\"green\":{\"kind\":\"synthetic\"}}", "springs.soften: soften: count = 300");
+  config_error("{\"springs\":{\"kind\":\"stiffening\",\"soften\":{\"count\":8,"
+               "\"factor\":2}},\"green\":{\"kind\":\"synthetic\"}}",
+               "processes.block.springs.soften.factor");
+  config_error("{\"springs\":{\"kind\":\"rigid\",\"soften\":{\"count\":8}},"
+               "\"green\":{\"kind\":\"synthetic\"}}", "needs roughness springs");
+  config_error("{\"grid\":{\"periodic\":true},\"springs\":{\"kind\":\"rigid\"},"
+               "\"green\":{\"kind\":\"synthetic\"},\"solver\":{\"method\":\"dense\"}}",
+               "processes.block.solver.method");
+  config_error("{\"grid\":{\"nx\":100,\"ny\":100},\"springs\":{\"kind\":\"rigid\"},"
+               "\"green\":{\"kind\":\"halfspace\"},\"solver\":{\"quasi_static\":true,"
+               "\"method\":\"dual_newton\"}}", "dense solvers keep M x M matrices");
   config_error("{\"grid\":{\"nx\":2,\"ny\":2},\"springs\":{\"kind\":\"linear\",\"k\":1e5},"
                "\"green\":{\"kind\":\"synthetic\"},\"road\":{\"kind\":\"values\",\"z\":[0,0,0]}}",
                "processes.block.road.z");

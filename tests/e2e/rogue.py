@@ -7,7 +7,7 @@ mute        say hello, then never answer the welcome
 version     say hello with protocol version 2
 truncated   say hello with an array frame shorter than its header claims
 oversized   say hello with an array header claiming 1e12 doubles
-role        say hello with the wrong role
+role        say hello with a role that does not exist
 crash_step  behave until the first step, then exit(5)
 nan         answer steps, with a NaN force from step 3 on
 """
@@ -55,7 +55,7 @@ elif mode == "oversized":
     arr = [{"name": "x", "dtype": "f8", "shape": [1000000000000]}]
     s.send_multipart([name.encode(), header("hello", arrays=arr, role=role), b"\0" * 8])
 elif mode == "role":
-    s.send_multipart([name.encode(), header("hello", role="fem", name=name)])
+    s.send_multipart([name.encode(), header("hello", role="blob", name=name)])
 else:
     s.send_multipart([name.encode(), header("hello", role=role, name=name)])
     welcome = s.recv_multipart()

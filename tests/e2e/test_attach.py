@@ -33,6 +33,26 @@ d = 1e-4 * np.minimum((np.arange(1, 51) * 1e-3 / 0.05) ** 2, 1)
 rows = h5(s)["/block/series"][:]
 check(np.allclose(rows[:, 2], 3e5 * d, rtol=1e-12), "forces of the quadratic profile")
 
+# port 0: the coupler binds a free port and prints the command line with it
+s0 = scene("attach_free", {"block": {"exec": "block_stub", "stiffness": 3e5}},
+           scenario={"kind": "indentation", "profile": "linear", "depth": 1e-4, "ramp_time": 0.05})
+s0["coupling"] = {"attach_endpoint": "tcp://127.0.0.1:0", "handshake_timeout": 20, "step_timeout": 5}
+coupler = subprocess.Popen([COSIM, "run", write(s0), "--attach"], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+line = ""
+for _ in range(50):
+    line = coupler.stderr.readline()
+    if "--endpoint" in line:
+        break
+ep0 = line.split("--endpoint")[1].split()[0] if "--endpoint" in line else ""
+check(ep0.startswith("tcp://127.0.0.1:") and not ep0.endswith(":0"),
+      f"the printed endpoint has the bound port ({line.strip()})")
+part = subprocess.Popen([os.path.join(BIN, "block_stub"), "--endpoint", ep0, "--name", "block"],
+                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+out, err = coupler.communicate(timeout=60)
+part.wait(timeout=10)
+check(coupler.returncode == 0, f"attached run on a free port ok ({err[-300:]})")
+
 # nobody comes: a clear message within the deadline, exit 3
 s2 = scene("attach_absent", {"block": {"exec": "block_stub", "stiffness": 3e5}},
            scenario={"kind": "indentation", "profile": "linear", "depth": 1e-4, "ramp_time": 0.05})

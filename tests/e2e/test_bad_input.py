@@ -1,5 +1,6 @@
 """Bad input: each case gives a clear message naming what is wrong, a
 non-zero exit, no hang, and no participant left running."""
+import json
 import os
 import signal
 import stat
@@ -10,6 +11,7 @@ import time
 from common import COSIM, HERE, check, done, no_orphans, run, scene, write
 
 ROGUE = os.path.join(HERE, "rogue.py")
+PY_BLOCK = os.path.join(HERE, "py_block.py")
 
 
 def block_scene(name, **block):
@@ -50,7 +52,32 @@ expect("check: a participant's own key", s, 1, ["processes.block.stiffness: must
 expect("run: a participant's own key", s, 3, ["processes.block.stiffness: must be in [0,",
                                               "failed participant: block"])
 s = block_scene("inner2", stifness=5)
+s["processes"]["block"] = {"exec": PY_BLOCK, "c": 1e9, "stifness": 5}
 expect("run: a typo inside a participant's section", s, 3, ["processes.block.stifness: unknown key"])
+# a stub accepts the section of the solver it stands in for, naming what it ignores
+s = block_scene("stub_lenient", grid={"nx": 4}, solver={"method": "newton"})
+expect("a stub ignores its solver's keys", s, 0, [])
+log = open(os.path.join(s["output"]["dir"], "logs", "block.log")).read()
+check("ignoring 2 keys" in log and "grid, solver" in log, f"the stub names the keys it ignores: {log!r}")
+# the same process name twice, or five times: refused, no crash
+for n in (2, 5):
+    s = block_scene(f"dup{n}")
+    body = ", ".join(['"block": {"exec": "block_stub", "stiffness": 1e5}'] * n)
+    text = json.dumps(s).replace('"processes": {"block": {"exec": "block_stub", "stiffness": 100000.0}}',
+                                 '"processes": {' + body + '}')
+    check(text.count('"block":') == n, "duplicate scene written")
+    for cmd in ("run", "check"):
+        expect(f"{cmd}: process key given {n} times", s, 1, ["processes.block: duplicate key"],
+               cmd=cmd, text=text)
+# exec as a list: a non-string element is named
+s = block_scene("execlist"); s["processes"]["block"]["exec"] = ["env", 5]
+expect("exec list with a number", s, 1, ["processes.block.exec[1]: expected a non-empty string"])
+# implicit coupling needs every participant to roll back: py_block cannot
+s = block_scene("norollback")
+s["processes"]["block"] = {"exec": PY_BLOCK, "c": 1e9}
+s["coupling"]["scheme"] = "implicit"
+expect("implicit without rollback", s, 1, ["'implicit' repeats steps", "participant 'block'",
+                                           "cannot roll back"])
 s = block_scene("noexec"); s["processes"]["block"]["exec"] = "no_such_solver"
 expect("missing exec", s, 1, ["processes.block.exec: 'no_such_solver' not found"])
 expect("check: missing exec", s, 1, ["processes.block.exec: 'no_such_solver' not found"], cmd="check")
@@ -62,7 +89,8 @@ s = block_scene("nonexec"); s["processes"]["block"]["exec"] = plain
 expect("non-executable exec", s, 1, ["processes.block.exec:", "is not an executable file"])
 s = block_scene("scen"); s["scenario"] = {"kind": "tire_travel", "sinkage_velocity": 1,
                                            "sinkage_force": 1, "omega": 1}
-expect("scenario needs processes", s, 1, ["'tire_travel' needs processes.dem and processes.fem"])
+expect("scenario needs roles", s, 1, ["'tire_travel' needs a process of role dem and one of role fem",
+                                      "block (block)"])
 
 # --- participants that misbehave: exit 3, the message names the participant
 def rogue(mode, needles, name=None, max_s=20, role="block"):
@@ -80,8 +108,8 @@ rogue("mute", ["participant 'block' did not answer within"])
 rogue("version", ["protocol version mismatch", "participant 'block'"])
 rogue("truncated", ["needs 240 bytes, frame has 17", "participant 'block'"])
 rogue("oversized", ["exceeds the limit", "participant 'block'"])
-rogue("role", ["expected a hello with role 'block'"])
-rogue("nan", ["participant 'block': force is not finite", "step 3"])
+rogue("role", ["participant 'block': hello with unknown role blob"])
+rogue("nan", ["participant 'block': force[0] is not finite", "step 3"])
 rogue("crash_step", ["participant 'block'", "exited with status 5", "crashing at the first step"])
 
 # --- Ctrl-C during a long run: exit 130, everyone stopped, results kept

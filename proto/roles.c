@@ -1,0 +1,254 @@
+/* roles.c — the role table (proto.h "role table", PROTOCOL.md "Roles"): the
+ * one place where the arrays each role exchanges are declared, with what they
+ * mean over a coupling step [t_{k-1}, t_k] in which a participant may take
+ * several sub-steps. Both sides validate messages against it. */
+#include "proto.h"
+
+#include <stdio.h>
+#include <string.h>
+
+static const char *const role_names[PROTO_N_ROLES] = {"dem", "fem", "block"};
+static const char *const msg_types[PROTO_N_MSGS] = {
+    "hello", "welcome", "ready", "step", "done", "stop", "bye", "error",
+    "checkpoint", "state", "restore", "restored"};
+/* Direction of each message kind: 1 participant → coupler, 0 the other way. */
+static const int from_participant[PROTO_N_MSGS] = {1, 0, 1, 0, 1, 0, 1, 1,
+                                                   0, 1, 0, 1};
+
+#define N3 {PROTO_DIM_NODES, 3}
+#define M3 {PROTO_DIM_TRIS, 3}
+
+static const proto_array_spec table[] = {
+    /* ---- fem: the tread. It declares the coupled surface. */
+    {PROTO_ROLE_FEM, PROTO_MSG_READY, PROTO_A_SURFACE_X0, PROTO_F8, 2, N3, "m",
+     PROTO_WHEN_ALWAYS,
+     "coupled surface nodes in the rim frame at rest (after any initial static "
+     "solve); binds n"},
+    {PROTO_ROLE_FEM, PROTO_MSG_READY, PROTO_A_SURFACE_TRI, PROTO_I4, 2, M3, "-",
+     PROTO_WHEN_ALWAYS,
+     "surface triangles, indices into surface_x0, outward normals by the "
+     "right-hand rule; binds m"},
+    {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_NODAL_FORCE, PROTO_F8, 2, N3, "N",
+     PROTO_WHEN_ALWAYS,
+     "force of the grains on each surface node, world frame, constant over "
+     "[t_{k-1}, t_k]: the impulse the grains exchanged with the node over the "
+     "coupling step divided by dt. Apply it unchanged in every sub-step "
+     "(zero at step 1)"},
+    {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_RIM_R, PROTO_F8, 2, {3, 3}, "-",
+     PROTO_WHEN_ALWAYS, "rotation rim -> world at t_k, row-major"},
+    {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_RIM_C, PROTO_F8, 1, {3}, "m",
+     PROTO_WHEN_ALWAYS, "rim centre at t_k, world frame"},
+    {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_RIM_OMEGA, PROTO_F8, 1, {3},
+     "rad/s", PROTO_WHEN_ALWAYS, "rim angular velocity over the step, world"},
+    {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_RIM_V, PROTO_F8, 1, {3}, "m/s",
+     PROTO_WHEN_ALWAYS, "rim centre velocity over the step, world"},
+    {PROTO_ROLE_FEM, PROTO_MSG_DONE, PROTO_A_X, PROTO_F8, 2, N3, "m",
+     PROTO_WHEN_ALWAYS, "surface node positions at t_k, world frame"},
+    {PROTO_ROLE_FEM, PROTO_MSG_DONE, PROTO_A_V, PROTO_F8, 2, N3, "m/s",
+     PROTO_WHEN_ALWAYS, "surface node velocities at t_k, world frame"},
+    /* ---- dem: the grains. Gets the surface when the scene has one. */
+    {PROTO_ROLE_DEM, PROTO_MSG_WELCOME, PROTO_A_SURFACE_X0, PROTO_F8, 2, N3, "m",
+     PROTO_WHEN_SURFACE,
+     "the coupled surface in the world frame at t = 0 (only when the scene has "
+     "one); binds n"},
+    {PROTO_ROLE_DEM, PROTO_MSG_WELCOME, PROTO_A_SURFACE_TRI, PROTO_I4, 2, M3,
+     "-", PROTO_WHEN_SURFACE, "its triangles (as the fem's); binds m"},
+    {PROTO_ROLE_DEM, PROTO_MSG_STEP, PROTO_A_X, PROTO_F8, 2, N3, "m",
+     PROTO_WHEN_SURFACE, "surface node positions at t_{k-1}, world frame"},
+    {PROTO_ROLE_DEM, PROTO_MSG_STEP, PROTO_A_V, PROTO_F8, 2, N3, "m/s",
+     PROTO_WHEN_SURFACE,
+     "surface velocity over the step: within [t_{k-1}, t_k] the surface is at "
+     "x + (t - t_{k-1}) v (contact damping and friction use v)"},
+    {PROTO_ROLE_DEM, PROTO_MSG_DONE, PROTO_A_NODAL_FORCE, PROTO_F8, 2, N3, "N",
+     PROTO_WHEN_SURFACE,
+     "force of the grains ON each surface node, world frame, as the impulse "
+     "over [t_{k-1}, t_k] divided by dt: (1/dt) sum_j dt_j f_j over the "
+     "sub-steps j of the step, f_j the nodal force evaluated in sub-step j "
+     "(each evaluation kicks the grains with -dt_j f_j in total). Its sum is "
+     "minus the impulse/dt the grains received from the surface"},
+    /* ---- block: the tread block on the road. */
+    {PROTO_ROLE_BLOCK, PROTO_MSG_STEP, PROTO_A_D_ROAD, PROTO_F8, 1, {1}, "m",
+     PROTO_WHEN_ALWAYS,
+     "road displacement towards the block at t_k (positive = indentation)"},
+    {PROTO_ROLE_BLOCK, PROTO_MSG_DONE, PROTO_A_FORCE, PROTO_F8, 1, {1}, "N",
+     PROTO_WHEN_ALWAYS,
+     "total normal contact force (positive = compression, negative = "
+     "adhesion): at t_k, or the impulse over the step divided by dt if the "
+     "block sub-steps"},
+};
+
+const proto_array_spec *proto_role_table(int *n) {
+  *n = (int)(sizeof table / sizeof table[0]);
+  return table;
+}
+
+/* Index of name in names[0..n), or -1. */
+static int index_of(const char *name, const char *const *names, int n) {
+  for (int i = 0; name && i < n; i++)
+    if (strcmp(name, names[i]) == 0) return i;
+  return -1;
+}
+
+const char *proto_role_name(proto_role r) {
+  return (unsigned)r < PROTO_N_ROLES ? role_names[r] : "?";
+}
+
+int proto_role_parse(const char *name) { return index_of(name, role_names, PROTO_N_ROLES); }
+
+const char *proto_msg_type(proto_msg_kind k) {
+  return (unsigned)k < PROTO_N_MSGS ? msg_types[k] : "?";
+}
+
+int proto_msg_kind_parse(const char *type) { return index_of(type, msg_types, PROTO_N_MSGS); }
+
+void proto_dims_init(proto_dims *d) {
+  d->nodes = d->tris = -1;
+  d->surface = 0;
+}
+
+static int64_t *dim_slot(proto_dims *d, int64_t sym) {
+  return sym == PROTO_DIM_NODES ? &d->nodes : sym == PROTO_DIM_TRIS ? &d->tris
+                                                                    : NULL;
+}
+
+static const char *dim_symbol(int64_t sym) {
+  return sym == PROTO_DIM_NODES ? "n" : sym == PROTO_DIM_TRIS ? "m" : "?";
+}
+
+/* "[n=25, 3]" (or "[n, 3]" while n is unbound). */
+static void want_str(const proto_array_spec *s, const proto_dims *d, char *out,
+                     size_t cap) {
+  size_t len = (size_t)snprintf(out, cap, "[");
+  for (int i = 0; i < s->ndim && len < cap; i++) {
+    const char *sep = i ? ", " : "";
+    int64_t v = s->dims[i];
+    if (v > 0) {
+      len += (size_t)snprintf(out + len, cap - len, "%s%lld", sep, (long long)v);
+    } else {
+      int64_t bound = *dim_slot((proto_dims *)d, v);
+      if (bound >= 0)
+        len += (size_t)snprintf(out + len, cap - len, "%s%s=%lld", sep,
+                                dim_symbol(v), (long long)bound);
+      else
+        len += (size_t)snprintf(out + len, cap - len, "%s%s", sep, dim_symbol(v));
+    }
+  }
+  if (len < cap) snprintf(out + len, cap - len, "]");
+}
+
+static void got_str(const proto_array *a, char *out, size_t cap) {
+  size_t len = (size_t)snprintf(out, cap, "%s [", proto_dtype_name(a->dtype));
+  for (int i = 0; i < a->ndim && len < cap; i++)
+    len += (size_t)snprintf(out + len, cap - len, "%s%lld", i ? ", " : "",
+                            (long long)a->shape[i]);
+  if (len < cap) snprintf(out + len, cap - len, "]");
+}
+
+static int spec_fail(const proto_array_spec *s, const proto_dims *d,
+                     const proto_array *a, proto_err *err) {
+  char want[96], got[96] = "";
+  want_str(s, d, want, sizeof want);
+  if (a) got_str(a, got, sizeof got);
+  return proto_fail(err, "%s (role %s): %s array '%s': expected %s %s (%s)%s%s",
+                    proto_msg_type(s->msg), role_names[s->role],
+                    a ? "wrong shape or dtype of" : "missing", s->name,
+                    proto_dtype_name(s->dtype), want, s->meaning,
+                    a ? ", got " : "", got);
+}
+
+/* Checks one array against its spec, binding unbound symbolic dims. */
+static int check_one(const proto_array_spec *s, const proto_array *a,
+                     proto_dims *d, proto_err *err) {
+  if (a->dtype != s->dtype || a->ndim != s->ndim) return spec_fail(s, d, a, err);
+  proto_dims trial = *d;
+  for (int i = 0; i < s->ndim; i++) {
+    int64_t want = s->dims[i];
+    if (want > 0) {
+      if (a->shape[i] != want) return spec_fail(s, d, a, err);
+      continue;
+    }
+    int64_t *slot = dim_slot(&trial, want);
+    if (*slot < 0) *slot = a->shape[i];
+    else if (*slot != a->shape[i]) return spec_fail(s, d, a, err);
+  }
+  *d = trial;
+  return 0;
+}
+
+int proto_role_check(proto_role role, proto_msg_kind kind, const proto_msg *m,
+                     proto_dims *d, proto_err *err) {
+  int n;
+  const proto_array_spec *t = proto_role_table(&n);
+  int declaring = kind == PROTO_MSG_WELCOME || kind == PROTO_MSG_READY;
+  if (declaring)
+    for (int i = 0; i < n; i++)
+      if (t[i].role == role && t[i].msg == kind && t[i].when == PROTO_WHEN_SURFACE &&
+          proto_msg_find(m, t[i].name))
+        d->surface = 1;
+  for (int i = 0; i < n; i++) {
+    const proto_array_spec *s = &t[i];
+    if (s->role != role || s->msg != kind) continue;
+    if (s->when == PROTO_WHEN_SURFACE && !d->surface) continue;
+    const proto_array *a = proto_msg_find(m, s->name);
+    if (!a) return spec_fail(s, d, NULL, err);
+    if (check_one(s, a, d, err) < 0) return -1;
+  }
+  return 0;
+}
+
+const void *proto_msg_data(const proto_msg *m, const char *name) {
+  const proto_array *a = proto_msg_find(m, name);
+  return a ? a->data : NULL;
+}
+
+cJSON *proto_role_table_json(void) {
+  int n;
+  const proto_array_spec *t = proto_role_table(&n);
+  cJSON *root = cJSON_CreateObject();
+  cJSON_AddNumberToObject(root, "version", PROTO_VERSION);
+  cJSON *msgs = cJSON_AddArrayToObject(root, "messages");
+  for (int k = 0; k < PROTO_N_MSGS; k++) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "type", msg_types[k]);
+    cJSON_AddStringToObject(o, "direction", from_participant[k]
+                                                ? "participant->coupler"
+                                                : "coupler->participant");
+    cJSON_AddItemToArray(msgs, o);
+  }
+  cJSON *dims = cJSON_AddObjectToObject(root, "dims");
+  cJSON_AddStringToObject(dims, "n", "surface nodes (bound by surface_x0)");
+  cJSON_AddStringToObject(dims, "m", "surface triangles (bound by surface_tri)");
+  cJSON *prefixes = cJSON_AddObjectToObject(root, "prefixes");
+  cJSON_AddStringToObject(prefixes, PROTO_A_SERIES, "done: the row of the series dataset");
+  cJSON_AddStringToObject(prefixes, PROTO_P_SERIES, "done: rows of further datasets");
+  cJSON_AddStringToObject(prefixes, PROTO_P_SNAP, "done at output steps: snapshot arrays");
+  cJSON_AddStringToObject(prefixes, PROTO_P_MESH, "ready: arrays written once");
+  cJSON_AddStringToObject(prefixes, PROTO_P_STATE, "state: the participant's state");
+  cJSON *roles = cJSON_AddObjectToObject(root, "roles");
+  for (int r = 0; r < PROTO_N_ROLES; r++) {
+    cJSON *ro = cJSON_AddObjectToObject(roles, role_names[r]);
+    for (int i = 0; i < n; i++) {
+      const proto_array_spec *s = &t[i];
+      if ((int)s->role != r) continue;
+      cJSON *list = cJSON_GetObjectItemCaseSensitive(ro, msg_types[s->msg]);
+      if (!list) list = cJSON_AddArrayToObject(ro, msg_types[s->msg]);
+      cJSON *a = cJSON_CreateObject();
+      cJSON_AddStringToObject(a, "name", s->name);
+      cJSON_AddStringToObject(a, "dtype", proto_dtype_name(s->dtype));
+      cJSON *shape = cJSON_AddArrayToObject(a, "shape");
+      for (int k = 0; k < s->ndim; k++)
+        cJSON_AddItemToArray(shape, s->dims[k] > 0
+                                        ? cJSON_CreateNumber((double)s->dims[k])
+                                        : cJSON_CreateString(dim_symbol(s->dims[k])));
+      cJSON_AddStringToObject(a, "units", s->units);
+      cJSON_AddStringToObject(a, "direction", from_participant[s->msg]
+                                                  ? "participant->coupler"
+                                                  : "coupler->participant");
+      cJSON_AddStringToObject(a, "when", s->when == PROTO_WHEN_SURFACE
+                                             ? "with_surface" : "always");
+      cJSON_AddStringToObject(a, "meaning", s->meaning);
+      cJSON_AddItemToArray(list, a);
+    }
+  }
+  return root;
+}
