@@ -3,8 +3,10 @@
  * Spheres with Hertz–Mindlin contacts, exactly LIGGGHTS 3.8
  * `pair gran model hertz tangential history` (seed 000 eq. 16–27; the LIGGGHTS
  * Coulomb rule of ../shared/notes/dem.md §1.1), velocity Verlet (eq. 4–5) with
- * quaternion orientation, linked cells + Verlet list with skin, plane/box walls
- * and triangle meshes (closest point, eq. 35; nodal reaction by ζ, eq. 42; BVH).
+ * optional quaternion orientation, linked cells + Verlet list with skin,
+ * plane/box walls and triangle meshes (closest point, eq. 35; nodal reaction
+ * by ζ, eq. 42; BVH and per-grain candidate lists). Any number of OpenMP
+ * threads gives bitwise identical results.
  *
  * Model (the scene, read-only during a run) and state (what changes) are
  * separate, MuJoCo style. Per-grain arrays in the state are structure of arrays
@@ -22,6 +24,10 @@
 #define DEM_MAX_PLANES 64
 #define DEM_MAX_MESHES 8
 #define DEM_MESH_SLOTS 6 /* mesh contacts kept per grain */
+/* "sleep" defaults: at rest below 2 mm/s for 20 ms, 5 cm from moving meshes */
+#define DEM_SLEEP_VELOCITY 2e-3
+#define DEM_SLEEP_TIME 0.02
+#define DEM_SLEEP_DISTANCE 0.05
 
 typedef struct dem_material {
   double density, E, nu, G; /* G = E/(2(1+nu)) unless given */
@@ -30,13 +36,16 @@ typedef struct dem_material {
   double rolling_friction;  /* μ_r of LIGGGHTS `rolling_friction cdt`, 0 = off */
 } dem_material;
 
-/* Per material pair, LIGGGHTS' effective values (notes §1.1). */
+/* Per material pair, LIGGGHTS' effective values (notes §1.1). Restitution,
+ * friction and rolling friction: the mean of the two materials', or the
+ * config's "pairs" entry for that pair (LIGGGHTS' peratomtypepair tables). */
 typedef struct dem_pair_law {
   double Estar; /* Y* = 1/((1-ν1²)/E1 + (1-ν2²)/E2), seed 000 eq. 21 */
   double Gstar; /* 1/(2(2-ν1)(1+ν1)/E1 + 2(2-ν2)(1+ν2)/E2), eq. 26 with G = E/(2(1+ν)) */
   double beta;  /* ln e / sqrt(ln² e + π²) (≤ 0) */
   double mu, mu_roll;
   double damp_n, damp_t; /* −2√(5/6) β √(2Y*), −2√(5/6) β √(8G*): γ = damp·√(√(R*δ) m*) */
+  int clamp;             /* F_n never attractive (LIGGGHTS `limitForce on`): the model's limit_force */
 } dem_pair_law;
 
 typedef enum dem_wall_kind { DEM_WALL_PLANE, DEM_WALL_BOX, DEM_WALL_MESH } dem_wall_kind;
@@ -64,6 +73,16 @@ typedef struct dem_mesh {
   int coupled;       /* node positions/velocities set each step (FEM surface) */
 } dem_mesh;
 
+/* "sleep" (dem_sleep.c): a grain slower than `velocity` (also |ω| r) for
+ * `time` and farther than `distance` from every moving mesh's box stops
+ * (not integrated; its contacts with other sleeping grains frozen); it wakes
+ * when a grain faster than `velocity` or a mesh (box within `distance`)
+ * comes to it. */
+typedef struct dem_sleep_config {
+  int on;
+  double velocity, time, distance;
+} dem_sleep_config;
+
 /* Config values kept as given (the derived ones live in dem_model). */
 typedef struct dem_model_config {
   double dt_given;     /* "dt", 0 = use dt_fraction */
@@ -90,10 +109,15 @@ typedef struct dem_model {
   double rayleigh_time;  /* over the smallest grain, notes §2 */
   double skin;           /* neighbour-list skin (m) */
   double overlap_tolerance;   /* initial overlap allowed, fraction of the smaller radius */
+  double bed_max_overlap;     /* a bed file saved by dem_bed_save records its largest overlap
+                               * (a settled bed has them): accepted up to that too, 0 = none */
   double max_overlap_ratio;   /* overlap/radius that stops a run as unstable */
   int unsafe_dt;         /* skip the stability refusal (stress tests only) */
-  int threads;           /* OpenMP threads, 0 = runtime default */
+  int threads;           /* OpenMP threads, 0 = "auto" (dem_threads.c) */
   int has_rolling;
+  int limit_force;       /* "limit_force": F_n = max(F_n, 0) (damping never pulls) */
+  int orientation;       /* "orientation": integrate q (spheres need it only for output) */
+  dem_sleep_config sleep; /* "sleep": grains at rest far from moving meshes stop */
   int n_grains;
   double *x0, *v0, *omega0, *radius; /* [n*3], [n*3], [n*3], [n] */
   int32_t *material;                 /* [n] */
@@ -107,7 +131,8 @@ typedef struct dem_state {
   int64_t step;
   double t;
   /* per grain (slot order, see id) */
-  double *x, *v, *omega, *q; /* q: quaternion [n*4] (w, x, y, z), body→world */
+  double *x, *v, *omega, *q; /* q: quaternion [n*4] (w, x, y, z), body→world; identity
+                              * unless the model's `orientation` is on */
   double *force, *torque;    /* contact forces/torques (gravity enters the kick as g) */
   double *radius, *inv_mass, *inv_inertia;
   int32_t *material, *id;
@@ -117,10 +142,14 @@ typedef struct dem_state {
   /* per-step summary */
   double kinetic_energy;   /* translational + rotational, J */
   double elastic_energy;   /* normal Hertz energy stored in contacts, J */
-  int64_t contacts;        /* grain–grain + grain–wall contacts */
+  int64_t contacts;        /* grain–grain + grain–wall contacts (evaluated ones: not those
+                            * between sleeping grains) */
+  int64_t sleeping;        /* grains asleep ("sleep" on) */
   double max_overlap_ratio;/* max overlap / radius */
   double *wall_force;      /* [n_walls*3] force ON each wall, N */
   int64_t rebuilds;
+  int threads;             /* OpenMP threads in use (may change in "auto" mode) */
+  char threads_why[256];   /* how that number was chosen, for the log */
   struct dem_work *work;
 } dem_state;
 
@@ -151,6 +180,11 @@ int dem_state_init(const dem_model *m, dem_state *s, proto_err *err);
 void dem_state_free(dem_state *s);
 /* One DEM step of m->dt. Fails (with where and why) on NaN, runaway overlap. */
 int dem_step(const dem_model *m, dem_state *s, proto_err *err);
+/* Call first in main(): unless GOMP_SPINCOUNT or OMP_WAIT_POLICY is set,
+ * sets GOMP_SPINCOUNT=10000 and re-executes the program (libgomp reads it
+ * when loaded): threads waiting at a barrier then sleep soon instead of
+ * spinning on a core that another process needs (dem_threads.c). */
+void dem_openmp_env(char **argv);
 /* Advances by `duration` in equal steps of m->dt (duration/m->dt rounded). */
 int dem_advance(const dem_model *m, dem_state *s, double duration, proto_err *err);
 /* Sets coupled mesh nodes: positions at the current time and velocities. */
@@ -199,7 +233,10 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err);
 /* Runs until the kinetic energy per grain is below ke_per_grain or max_steps. */
 int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain,
                int64_t max_steps, proto_err *err);
-/* HDF5 beds: datasets x [n,3], v [n,3], omega [n,3], r [n], material [n] (i4). */
+/* HDF5 beds: datasets x [n,3], v [n,3], omega [n,3], r [n], material [n] (i4),
+ * max_overlap [1]: the largest overlap (grain pairs: of the smaller radius;
+ * walls: of the radius) of the state saved, which loading accepts (a settled
+ * bed is compressed by its weight); a file without it gets overlap_tolerance. */
 int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto_err *err);
 int dem_bed_load(dem_model *m, const char *path, proto_err *err);
 

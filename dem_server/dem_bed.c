@@ -4,6 +4,8 @@
 #include "dem_server/dem_internal.h"
 
 #include <hdf5.h>
+
+#define DEM_BED_MAX_OVERLAP "max_overlap" /* dataset: largest overlap when saved */
 #include <stdlib.h>
 #include <string.h>
 
@@ -95,10 +97,11 @@ int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto
   if (!rc) rc = write_ds(f, "r", H5T_NATIVE_DOUBLE, 1, n, 1, buf);
   for (int i = 0; i < s->n; i++) mat[s->id[i]] = s->material[i];
   if (!rc) rc = write_ds(f, "material", H5T_NATIVE_INT32, 1, n, 1, mat);
+  const double worst = dem_worst_overlap(m, s);
+  if (!rc) rc = write_ds(f, DEM_BED_MAX_OVERLAP, H5T_NATIVE_DOUBLE, 1, 1, 1, &worst);
   if (f >= 0 && H5Fclose(f) < 0) rc = -1;
   free(buf);
   free(mat);
-  (void)m;
   return rc ? proto_fail(err, "%s: cannot write the bed (HDF5 error)", path) : 0;
 }
 
@@ -145,8 +148,11 @@ int dem_bed_load(dem_model *m, const char *path, proto_err *err) {
              !read_ds(f, "r", H5T_NATIVE_DOUBLE, dims[0], 1, m->radius, 0, path, err) &&
              !read_ds(f, "v", H5T_NATIVE_DOUBLE, dims[0], 3, m->v0, 1, path, err) &&
              !read_ds(f, "omega", H5T_NATIVE_DOUBLE, dims[0], 3, m->omega0, 1, path, err) &&
-             !read_ds(f, "material", H5T_NATIVE_INT32, dims[0], 1, m->material, 1, path, err)) {
+             !read_ds(f, "material", H5T_NATIVE_INT32, dims[0], 1, m->material, 1, path, err) &&
+             !read_ds(f, DEM_BED_MAX_OVERLAP, H5T_NATIVE_DOUBLE, 1, 1, &m->bed_max_overlap, 1, path, err)) {
     rc = 0;
+    if (!(m->bed_max_overlap >= 0 && m->bed_max_overlap < 1))
+      rc = proto_fail(err, "%s: %s = %g (expected a fraction in [0, 1))", path, DEM_BED_MAX_OVERLAP, m->bed_max_overlap);
     for (int i = 0; i < m->n_grains && !rc; i++)
       if (!(m->radius[i] > 0)) rc = proto_fail(err, "%s: grain %d has radius %g (must be > 0)", path, i, m->radius[i]);
   }

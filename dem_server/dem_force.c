@@ -1,14 +1,20 @@
 /* dem_force.c — contact forces: grain–grain pairs over the half list, then a
- * per-grain sweep (plane walls, meshes, and in dem_step the second half kick)
- * in fixed order, so results are bitwise identical for any number of threads
+ * per-grain sweep (cross-chunk pair shares, meshes, plane walls, and in
+ * dem_step the second half kick), in a fixed order that does not depend on
+ * the number of threads, so results are bitwise identical for any number
  * (gravity enters the kick as an acceleration).
+ * Grains are in fixed chunks of DEM_CHUNK slots (Morton-sorted, dem_neigh.c):
+ * a chunk's rows run in descending slot order and add each pair's share to
+ * its partner at once when the partner is in the same chunk (most pairs);
+ * shares crossing into a later chunk are stored per pair and summed by the
+ * partner's sweep, after a barrier, through the reverse index. A thread owns
+ * whole chunks: no two threads write the same grain, no atomics, no
+ * per-thread copies.
  * Speed (bench/results/dem.md): touching pairs and wall contacts are gathered
  * into small structure-of-arrays batches and the contact law runs over a
  * batch as one branch-free loop that the compiler vectorises (AVX2 clone when
  * the CPU has it; same IEEE operations, so the same results); open pairs cost
- * one distance test (no history read unless they touched last step). One
- * thread adds each pair's share to its partner at once (rows in descending
- * slot order); threads store it per pair and the sweep sums it in that order. */
+ * one distance test (no history read unless they touched last step). */
 #include "dem_server/dem_internal.h"
 
 #include <string.h>
@@ -68,6 +74,39 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
   b->n = q;
 }
 
+/* screen_block with sleeping grains ("sleep" on): pairs of two sleeping
+ * grains are frozen (neither evaluated nor reset); a sleeping grain touched
+ * by an awake one moving faster than the sleep velocity is woken. */
+static int screen_block_sleep(const dem_model *m, const dem_state *s, struct dem_work *w, int i, int k0,
+                              int k1, pair_batch *restrict b) {
+  const double *restrict x = s->x, *restrict rad = s->radius;
+  const uint8_t *restrict sl = w->asleep;
+  const double vs2 = m->sleep.velocity * m->sleep.velocity;
+  const double xi0 = x[3 * i], xi1 = x[3 * i + 1], xi2 = x[3 * i + 2], ri = rad[i];
+  const int si = sl[i];
+  int q = b->n, live = 0;
+  for (int k = k0; k < k1; k++) {
+    const int j = w->nl_j[k];
+    if (si & sl[j]) continue;
+    live++;
+    const double d0 = xi0 - x[3 * j], d1 = xi1 - x[3 * j + 1], d2 = xi2 - x[3 * j + 2];
+    const double rj = rad[j], rsum = ri + rj;
+    const int touch = d0 * d0 + d1 * d1 + d2 * d2 < rsum * rsum;
+    if ((touch ^ 1) & w->pair_touch[k]) memset(&w->nl_shear[3 * k], 0, 3 * sizeof(double));
+    w->pair_touch[k] = (uint8_t)touch;
+    if (touch && (si | sl[j])) {
+      const int mover = si ? j : i;
+      if (dem_dot(&s->v[3 * mover], &s->v[3 * mover]) > vs2) dem_wake(w, si ? i : j);
+    }
+    b->j[q] = j; b->k[q] = k;
+    b->d[0][q] = d0; b->d[1][q] = d1; b->d[2][q] = d2;
+    b->rj[q] = rj;
+    q += touch;
+  }
+  b->n = q;
+  return live; /* pairs not frozen */
+}
+
 /* The rest of the inputs of entries q0.. (all of row i). */
 static void batch_fill(const dem_model *m, const dem_state *s, pair_batch *restrict b, int i, int q0,
                        int one_law) {
@@ -91,7 +130,7 @@ static void batch_fill(const dem_model *m, const dem_state *s, pair_batch *restr
 /* Pair geometry (eq. 10–18) and contact law of a batch, as one branch-free
  * loop the compiler vectorises (IEEE results as in scalar code). */
 __attribute__((target_clones("avx2", "default")))
-static void batch_hertz(pair_batch *restrict b, double dt) {
+static void batch_hertz(pair_batch *restrict b, double dt, int clamp) {
   const int nb = b->n;
   for (int q = 0; q < nb; q++) {
     const double d0 = b->d[0][q], d1 = b->d[1][q], d2 = b->d[2][q];
@@ -111,7 +150,7 @@ static void batch_hertz(pair_batch *restrict b, double dt) {
     const double vc0 = b->dv[0][q] + (n1 * w2 - n2 * w1), vc1 = b->dv[1][q] + (n2 * w0 - n0 * w2),
                  vc2 = b->dv[2][q] + (n0 * w1 - n1 * w0);
     const dem_pair_law l = {.Estar = b->Estar[q], .Gstar = b->Gstar[q], .mu = b->mu[q],
-                            .damp_n = b->damp_n[q], .damp_t = b->damp_t[q]};
+                            .damp_n = b->damp_n[q], .damp_t = b->damp_t[q], .clamp = clamp};
     const double n[3] = {n0, n1, n2}, vc[3] = {vc0, vc1, vc2};
     double sh[3] = {b->sh[0][q], b->sh[1][q], b->sh[2][q]}, F[3], c[3], up;
     const double Fn = dem_hertz(&l, delta, rstar, mstar, n, vc, dt, sh, F, c, &up);
@@ -125,61 +164,86 @@ static void batch_hertz(pair_batch *restrict b, double dt) {
   }
 }
 
-static void row_finish(dem_state *s, const row_sum *r) {
-  struct dem_work *w = s->work;
-  memcpy(&s->force[3 * r->i], r->f, sizeof r->f);
-  memcpy(&s->torque[3 * r->i], r->t, sizeof r->t);
-  w->pair_u[r->i] = r->u;
-  w->pair_contacts[r->i] = r->cnt;
-  w->ratio[r->i] = r->ratio;
+/* Grain i's own-pair sums become its force and torque (rows run in
+ * descending i, so nothing was added to i yet). */
+static inline void row_finish(dem_state *s, const row_sum *r, dem_chunk_sum *sum) {
+  double *f = &s->force[3 * r->i], *t = &s->torque[3 * r->i];
+  f[0] = r->f[0]; f[1] = r->f[1]; f[2] = r->f[2];
+  t[0] = r->t[0]; t[1] = r->t[1]; t[2] = r->t[2];
+  s->work->ratio[r->i] = r->ratio;
+  sum->u += r->u;
+  sum->pair_contacts += r->cnt;
+}
+
+/* A row without touching pairs (most grains in flight). */
+static inline void row_empty(dem_state *s, int i) {
+  double *f = &s->force[3 * i], *t = &s->torque[3 * i];
+  f[0] = f[1] = f[2] = t[0] = t[1] = t[2] = 0;
+  s->work->ratio[i] = 0;
 }
 
 /* Evaluates the batch and sums it in order: torque on i −(r_i − δ/2) n × F_t,
- * on j −(r_j − δ/2) n × F_t; one thread scatters j's share at once (j's own
- * sum is in place: rows run in descending i), threads store it for gather(). */
-static void batch_flush(const dem_model *m, dem_state *s, pair_batch *b, row_sum *r, int scatter) {
+ * on j −(r_j − δ/2) n × F_t; j's share is added at once when j is in this
+ * chunk (j < hi; its own sum is in place: rows run in descending i), else
+ * stored for the partner's sweep (gather_chunk). The running row sum is in
+ * scalars (a struct on the stack costs store-forwarding stalls). */
+static void batch_flush(const dem_model *m, dem_state *s, pair_batch *b, row_sum *r, int hi,
+                        dem_chunk_sum *sum) {
   struct dem_work *w = s->work;
   double *restrict shear = w->nl_shear, *restrict force = s->force, *restrict torque = s->torque;
-  row_sum cur = *r; /* in registers: the stores below cannot alias it */
-  batch_hertz(b, m->dt);
+  double *restrict pft = w->pair_ft;
+  const int rolling = m->has_rolling;
+  int ci = r->i, cnt = r->cnt;
+  double f0 = r->f[0], f1 = r->f[1], f2 = r->f[2], t0 = r->t[0], t1 = r->t[1], t2 = r->t[2];
+  double u = r->u, ratio = r->ratio;
+  batch_hertz(b, m->dt, m->limit_force);
   for (int q = 0; q < b->n; q++) {
     const int i = b->i[q], k = b->k[q], j = b->j[q];
-    if (i != cur.i) {
-      if (cur.i >= 0) row_finish(s, &cur);
-      cur = (row_sum){.i = i};
+    if (i != ci) {
+      if (ci >= 0) row_finish(s, &(row_sum){ci, cnt, {f0, f1, f2}, {t0, t1, t2}, u, ratio}, sum);
+      ci = i;
+      cnt = 0;
+      f0 = f1 = f2 = t0 = t1 = t2 = u = ratio = 0;
     }
-    for (int a = 0; a < 3; a++) {
-      shear[3 * k + a] = b->sh[a][q];
-      cur.f[a] += b->F[a][q];
-      cur.t[a] -= b->ci[a][q];
-    }
-    if (scatter) {
-      for (int a = 0; a < 3; a++) { force[3 * j + a] -= b->F[a][q]; torque[3 * j + a] -= b->cj[a][q]; }
-    } else {
-      for (int a = 0; a < 3; a++) { w->pair_ft[6 * k + a] = b->F[a][q]; w->pair_ft[6 * k + 3 + a] = b->cj[a][q]; }
-    }
-    if (m->has_rolling) {
+    const double F0 = b->F[0][q], F1 = b->F[1][q], F2 = b->F[2][q];
+    shear[3 * k] = b->sh[0][q]; shear[3 * k + 1] = b->sh[1][q]; shear[3 * k + 2] = b->sh[2][q];
+    f0 += F0; f1 += F1; f2 += F2;
+    t0 -= b->ci[0][q]; t1 -= b->ci[1][q]; t2 -= b->ci[2][q];
+    double roll[3] = {0, 0, 0};
+    int rolls = 0;
+    if (rolling) {
       const dem_pair_law *l = &m->law[s->material[i]][s->material[j]];
-      if (l->mu_roll > 0) {
+      if ((rolls = l->mu_roll > 0)) {
         const double *oi = &s->omega[3 * i], *oj = &s->omega[3 * j];
-        double wrel[3] = {oi[0] - oj[0], oi[1] - oj[1], oi[2] - oj[2]};
-        dem_rolling(l, b->Fn[q], b->rstar[q], wrel, &w->pair_roll[3 * k]);
-        for (int a = 0; a < 3; a++) cur.t[a] += w->pair_roll[3 * k + a];
+        const double wrel[3] = {oi[0] - oj[0], oi[1] - oj[1], oi[2] - oj[2]};
+        dem_rolling(l, b->Fn[q], b->rstar[q], wrel, roll);
+        t0 += roll[0]; t1 += roll[1]; t2 += roll[2];
       }
     }
-    cur.u += b->up[q];
-    cur.cnt++;
-    cur.ratio = b->rr[q] > cur.ratio ? b->rr[q] : cur.ratio;
+    if (j < hi) {
+      double *fj = &force[3 * j], *tj = &torque[3 * j];
+      fj[0] -= F0; fj[1] -= F1; fj[2] -= F2;
+      tj[0] -= b->cj[0][q]; tj[1] -= b->cj[1][q]; tj[2] -= b->cj[2][q];
+      if (rolls) { tj[0] -= roll[0]; tj[1] -= roll[1]; tj[2] -= roll[2]; }
+    } else {
+      double *p = &pft[6 * k];
+      p[0] = F0; p[1] = F1; p[2] = F2; p[3] = b->cj[0][q]; p[4] = b->cj[1][q]; p[5] = b->cj[2][q];
+      if (rolling) memcpy(&w->pair_roll[3 * k], roll, sizeof roll);
+    }
+    u += b->up[q];
+    cnt++;
+    ratio = b->rr[q] > ratio ? b->rr[q] : ratio;
   }
-  *r = cur;
+  *r = (row_sum){ci, cnt, {f0, f1, f2}, {t0, t1, t2}, u, ratio};
   b->n = 0;
 }
 
 /* Summation order, the same for any number of threads: a grain's force is
  * the sum of its own pairs (j > i, list order), minus the partner shares of
- * the pairs (i', i), i' < i, in descending i'; then planes and meshes.
- * Rows lo..hi−1 in descending i. */
-static void pair_rows(const dem_model *m, dem_state *s, int lo, int hi, int scatter) {
+ * the pairs (i', i), i' < i, of its own chunk in descending i', then those of
+ * earlier chunks in descending i'; then meshes, planes. Rows lo..hi−1 (one
+ * chunk) in descending i. */
+static void pair_rows(const dem_model *m, dem_state *s, int lo, int hi, dem_chunk_sum *sum) {
   struct dem_work *w = s->work;
   pair_batch b;
   row_sum r = {.i = -1};
@@ -187,34 +251,32 @@ static void pair_rows(const dem_model *m, dem_state *s, int lo, int hi, int scat
   b.n = 0;
   if (one_law)
     for (int q = 0; q < DEM_BATCH; q++) law_set(&b, q, &m->law[0][0]);
+  const int c = lo / DEM_CHUNK;
+  uint8_t *frozen = w->row_frozen; /* NULL unless "sleep" is on */
+  if (frozen && w->chunk_frozen[c]) return; /* all asleep, and so are all partners: nothing changes */
+  int live_rows = 0;
   for (int i = hi - 1; i >= lo; i--) {
+    if (frozen && frozen[i]) continue; /* i and its partners asleep (until one wakes: dem_sleep.c) */
     const int kbeg = w->nl_start[i], kend = w->nl_start[i + 1];
-    int found = 0;
-    if (m->has_rolling) /* open pairs give no rolling torque */
-      memset(&w->pair_roll[3 * (size_t)kbeg], 0, 3 * sizeof(double) * (size_t)(kend - kbeg));
+    int found = 0, live = 0;
     for (int k0 = kbeg; k0 < kend; k0 += DEM_ROW_BLOCK) {
       const int k1 = kend - k0 > DEM_ROW_BLOCK ? k0 + DEM_ROW_BLOCK : kend;
-      if (b.n + (k1 - k0) > DEM_BATCH) batch_flush(m, s, &b, &r, scatter);
+      if (b.n + (k1 - k0) > DEM_BATCH) batch_flush(m, s, &b, &r, hi, sum);
       const int q0 = b.n;
-      screen_block(s, w, i, k0, k1, &b);
+      if (frozen) live += screen_block_sleep(m, s, w, i, k0, k1, &b);
+      else screen_block(s, w, i, k0, k1, &b);
       batch_fill(m, s, &b, i, q0, one_law);
       found += b.n - q0;
     }
-    if (!found) row_finish(s, &(row_sum){.i = i}); /* no scatter into i is pending */
+    if (!found) row_empty(s, i); /* no share into i is pending */
+    if (frozen) {
+      frozen[i] = w->asleep[i] && live == 0;
+      live_rows += !frozen[i];
+    }
   }
-  batch_flush(m, s, &b, &r, scatter);
-  if (r.i >= 0) row_finish(s, &r);
-}
-
-static void pair_forces(const dem_model *m, dem_state *s) {
-  struct dem_work *w = s->work;
-  if (w->nthreads == 1) {
-    pair_rows(m, s, 0, s->n, 1);
-    return;
-  }
-  const int nchunk = (s->n + 255) / 256;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads)
-  for (int c = 0; c < nchunk; c++) pair_rows(m, s, 256 * c, 256 * (c + 1) < s->n ? 256 * (c + 1) : s->n, 0);
+  batch_flush(m, s, &b, &r, hi, sum);
+  if (r.i >= 0) row_finish(s, &r, sum);
+  if (frozen) w->chunk_frozen[c] = live_rows == 0 && w->chunk_awake[c] == 0;
 }
 
 /* Plane contacts (wall: R* = r_i, m* = m_i, no wall motion), batched like the
@@ -228,7 +290,7 @@ typedef struct wall_batch {
 } wall_batch;
 
 __attribute__((target_clones("avx2", "default")))
-static void batch_wall_hertz(wall_batch *restrict b, double dt) {
+static void batch_wall_hertz(wall_batch *restrict b, double dt, int clamp) {
   const int nb = b->n;
   for (int q = 0; q < nb; q++) {
     const double delta = b->delta[q], r = b->r[q];
@@ -239,7 +301,7 @@ static void batch_wall_hertz(wall_batch *restrict b, double dt) {
     dem_cross(o, n, wxn);
     for (int a = 0; a < 3; a++) vc[a] = b->v[a][q] - cr * wxn[a];
     const dem_pair_law l = {.Estar = b->Estar[q], .Gstar = b->Gstar[q], .mu = b->mu[q],
-                            .damp_n = b->damp_n[q], .damp_t = b->damp_t[q]};
+                            .damp_n = b->damp_n[q], .damp_t = b->damp_t[q], .clamp = clamp};
     double sh[3] = {b->sh[0][q], b->sh[1][q], b->sh[2][q]}, F[3], c[3], up;
     b->Fn[q] = dem_hertz(&l, delta, r, b->mass[q], n, vc, dt, sh, F, c, &up);
     for (int a = 0; a < 3; a++) { b->sh[a][q] = sh[a]; b->F[a][q] = F[a]; b->c[a][q] = c[a]; }
@@ -250,9 +312,9 @@ static void batch_wall_hertz(wall_batch *restrict b, double dt) {
 
 /* Evaluates the batch and adds it to the grains (force/torque hold their
  * pair sums) and to the chunk's plane totals, in batch order. */
-static void wall_flush(const dem_model *m, dem_state *s, wall_batch *b, double *part) {
+static void wall_flush(const dem_model *m, dem_state *s, wall_batch *b, double *part, dem_chunk_sum *sum) {
   struct dem_work *w = s->work;
-  batch_wall_hertz(b, m->dt);
+  batch_wall_hertz(b, m->dt, m->limit_force);
   for (int q = 0; q < b->n; q++) {
     const int i = b->i[q], p = b->p[q];
     double *f = &s->force[3 * i], *t = &s->torque[3 * i];
@@ -267,8 +329,8 @@ static void wall_flush(const dem_model *m, dem_state *s, wall_batch *b, double *
       dem_rolling(l, b->Fn[q], b->r[q], &s->omega[3 * i], tr);
       for (int a = 0; a < 3; a++) t[a] += tr[a];
     }
-    w->wall_u[i] += b->up[q];
-    w->wall_contacts[i]++;
+    sum->u += b->up[q];
+    sum->wall_contacts++;
     if (b->delta[q] / b->r[q] > w->ratio[i]) w->ratio[i] = b->delta[q] / b->r[q];
   }
   b->n = 0;
@@ -280,7 +342,8 @@ static void wall_law_set(wall_batch *b, int q, const dem_pair_law *l) {
 }
 
 /* Touching planes of grain i into the batch; open ones lose their spring. */
-static void plane_screen(const dem_model *m, dem_state *s, int i, wall_batch *b, double *part) {
+static void plane_screen(const dem_model *m, dem_state *s, int i, wall_batch *b, double *part,
+                         dem_chunk_sum *sum) {
   struct dem_work *w = s->work;
   const double r = s->radius[i];
   /* only planes within reach at the last rebuild (dem_neigh.c plane mask) */
@@ -297,7 +360,7 @@ static void plane_screen(const dem_model *m, dem_state *s, int i, wall_batch *b,
       continue;
     }
     w->plane_touch[i] |= bit;
-    if (b->n == DEM_BATCH) wall_flush(m, s, b, part);
+    if (b->n == DEM_BATCH) wall_flush(m, s, b, part, sum);
     const int q = b->n++;
     const dem_pair_law *l = &m->law[s->material[i]][pl->material];
     b->i[q] = i; b->p[q] = p;
@@ -318,12 +381,15 @@ static double kick_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
   const struct dem_work *w = s->work;
   const double dt = m->dt, half = 0.5 * dt, *g = m->gravity;
   double ke = 0;
+  if (m->orientation) /* over the step with the mid-step ω (still ω^{n+1/2} here) */
+    for (int i = lo; i < hi; i++)
+      if (s->inv_inertia[i] > 0) dem_rotate_quaternion(&s->q[4 * i], &s->omega[3 * i], dt);
+  const uint8_t *asleep = w->asleep;
   for (int i = lo; i < hi; i++) {
+    if (asleep && asleep[i]) continue;
     double *v = &s->v[3 * i], *o = &s->omega[3 * i];
     const double *f = &s->force[3 * i], *t = &s->torque[3 * i];
     const double im = s->inv_mass[i], ii = s->inv_inertia[i];
-    /* orientation over the step with the mid-step ω (still ω^{n+1/2} here) */
-    if (ii > 0) dem_rotate_quaternion(&s->q[4 * i], o, dt);
     for (int a = 0; a < 3; a++) {
       v[a] += half * (f[a] * im + g[a]);
       o[a] += half * t[a] * ii;
@@ -333,11 +399,11 @@ static double kick_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
   return ke;
 }
 
-/* Per-grain sum in fixed order (own pairs, partner shares, planes, meshes);
- * plane-wall totals per chunk of grains (a fixed partition, so the sums do
- * not depend on the number of threads). */
-static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, double *part, int scatter,
-                         double *ke_chunk) {
+/* Per-grain sum in fixed order (own pairs and same-chunk shares, shares from
+ * earlier chunks, planes, meshes); plane-wall totals per chunk (a fixed
+ * partition, so the sums do not depend on the number of threads). */
+static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, double *part, int kick,
+                         dem_chunk_sum *sum) {
   struct dem_work *w = s->work;
   const double *pft = w->pair_ft;
   const uint8_t *touch = w->pair_touch;
@@ -345,73 +411,85 @@ static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
   b.n = 0;
   if (m->n_materials == 1) /* one law for every contact */
     for (int q = 0; q < DEM_BATCH; q++) wall_law_set(&b, q, &m->law[0][0]);
+  const uint8_t *asleep = w->asleep;
   for (int i = lo; i < hi; i++) {
-    /* own pairs were summed by pair_forces() into force/torque (one thread: the
-     * partner shares too); as partner j, in descending i' (see pair_rows), open
-     * pairs add nothing (their F and torque are zero) and are skipped */
-    if (!scatter || m->has_rolling) { /* else force/torque are complete already */
+    if (asleep && asleep[i]) continue; /* frozen: no forces needed */
+    /* shares of pairs (i', i) from earlier chunks, descending i' (reverse
+     * index order); open pairs add nothing and are skipped */
+    const int q0 = w->rev_start[i], q1 = w->rev_start[i + 1];
+    if (q0 < q1) {
       double fx = s->force[3 * i], fy = s->force[3 * i + 1], fz = s->force[3 * i + 2];
       double tx = s->torque[3 * i], ty = s->torque[3 * i + 1], tz = s->torque[3 * i + 2];
-      const int q0 = w->rev_start[i], q1 = w->rev_start[i + 1];
-      for (int q = scatter ? q0 - 1 : q1 - 1; q >= q0; q--) { /* none left when scattered */
+      for (int q = q0; q < q1; q++) {
         const int k = w->rev_k[q];
         if (!touch[k]) continue;
         const double *p = &pft[6 * k];
         fx -= p[0]; fy -= p[1]; fz -= p[2]; /* Newton's third law */
         tx -= p[3]; ty -= p[4]; tz -= p[5]; /* −(r_j − δ/2) n × F_t */
-      }
-      if (m->has_rolling)
-        for (int q = q0; q < q1; q++) {
-          const double *roll = &w->pair_roll[3 * w->rev_k[q]];
+        if (m->has_rolling) {
+          const double *roll = &w->pair_roll[3 * k];
           tx -= roll[0]; ty -= roll[1]; tz -= roll[2];
         }
+      }
       s->force[3 * i] = fx; s->force[3 * i + 1] = fy; s->force[3 * i + 2] = fz;
       s->torque[3 * i] = tx; s->torque[3 * i + 1] = ty; s->torque[3 * i + 2] = tz;
     }
-    plane_screen(m, s, i, &b, part);
+    if (m->n_meshes > 0) sum->mesh_contacts += dem_mesh_grain(m, s, i, &sum->u);
+    plane_screen(m, s, i, &b, part, sum);
   }
-  wall_flush(m, s, &b, part);
+  wall_flush(m, s, &b, part, sum);
+  for (int i = lo; i < hi; i++)
+    if (!(asleep && asleep[i])) sum->ratio = w->ratio[i] > sum->ratio ? w->ratio[i] : sum->ratio;
   if (m->n_meshes > 0) /* gravity is added as an acceleration in the kick */
     for (int i = lo; i < hi; i++)
-      for (int a = 0; a < 3; a++) {
+      for (int a = 0; a < 3 && !(asleep && asleep[i]); a++) {
         s->force[3 * i + a] += w->mesh_f[3 * i + a];
         s->torque[3 * i + a] += w->mesh_t[3 * i + a];
       }
-  if (ke_chunk) *ke_chunk = kick_chunk(m, s, lo, hi);
-}
-
-static void gather(const dem_model *m, dem_state *s, int kick) {
-  struct dem_work *w = s->work;
-  const int np3 = 3 * m->n_planes, nchunk = (s->n + DEM_CHUNK - 1) / DEM_CHUNK;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads)
-  for (int c = 0; c < nchunk; c++) {
-    double *part = &w->wall_part[(size_t)c * np3];
-    memset(part, 0, sizeof(double) * (size_t)np3);
-    const int end = (c + 1) * DEM_CHUNK < s->n ? (c + 1) * DEM_CHUNK : s->n;
-    gather_chunk(m, s, c * DEM_CHUNK, end, part, w->nthreads == 1, kick ? &w->ke_part[c] : NULL);
-  }
-  for (int c = 0; c < nchunk; c++)
-    for (int p = 0; p < m->n_planes; p++)
-      for (int a = 0; a < 3; a++)
-        s->wall_force[3 * m->planes[p].wall + a] -= w->wall_part[(size_t)c * np3 + 3 * p + a];
+  if (kick) sum->ke = kick_chunk(m, s, lo, hi);
+  if (asleep && kick) dem_sleep_chunk(m, s, (lo / DEM_CHUNK), lo, hi);
 }
 
 void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {
   struct dem_work *w = s->work;
-  memset(w->wall_u, 0, sizeof(double) * (size_t)s->n);
-  memset(w->wall_contacts, 0, (size_t)s->n);
+  const int n = s->n, np3 = 3 * m->n_planes, nchunk = (n + DEM_CHUNK - 1) / DEM_CHUNK;
+  dem_chunk_sum *cs = w->chunk;
+  memset(cs, 0, sizeof(dem_chunk_sum) * (size_t)nchunk);
+#pragma omp parallel num_threads(w->nthreads)
+  {
+#pragma omp for schedule(dynamic, 1)
+    for (int c = 0; c < nchunk; c++)
+      pair_rows(m, s, c * DEM_CHUNK, (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n, &cs[c]);
+    /* (barrier) every pair's share is in place or stored */
+#pragma omp for schedule(dynamic, 1)
+    for (int c = 0; c < nchunk; c++) {
+      double *part = &w->wall_part[(size_t)c * np3];
+      memset(part, 0, sizeof(double) * (size_t)np3);
+      gather_chunk(m, s, c * DEM_CHUNK, (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n, part, kick, &cs[c]);
+    }
+  }
   memset(s->wall_force, 0, sizeof(double) * 3 * (size_t)(m->n_walls ? m->n_walls : 1));
-  pair_forces(m, s);
-  dem_mesh_forces(m, s);
-  gather(m, s, kick);
-  int64_t contacts = 0;
-  double ratio = 0, u = 0;
-  for (int i = 0; i < s->n; i++) {
-    contacts += w->pair_contacts[i] + w->wall_contacts[i];
-    if (w->ratio[i] > ratio) ratio = w->ratio[i];
-    u += w->pair_u[i] + w->wall_u[i];
+  int64_t contacts = 0, pairs = 0;
+  double ratio = 0, u = 0, ke = 0;
+  for (int c = 0; c < nchunk; c++) {
+    for (int p = 0; p < m->n_planes; p++)
+      for (int a = 0; a < 3; a++)
+        s->wall_force[3 * m->planes[p].wall + a] -= w->wall_part[(size_t)c * np3 + 3 * p + a];
+    contacts += cs[c].pair_contacts + cs[c].wall_contacts + cs[c].mesh_contacts;
+    pairs += cs[c].pair_contacts;
+    u += cs[c].u;
+    ke += cs[c].ke;
+    ratio = cs[c].ratio > ratio ? cs[c].ratio : ratio;
+  }
+  if (m->n_meshes > 0) dem_mesh_reactions(m, s);
+  if (w->asleep) {
+    int64_t awake = 0;
+    for (int c = 0; c < nchunk; c++) awake += w->chunk_awake[c];
+    s->sleeping = n - awake;
   }
   s->contacts = contacts;
+  w->pair_contacts = pairs;
   s->max_overlap_ratio = ratio;
   s->elastic_energy = u;
+  if (kick) s->kinetic_energy = ke;
 }

@@ -5,6 +5,7 @@
 
 #include "dem_server/dem.h"
 #include <math.h>
+#include <omp.h>
 
 /* Binary bounding-volume tree over a mesh's triangles (seed 000 §4.2). Nodes in
  * pre-order (children after parents) so a refit is one reverse sweep. */
@@ -15,34 +16,58 @@ typedef struct dem_bvh {
   double area_built;    /* sum of box surface areas right after the build */
 } dem_bvh;
 
+/* Grains per chunk: the fixed partition of the slots that the force sums
+ * follow (dem_force.c), so results do not depend on the number of threads. */
+#define DEM_CHUNK 512
+#define DEM_MAX_THREADS 64
+#define DEM_TRI_BITS 24 /* triangles per mesh < 2^24 (candidate keys) */
+
+/* Per-chunk totals of a force evaluation, one cache line each. */
+typedef struct dem_chunk_sum {
+  double u, ke, ratio;
+  int64_t pair_contacts, wall_contacts, mesh_contacts;
+  char pad[16];
+} dem_chunk_sum;
+
 /* Contact features of a sphere–triangle contact (seed 000 fig. 10). */
-#define DEM_CHUNK 512 /* grains per chunk of deterministic partial sums */
 
 enum { DEM_FEAT_VERTEX = 1, DEM_FEAT_EDGE = 2, DEM_FEAT_FACE = 3 };
 
+/* Load measurement of "threads": "auto" (dem_threads.c). */
+typedef struct dem_thread_probe {
+  int on, cores, reserved, cap, up_votes;
+  double win_t0, busy0, self0, in_step, step_t0;
+} dem_thread_probe;
+
 struct dem_work {
   int nthreads;
-  /* half neighbour list in CSR by slot (j > i), with per-pair history and the
-   * per-pair results that the deterministic gather sums */
+  dem_thread_probe probe;
+  /* half neighbour list in CSR by slot (j > i, ascending), with per-pair
+   * history and the shares that cross into a later chunk (dem_force.c) */
   int *nl_start, *nl_j;
-  double *nl_shear, *pair_roll; /* [cap*3]: spring, rolling torque on i */
-  /* [cap*6] per touching pair: F on i, then (r_j − δ/2) n × F_t (the torque on
-   * j is minus that); stale for open pairs, which the gather skips by pair_touch */
+  double *nl_shear, *pair_roll; /* [cap*3]: spring, rolling torque on i (crossing pairs) */
+  /* [cap*6] per touching pair crossing into a later chunk: F on i, then
+   * (r_j − δ/2) n × F_t (the torque on j is minus that) */
   double *pair_ft;
   uint8_t *pair_touch; /* [cap] 1 = pair touched at the last force evaluation (or
                         * may hold a spring after a rebuild): open pairs whose flag
                         * is 0 have a zero spring, so neither gather nor reset reads them */
-  double *pair_u;                                 /* [n] elastic energy of i's own pairs */
-  int cap;
-  int *old_start, *old_j;
+  size_t cap, pair_cap; /* capacity of nl_j/nl_shear, of rev_k/pair_ft/pair_touch/pair_roll */
+  int *old_start, *old_j; /* the previous list (swapped with nl_* at a rebuild) */
   double *old_shear;
-  int old_cap, have_old;
-  int *rev_start, *rev_k, *rev_fill; /* pairs in which a slot is the partner j */
+  size_t old_cap;
+  int have_old;
+  int *rev_start, *rev_k, *rev_fill; /* pairs from earlier chunks in which a slot is j */
   int *old_of;                       /* new slot -> old slot during a rebuild */
   double *x_ref;                     /* positions at the last rebuild */
+  void *perm_tmp[DEM_MAX_THREADS];   /* per-thread scratch of the re-sorting */
+  int nchunk;                        /* chunks of DEM_CHUNK slots */
+  int **cbuf, *cbuf_cap;             /* [nchunk] a chunk's new rows during a rebuild */
+  dem_chunk_sum *chunk;              /* [chunks] */
+  int64_t pair_contacts;             /* grain–grain contacts at the last evaluation */
   /* cells */
-  int *cell_start, *cell_of;
-  int cell_cap;
+  int *cell_start, *cell_of, *cell_rank; /* cell_start by Morton rank; rank of each cell */
+  int cell_cap, rank_dim[3];
   double cell_lo[3], cell_size;
   int cell_dim[3];
   /* plane walls: per plane p and slot i */
@@ -50,10 +75,7 @@ struct dem_work {
   uint64_t *plane_mask;        /* [n] planes within r + skin at the last rebuild */
   uint64_t *plane_touch;       /* [n] planes whose spring may be non-zero (touched last time) */
   double *wall_part;           /* [chunks*n_planes*3] per-chunk wall totals */
-  double *ke_part;             /* [chunks] per-chunk kinetic energy */
   double *mass, *inertia;      /* [n] (inertia 0 for non-rotating grains) */
-  double *wall_u;              /* [n] elastic energy in wall contacts */
-  uint8_t *wall_contacts;      /* [n] number of wall contacts of i */
   /* meshes: contact slots per grain (history carried by feature key, or by
    * normal when a contact moves across an edge onto the next triangle) */
   int64_t *mc_key;  /* [n*K], 0 = free */
@@ -62,12 +84,28 @@ struct dem_work {
   double *mc_shear, *mc_normal, *mc_zeta, *mc_force; /* [n*K*3] */
   double *mesh_f, *mesh_t; /* [n*3] force/torque on grain from meshes */
   dem_bvh bvh[DEM_MAX_MESHES];
-  /* scratch for permutations */
-  double *tmp;   /* [n*4] */
-  int64_t *itmp; /* [n*K] */
-  /* per-grain diagnostics */
-  int *pair_contacts; /* [n] */
-  double *ratio;      /* [n] max overlap ratio of i's contacts */
+  /* mesh contact candidates per slot (CSR): key mesh << DEM_TRI_BITS | triangle */
+  int *ml_start;
+  int32_t *ml_key;
+  size_t ml_cap;
+  int32_t **ml_cbuf;
+  int *ml_cbuf_cap;               /* [nchunk] a chunk's lists during a build */
+  double *mesh_xref[DEM_MAX_MESHES]; /* node positions when the lists were built */
+  int lists_dirty;                /* a mesh started moving: rebuild the lists (and "near") */
+  double *ratio; /* [n] max overlap ratio of i's contacts (i's own pairs, walls, meshes) */
+  /* sleeping grains (dem_sleep.c) */
+  uint8_t *asleep, *wake; /* [n] asleep; woken by a moving partner this step */
+  int32_t *rest;          /* [n] steps at rest */
+  int *chunk_awake;       /* [nchunk] awake grains per chunk */
+  uint8_t *near;          /* [n] within `distance` of a moving mesh (at the last list build) */
+  uint8_t *chunk_frozen;  /* [nchunk] every row frozen */
+  uint8_t *row_frozen;    /* [n] asleep and so are all partners of its row */
+  int *prow_start, *prow, prow_cap; /* rows in which a slot is a partner */
+  int *ng_start, *ng_of, ng_cap, ng_ncap, ng_xcap; /* moving meshes' points binned by cell */
+  double *ng_x, ng_lo[3], ng_size;
+  int ng_dim[3];
+  uint8_t mesh_moving[DEM_MAX_MESHES]; /* some node velocity is not zero */
+  uint8_t mesh_set[DEM_MAX_MESHES];    /* nodes set since the last list build */
   /* dem_state_export/import scratch (dem_state_io.c) */
   int64_t io_counters[8];
   double io_scalars[8];
@@ -107,7 +145,8 @@ static inline __attribute__((always_inline)) double dem_hertz(const dem_pair_law
   const double q = sqrt(sqrt_rd * mstar);
   const double gamman = l->damp_n * q, gammat = l->damp_t * q;
   const double vn = dem_dot(vc, n);
-  const double Fn = kn * delta - gamman * vn; /* eq. 22: damping opposes vn */
+  const double Fn0 = kn * delta - gamman * vn; /* eq. 22: damping opposes vn */
+  const double Fn = l->clamp && Fn0 < 0 ? 0.0 : Fn0; /* "limit_force": never attractive */
   *u = 0.4 * kn * delta * delta;
   const double vt[3] = {vc[0] - vn * n[0], vc[1] - vn * n[1], vc[2] - vn * n[2]};
   for (int k = 0; k < 3; k++) shear[k] += vt[k] * dt; /* eq. 20 */
@@ -163,6 +202,23 @@ static inline void dem_rolling(const dem_pair_law *l, double Fn, double rstar,
   for (int k = 0; k < 3; k++) torque_i[k] = s * w_rel[k];
 }
 
+/* dem_threads.c: the thread count ("threads": "auto" follows other load) */
+int dem_threads_init(const dem_model *m, dem_state *s, proto_err *err);
+void dem_threads_begin(dem_state *s);
+void dem_threads_end(dem_state *s);
+/* dem_sleep.c */
+int dem_sleep_alloc(const dem_model *m, dem_state *s, proto_err *err);
+void dem_sleep_free(struct dem_work *w);
+/* After the kick of grains lo..hi−1 (chunk c): wake the woken and those a
+ * moving mesh approaches, put to sleep those at rest long enough; counts. */
+void dem_sleep_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi);
+void dem_sleep_count(const dem_model *m, dem_state *s);
+/* The rows in which each slot is a partner (after each list rebuild/import). */
+int dem_sleep_partners(const dem_model *m, dem_state *s, proto_err *err);
+/* Which grains are near a moving mesh (called with each mesh list build). */
+int dem_sleep_near(const dem_model *m, dem_state *s, proto_err *err);
+/* A sleeping grain touched by a grain moving faster than the threshold. */
+static inline void dem_wake(struct dem_work *w, int i) { __atomic_store_n(&w->wake[i], 1, __ATOMIC_RELAXED); }
 /* dem_neigh.c */
 int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_neigh_free(struct dem_work *w);
@@ -171,13 +227,23 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err);
 int dem_neigh_reserve(const dem_model *m, dem_state *s, int npairs, proto_err *err);
 /* The reverse pair index (rev_start, rev_k) of the current list. */
 void dem_neigh_reverse(dem_state *s);
+/* dem_state.c: the largest overlap (fraction of the smaller radius; walls:
+ * of the radius) over the neighbour list and the planes. */
+double dem_worst_overlap(const dem_model *m, const dem_state *s);
 /* dem_state.c: slot i holds model grain g: radius, mass, inertia, material. */
 void dem_grain_constants(const dem_model *m, dem_state *s, int i, int g);
 /* dem_mesh.c */
 int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_mesh_free(const dem_model *m, dem_state *s);
 void dem_mesh_move(const dem_model *m, dem_state *s, double dt);
-void dem_mesh_forces(const dem_model *m, dem_state *s);
+void dem_mesh_velocities_changed(const dem_model *m, dem_state *s, int mesh);
+/* Candidate lists: build; rebuild if a node moved more than skin/2 since. */
+int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err);
+/* Only the lists, keeping the rebuild schedule (state import). */
+int dem_mesh_lists_build(const dem_model *m, dem_state *s, proto_err *err);
+int dem_mesh_lists_check(const dem_model *m, dem_state *s, proto_err *err);
+int dem_mesh_grain(const dem_model *m, dem_state *s, int i, double *u);
+void dem_mesh_reactions(const dem_model *m, dem_state *s);
 int dem_bvh_build(dem_bvh *b, const double *x, const int32_t *tri, int n_tri);
 void dem_bvh_refit(dem_bvh *b, const double *x, const int32_t *tri);
 void dem_bvh_free(dem_bvh *b);
@@ -187,10 +253,11 @@ void dem_bvh_update(dem_bvh *b, const double *x, const int32_t *tri, int n_tri);
 void dem_closest_on_triangle(const double *p, const double *a, const double *b,
                              const double *c, double *q, double *zeta);
 /* dem_force.c */
-/* Contact forces and torques of the current positions. kick != 0 (dem_step):
- * then also the second half of the Verlet step of each grain, chunk by chunk
- * while its forces are in cache: q rotated by ω^{n+1/2} dt, v += dt/2 (F/m + g),
- * ω += dt/2 T/I, and the kinetic energy per chunk into ke_part. */
+/* Contact forces and torques of the current positions, and the summary
+ * (contacts, overlap, elastic energy). kick != 0 (dem_step): then also the
+ * second half of the Verlet step of each grain, chunk by chunk while its
+ * forces are in cache: q rotated by ω^{n+1/2} dt, v += dt/2 (F/m + g),
+ * ω += dt/2 T/I, and the kinetic energy. */
 void dem_compute_forces(const dem_model *m, dem_state *s, int kick);
 
 #endif

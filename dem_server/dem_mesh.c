@@ -189,10 +189,20 @@ int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
       return proto_fail(err, "out of memory for mesh %d", mi);
     memcpy(s->mesh_x[mi], me->x0, bytes);
     for (int a = 0; a < me->n_nodes; a++) memcpy(&s->mesh_v[mi][3 * a], me->velocity, 3 * sizeof(double));
+    dem_mesh_velocities_changed(m, s, mi);
     if (dem_bvh_build(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri))
       return proto_fail(err, "out of memory for the BVH of mesh %d", mi);
   }
   if (m->n_meshes == 0) return 0;
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    if (m->meshes[mi].n_tri >= 1 << DEM_TRI_BITS)
+      return proto_fail(err, "mesh %d: %d triangles, at most %d", mi, m->meshes[mi].n_tri, (1 << DEM_TRI_BITS) - 1);
+    if (!(w->mesh_xref[mi] = malloc(sizeof(double) * 3 * (size_t)(m->meshes[mi].n_nodes + 1))))
+      return proto_fail(err, "out of memory for mesh %d", mi);
+  }
+  w->ml_start = calloc((size_t)s->n + 1, sizeof(int));
+  w->ml_cbuf = calloc((size_t)w->nchunk, sizeof(int32_t *));
+  w->ml_cbuf_cap = calloc((size_t)w->nchunk, sizeof(int));
   w->mc_key = calloc(nk, sizeof(int64_t));
   w->mc_tri = calloc(nk, sizeof(int32_t));
   w->mc_mesh = calloc(nk, 1);
@@ -203,7 +213,7 @@ int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->mesh_f = calloc(3 * (size_t)s->n, sizeof(double));
   w->mesh_t = calloc(3 * (size_t)s->n, sizeof(double));
   if (!w->mc_key || !w->mc_tri || !w->mc_mesh || !w->mc_shear || !w->mc_normal || !w->mc_zeta ||
-      !w->mc_force || !w->mesh_f || !w->mesh_t)
+      !w->mc_force || !w->mesh_f || !w->mesh_t || !w->ml_start || !w->ml_cbuf || !w->ml_cbuf_cap)
     return proto_fail(err, "out of memory for mesh contacts");
   return 0;
 }
@@ -214,28 +224,37 @@ void dem_mesh_free(const dem_model *m, dem_state *s) {
     free(s->mesh_x[mi]); free(s->mesh_v[mi]); free(s->mesh_force[mi]);
     s->mesh_x[mi] = s->mesh_v[mi] = s->mesh_force[mi] = NULL;
     dem_bvh_free(&w->bvh[mi]);
+    free(w->mesh_xref[mi]);
   }
+  if (w->ml_cbuf)
+    for (int c = 0; c < w->nchunk; c++) free(w->ml_cbuf[c]);
+  free(w->ml_cbuf); free(w->ml_cbuf_cap); free(w->ml_start); free(w->ml_key);
   (void)m;
   free(w->mc_key); free(w->mc_tri); free(w->mc_mesh); free(w->mc_shear); free(w->mc_normal);
   free(w->mc_zeta); free(w->mc_force); free(w->mesh_f); free(w->mesh_t);
 }
 
 /* Meshes move with their node velocities (constant for rigid meshes, the
- * FEM's velocities between two coupling steps); the BVH is refitted, and
- * rebuilt only when refitting has doubled its total box area. */
+ * FEM's velocities between two coupling steps). The BVH is refitted only
+ * when the candidate lists are rebuilt (dem_mesh_lists). */
 void dem_mesh_move(const dem_model *m, dem_state *s, double dt) {
   for (int mi = 0; mi < m->n_meshes; mi++) {
     const dem_mesh *me = &m->meshes[mi];
     double *x = s->mesh_x[mi];
     const double *v = s->mesh_v[mi];
-    int moved = 0;
-    for (int a = 0; a < 3 * me->n_nodes; a++) {
-      if (v[a] != 0) moved = 1;
-      x[a] += v[a] * dt;
-    }
-    if (!moved) continue;
-    dem_bvh_update(&s->work->bvh[mi], x, me->tri, me->n_tri);
+    if (!s->work->mesh_moving[mi]) continue; /* all velocities zero */
+    for (int a = 0; a < 3 * me->n_nodes; a++) x[a] += v[a] * dt;
   }
+}
+
+/* A mesh moves if any node velocity is not zero; one that starts moving
+ * needs its lists (and the sleep "near" flags) redone. */
+void dem_mesh_velocities_changed(const dem_model *m, dem_state *s, int mi) {
+  const double *v = s->mesh_v[mi];
+  int moving = 0;
+  for (int a = 0; a < 3 * m->meshes[mi].n_nodes && !moving; a++) moving = v[a] != 0;
+  if (moving && !s->work->mesh_moving[mi]) s->work->lists_dirty = 1;
+  s->work->mesh_moving[mi] = (uint8_t)moving;
 }
 
 void dem_bvh_update(dem_bvh *b, const double *x, const int32_t *tri, int n_tri) {
@@ -296,36 +315,151 @@ static int insert_cand(cand *out, int nc, const cand *c) {
   return nc < MAX_CAND ? nc + 1 : nc;
 }
 
+/* Touching triangles of grain i among its candidates (in (mesh, triangle)
+ * order already). */
 static int collect(const dem_model *m, const dem_state *s, int i, cand *out) {
+  const struct dem_work *w = s->work;
   int nc = 0;
   const double *p = &s->x[3 * i];
   const double r = s->radius[i];
-  for (int mi = 0; mi < m->n_meshes; mi++) {
-    const dem_bvh *b = &s->work->bvh[mi];
-    if (b->n_nodes == 0 || !sphere_box(p, r, b->lo, b->hi)) continue; /* outside the root box */
+  for (int k = w->ml_start[i]; k < w->ml_start[i + 1]; k++) {
+    const int mi = w->ml_key[k] >> DEM_TRI_BITS, t = w->ml_key[k] & ((1 << DEM_TRI_BITS) - 1);
     const double *x = s->mesh_x[mi];
-    const int32_t *tri = m->meshes[mi].tri;
-    int stack[64], sp = 0;
-    stack[sp++] = 0;
-    while (sp > 0) {
-      int nd = stack[--sp];
-      if (!sphere_box(p, r, &b->lo[3 * nd], &b->hi[3 * nd])) continue;
-      if (b->left[nd] >= 0) {
-        if (sp < 62) { stack[sp++] = b->right[nd]; stack[sp++] = b->left[nd]; }
-        continue;
-      }
-      int t = ~b->left[nd];
-      const int32_t *tn = &tri[3 * t];
-      cand c = {.mesh = mi, .tri = t};
-      dem_closest_on_triangle(p, &x[3 * tn[0]], &x[3 * tn[1]], &x[3 * tn[2]], c.q, c.zeta);
-      double d[3] = {p[0] - c.q[0], p[1] - c.q[1], p[2] - c.q[2]};
-      c.d2 = dem_dot(d, d);
-      if (c.d2 >= r * r || c.d2 == 0) continue;
-      classify(&c, tn);
-      nc = insert_cand(out, nc, &c);
-    }
+    const int32_t *tn = &m->meshes[mi].tri[3 * t];
+    cand c = {.mesh = mi, .tri = t};
+    dem_closest_on_triangle(p, &x[3 * tn[0]], &x[3 * tn[1]], &x[3 * tn[2]], c.q, c.zeta);
+    double d[3] = {p[0] - c.q[0], p[1] - c.q[1], p[2] - c.q[2]};
+    c.d2 = dem_dot(d, d);
+    if (c.d2 >= r * r || c.d2 == 0) continue;
+    classify(&c, tn);
+    nc = insert_cand(out, nc, &c);
   }
   return nc;
+}
+
+/* ------------------------------------------------- mesh candidate lists
+ * Per grain, the triangles within r + skin (closest point) when the list was
+ * built; valid while no grain moved more than skin/2 (the grain list rebuild
+ * criterion: dem_neigh_rebuild rebuilds these too) and no mesh node moved
+ * more than skin/2: a triangle left out stays farther than r. So the BVH is
+ * walked (and refitted) only at rebuilds, not per grain and step. */
+
+/* Triangles of mesh mi within `reach` of p into keys (room for `room`), in
+ * increasing triangle order; the count, or −1 when out of room. */
+static int bvh_query(const dem_bvh *b, const double *x, const int32_t *tri, int mi, const double *p, double reach,
+                     int32_t *keys, int room) {
+  int cnt = 0, stack[64], sp = 0;
+  if (b->n_nodes == 0) return 0;
+  stack[sp++] = 0;
+  while (sp > 0) {
+    const int nd = stack[--sp];
+    if (!sphere_box(p, reach, &b->lo[3 * nd], &b->hi[3 * nd])) continue;
+    if (b->left[nd] >= 0) {
+      stack[sp++] = b->right[nd]; /* depth ≤ log2(triangles) + 1 (median splits) */
+      stack[sp++] = b->left[nd];
+      continue;
+    }
+    const int t = ~b->left[nd];
+    const int32_t *tn = &tri[3 * t];
+    double q[3], z[3];
+    dem_closest_on_triangle(p, &x[3 * tn[0]], &x[3 * tn[1]], &x[3 * tn[2]], q, z);
+    const double d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+    if (dem_dot(d, d) >= reach * reach) continue;
+    if (cnt == room) return -1;
+    int k = cnt++;
+    const int32_t key = (int32_t)(mi << DEM_TRI_BITS | t);
+    for (; k > 0 && keys[k - 1] > key; k--) keys[k] = keys[k - 1];
+    keys[k] = key;
+  }
+  return cnt;
+}
+
+/* Lists of grains lo..hi−1 into the chunk's buffer; lengths into ml_start[i + 1]. */
+static int lists_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi) {
+  struct dem_work *w = s->work;
+  int used = 0;
+  for (int i = lo; i < hi; i++) {
+    const double *p = &s->x[3 * i], reach = s->radius[i] + m->skin;
+    int got = 0;
+    for (int mi = 0; mi < m->n_meshes; mi++) {
+      const dem_bvh *b = &w->bvh[mi];
+      if (b->n_nodes == 0 || !sphere_box(p, reach, b->lo, b->hi)) continue; /* most grains */
+      int k;
+      while ((k = bvh_query(b, s->mesh_x[mi], m->meshes[mi].tri, mi, p, reach, w->ml_cbuf[c] + used + got,
+                            w->ml_cbuf_cap[c] - used - got)) < 0) {
+        const int cap = 2 * w->ml_cbuf_cap[c] + 256;
+        int32_t *nb = realloc(w->ml_cbuf[c], sizeof(int32_t) * (size_t)cap);
+        if (!nb) return -1;
+        w->ml_cbuf[c] = nb;
+        w->ml_cbuf_cap[c] = cap;
+      }
+      got += k;
+    }
+    w->ml_start[i + 1] = got;
+    used += got;
+  }
+  return 0;
+}
+
+/* The lists of every grain from the current positions (refits the BVHs). */
+int dem_mesh_lists_build(const dem_model *m, dem_state *s, proto_err *err) {
+  struct dem_work *w = s->work;
+  const int n = s->n, nchunk = w->nchunk;
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    const dem_mesh *me = &m->meshes[mi];
+    dem_bvh_update(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri);
+  }
+  int oom = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads) reduction(| : oom)
+  for (int c = 0; c < nchunk; c++)
+    oom |= lists_chunk(m, s, c, c * DEM_CHUNK, (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n) != 0;
+  if (oom) return proto_fail(err, "out of memory for the mesh contact candidates");
+  w->ml_start[0] = 0;
+  for (int i = 0; i < n; i++) w->ml_start[i + 1] += w->ml_start[i];
+  const size_t total = (size_t)w->ml_start[n];
+  if (total > w->ml_cap) {
+    int32_t *k = realloc(w->ml_key, sizeof(int32_t) * (total + total / 4 + 64));
+    if (!k) return proto_fail(err, "out of memory for %zu mesh contact candidates", total);
+    w->ml_key = k;
+    w->ml_cap = total + total / 4 + 64;
+  }
+#pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads)
+  for (int c = 0; c < nchunk; c++) {
+    const int lo = c * DEM_CHUNK, hi = (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n;
+    const int len = w->ml_start[hi] - w->ml_start[lo];
+    if (len > 0) memcpy(&w->ml_key[w->ml_start[lo]], w->ml_cbuf[c], sizeof(int32_t) * (size_t)len);
+  }
+  return 0;
+}
+
+/* Rebuild: the lists, the node positions they are valid around, and which
+ * grains are near a moving mesh (dem_sleep.c). */
+int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err) {
+  struct dem_work *w = s->work;
+  if (dem_mesh_lists_build(m, s, err)) return -1;
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    memcpy(w->mesh_xref[mi], s->mesh_x[mi], sizeof(double) * 3 * (size_t)m->meshes[mi].n_nodes);
+    w->mesh_set[mi] = 0;
+  }
+  w->lists_dirty = 0;
+  return dem_sleep_near(m, s, err);
+}
+
+int dem_mesh_lists_check(const dem_model *m, dem_state *s, proto_err *err) {
+  const double lim2 = 0.25 * m->skin * m->skin;
+  if (s->work->lists_dirty) return dem_mesh_lists(m, s, err);
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    if (!s->work->mesh_moving[mi] && !s->work->mesh_set[mi]) continue; /* not moved since the build */
+    const double *x = s->mesh_x[mi], *x0 = s->work->mesh_xref[mi];
+    double worst = 0;
+    for (int a = 0; a < m->meshes[mi].n_nodes; a++) {
+      const double d0 = x[3 * a] - x0[3 * a], d1 = x[3 * a + 1] - x0[3 * a + 1], d2 = x[3 * a + 2] - x0[3 * a + 2];
+      const double dd = d0 * d0 + d1 * d1 + d2 * d2;
+      worst = dd > worst ? dd : worst;
+    }
+    if (!(worst <= lim2)) return dem_mesh_lists(m, s, err); /* moved, or not finite */
+  }
+  return 0;
 }
 
 /* One force per touched patch: every face contact is kept (concave corners
@@ -381,7 +515,10 @@ static void find_history(const int64_t *okey, const int8_t *omesh, const double 
   memcpy(shear, &oshear[3 * best], 3 * sizeof(double));
 }
 
-static void grain_mesh(const dem_model *m, dem_state *s, int i, int *ncontacts, double *ratio) {
+/* Mesh contacts of grain i: force and torque into mesh_f/mesh_t, contact
+ * slots (history), its overlap ratio; elastic energy added to *u. Returns
+ * the number of contacts. */
+int dem_mesh_grain(const dem_model *m, dem_state *s, int i, double *u) {
   struct dem_work *w = s->work;
   const int K = DEM_MESH_SLOTS;
   cand c[MAX_CAND];
@@ -436,37 +573,35 @@ static void grain_mesh(const dem_model *m, dem_state *s, int i, int *ncontacts, 
     memcpy(&w->mc_normal[3 * (base + k)], n, sizeof n);
     memcpy(&w->mc_zeta[3 * (base + k)], c[k].zeta, sizeof c[k].zeta);
     memcpy(&w->mc_force[3 * (base + k)], F, sizeof F);
-    w->wall_u[i] += up;
-    if (delta / r > *ratio) *ratio = delta / r;
+    *u += up;
+    if (delta / r > w->ratio[i]) w->ratio[i] = delta / r;
   }
-  *ncontacts += nc;
+  return nc;
 }
 
-/* Mesh forces on every grain (parallel, per grain), then the reactions onto
- * the nodes by ζ (seed 000 eq. 42) in a serial, fixed-order sweep. */
-void dem_mesh_forces(const dem_model *m, dem_state *s) {
-  if (m->n_meshes == 0) return;
+/* The reactions onto the nodes by ζ (seed 000 eq. 42) and the force on each
+ * mesh wall: a serial sweep in slot order over the chunks that have mesh
+ * contacts (dem_force.c counts them per chunk). */
+void dem_mesh_reactions(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
-#pragma omp parallel for schedule(dynamic, 128) num_threads(w->nthreads)
-  for (int i = 0; i < s->n; i++) {
-    int nc = 0;
-    grain_mesh(m, s, i, &nc, &w->ratio[i]);
-    w->wall_contacts[i] = (uint8_t)(w->wall_contacts[i] + nc);
-  }
   for (int mi = 0; mi < m->n_meshes; mi++)
     memset(s->mesh_force[mi], 0, sizeof(double) * 3 * (size_t)m->meshes[mi].n_nodes);
-  const int K = DEM_MESH_SLOTS;
-  for (int i = 0; i < s->n; i++)
-    for (int k = 0; k < K; k++) {
-      size_t sl = (size_t)i * K + k;
-      if (w->mc_key[sl] == 0) continue;
-      int mi = w->mc_mesh[sl];
-      const int32_t *tn = &m->meshes[mi].tri[3 * w->mc_tri[sl]];
-      double *nf = s->mesh_force[mi];
-      const double *F = &w->mc_force[3 * sl], *z = &w->mc_zeta[3 * sl];
-      for (int a = 0; a < 3; a++)
-        for (int d = 0; d < 3; d++) nf[3 * tn[a] + d] -= z[a] * F[d];
-      double *wf = &s->wall_force[3 * m->meshes[mi].wall];
-      for (int d = 0; d < 3; d++) wf[d] -= F[d];
-    }
+  const int K = DEM_MESH_SLOTS, nchunk = (s->n + DEM_CHUNK - 1) / DEM_CHUNK;
+  for (int c = 0; c < nchunk; c++) {
+    if (w->chunk[c].mesh_contacts == 0) continue;
+    const int end = (c + 1) * DEM_CHUNK < s->n ? (c + 1) * DEM_CHUNK : s->n;
+    for (int i = c * DEM_CHUNK; i < end; i++)
+      for (int k = 0; k < K; k++) {
+        size_t sl = (size_t)i * K + k;
+        if (w->mc_key[sl] == 0) continue;
+        int mi = w->mc_mesh[sl];
+        const int32_t *tn = &m->meshes[mi].tri[3 * w->mc_tri[sl]];
+        double *nf = s->mesh_force[mi];
+        const double *F = &w->mc_force[3 * sl], *z = &w->mc_zeta[3 * sl];
+        for (int a = 0; a < 3; a++)
+          for (int d = 0; d < 3; d++) nf[3 * tn[a] + d] -= z[a] * F[d];
+        double *wf = &s->wall_force[3 * m->meshes[mi].wall];
+        for (int d = 0; d < 3; d++) wf[d] -= F[d];
+      }
+  }
 }

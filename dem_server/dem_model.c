@@ -12,26 +12,66 @@ double dem_rayleigh_time(double r, double density, double E, double nu) {
   return M_PI * r * sqrt(density / G) / (0.1631 * nu + 0.8766); /* notes §2 */
 }
 
-/* LIGGGHTS' effective pair values (notes §1.1; seed 000 eq. 21, 26). G is
- * taken from each material so a given G overrides E/(2(1+ν)). */
-static void pair_law(const dem_material *a, const dem_material *b, dem_pair_law *l) {
+/* LIGGGHTS' effective pair values (notes §1.1; seed 000 eq. 21, 26) from the
+ * two materials and the pair's restitution e, friction μ, rolling friction
+ * μ_r. G is taken from each material so a given G overrides E/(2(1+ν)). */
+static void pair_law(const dem_material *a, const dem_material *b, double e, double mu, double mu_roll,
+                     int clamp, dem_pair_law *l) {
   l->Estar = 1.0 / ((1 - a->nu * a->nu) / a->E + (1 - b->nu * b->nu) / b->E);
   l->Gstar = 1.0 / ((2 - a->nu) / a->G + (2 - b->nu) / b->G);
-  /* restitution and friction of a pair: LIGGGHTS takes them per type pair;
-   * from two materials we use the mean (identical materials: exact). */
-  double e = 0.5 * (a->restitution + b->restitution);
-  double le = log(e);
+  const double le = log(e);
   l->beta = le / sqrt(le * le + M_PI * M_PI);
-  l->mu = 0.5 * (a->friction + b->friction);
+  l->mu = mu;
   l->damp_n = -2.0 * sqrt(5.0 / 6.0) * l->beta * sqrt(2.0 * l->Estar);
   l->damp_t = -2.0 * sqrt(5.0 / 6.0) * l->beta * sqrt(8.0 * l->Gstar);
-  l->mu_roll = 0.5 * (a->rolling_friction + b->rolling_friction);
+  l->mu_roll = mu_roll;
+  l->clamp = clamp;
+}
+
+/* "pairs": [{"materials": [a, b], "restitution", "friction", "rolling_friction"}]:
+ * the values of a material pair (both orders); a value left out keeps the
+ * mean of the two materials'. */
+typedef struct pair_props {
+  double e, mu, mu_roll;
+} pair_props;
+
+typedef struct pair_table {
+  pair_props p[DEM_MAX_MATERIALS][DEM_MAX_MATERIALS];
+  uint8_t seen[DEM_MAX_MATERIALS][DEM_MAX_MATERIALS];
+} pair_table;
+
+static int read_pair(dem_model *m, proto_cfg *c, int index, void *ctx) {
+  pair_table *t = ctx;
+  pair_props (*props)[DEM_MAX_MATERIALS] = t->p;
+  uint8_t (*seen)[DEM_MAX_MATERIALS] = t->seen;
+  (void)index;
+  double ab[2];
+  int n = 0;
+  if (proto_cfg_vec(c, "materials", PROTO_REQUIRED, ab, 2, 2, &n)) return -1;
+  int k[2];
+  for (int q = 0; q < 2; q++) {
+    k[q] = (int)ab[q];
+    if (ab[q] != k[q] || k[q] < 0 || k[q] >= m->n_materials)
+      return proto_fail(c->err, "%s.materials[%d]: %g is not a material index in [0, %d)", c->path, q, ab[q],
+                        m->n_materials);
+  }
+  if (seen[k[0]][k[1]])
+    return proto_fail(c->err, "%s.materials: pair [%d, %d] given twice", c->path, k[0], k[1]);
+  seen[k[0]][k[1]] = seen[k[1]][k[0]] = 1;
+  pair_props p = props[k[0]][k[1]];
+  if (proto_cfg_num(c, "restitution", PROTO_OPTIONAL, 1e-6, 1.0, &p.e) ||
+      proto_cfg_num(c, "friction", PROTO_OPTIONAL, 0.0, 1e3, &p.mu) ||
+      proto_cfg_num(c, "rolling_friction", PROTO_OPTIONAL, 0.0, 1e3, &p.mu_roll))
+    return -1;
+  props[k[0]][k[1]] = props[k[1]][k[0]] = p;
+  return proto_cfg_end(c);
 }
 
 int dem_model_alloc_grains(dem_model *m, int n, proto_err *err) {
   free(m->x0); free(m->v0); free(m->omega0); free(m->radius);
   free(m->material); free(m->fix_rotation);
   m->n_grains = n;
+  m->bed_max_overlap = 0; /* new grains: nothing recorded */
   size_t k = n > 0 ? (size_t)n : 1;
   m->x0 = calloc(k * 3, sizeof(double));
   m->v0 = calloc(k * 3, sizeof(double));
@@ -263,6 +303,39 @@ static int read_wall(dem_model *m, proto_cfg *c, int i, void *ctx) {
   return proto_cfg_end(c);
 }
 
+/* "sleep": false | true (defaults) | {"velocity", "time", "distance"}. */
+static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
+  const cJSON *j = proto_cfg_raw(c, "sleep", PROTO_OPTIONAL);
+  *sl = (dem_sleep_config){0, DEM_SLEEP_VELOCITY, DEM_SLEEP_TIME, DEM_SLEEP_DISTANCE};
+  if (!j || cJSON_IsFalse(j)) return 0;
+  sl->on = 1;
+  if (cJSON_IsTrue(j)) return 0;
+  char p[320];
+  proto_cfg_subpath(c, "sleep", -1, p, sizeof p);
+  if (!cJSON_IsObject(j)) return proto_fail(c->err, "%s: expected true, false or an object", p);
+  proto_cfg sc;
+  if (proto_cfg_open(&sc, j, p, c->err) ||
+      proto_cfg_num(&sc, "velocity", PROTO_OPTIONAL, 1e-12, 1e3, &sl->velocity) ||
+      proto_cfg_num(&sc, "time", PROTO_OPTIONAL, 0.0, 1e6, &sl->time) ||
+      proto_cfg_num(&sc, "distance", PROTO_OPTIONAL, 0.0, 1e6, &sl->distance))
+    return -1;
+  return proto_cfg_end(&sc);
+}
+
+/* "threads": "auto" (or 0), or a count >= 1. */
+static int read_threads(proto_cfg *c, int64_t *out) {
+  const cJSON *t = proto_cfg_raw(c, "threads", PROTO_OPTIONAL);
+  if (!t) return 0;
+  if (cJSON_IsString(t) && !strcmp(t->valuestring, "auto")) return 0;
+  if (cJSON_IsNumber(t) && t->valuedouble >= 0 && t->valuedouble <= 1024 && t->valuedouble == floor(t->valuedouble)) {
+    *out = (int64_t)t->valuedouble;
+    return 0;
+  }
+  char p[320];
+  proto_cfg_subpath(c, "threads", -1, p, sizeof p);
+  return proto_fail(c->err, "%s: expected \"auto\" or a number of threads in [0, 1024] (0 = auto)", p);
+}
+
 int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, proto_err *err) {
   memset(m, 0, sizeof *m);
   snprintf(m->key_path, sizeof m->key_path, "%s", path);
@@ -278,13 +351,27 @@ int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, pr
     proto_fail(err, "%s.materials: at least one material is needed", path);
     goto fail;
   }
+  /* pair values: the mean of the two materials' unless "pairs" says */
+  pair_table pt;
+  memset(&pt, 0, sizeof pt);
+  pair_props (*props)[DEM_MAX_MATERIALS] = pt.p;
   for (int a = 0; a < m->n_materials; a++)
     for (int b = 0; b < m->n_materials; b++) {
-      pair_law(&m->mat[a], &m->mat[b], &m->law[a][b]);
+      const dem_material *ma = &m->mat[a], *mb = &m->mat[b];
+      props[a][b] = (pair_props){0.5 * (ma->restitution + mb->restitution), 0.5 * (ma->friction + mb->friction),
+                                 0.5 * (ma->rolling_friction + mb->rolling_friction)};
+    }
+  if (each_object(m, &c, "pairs", PROTO_OPTIONAL, read_pair, &pt, err) < 0) goto fail;
+  int limit_force = 0;
+  if (proto_cfg_bool(&c, "limit_force", PROTO_OPTIONAL, &limit_force)) goto fail;
+  m->limit_force = limit_force;
+  for (int a = 0; a < m->n_materials; a++)
+    for (int b = 0; b < m->n_materials; b++) {
+      pair_law(&m->mat[a], &m->mat[b], props[a][b].e, props[a][b].mu, props[a][b].mu_roll, limit_force, &m->law[a][b]);
       if (m->law[a][b].mu_roll > 0) m->has_rolling = 1;
     }
   int64_t threads = 0, surf = 0;
-  int unsafe = 0;
+  int unsafe = 0, orientation = 0;
   m->overlap_tolerance = 0.01;
   m->max_overlap_ratio = 0.5;
   ex->dt_fraction = 0.1;
@@ -295,14 +382,16 @@ int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, pr
       proto_cfg_num(&c, "skin", PROTO_OPTIONAL, 0.0, 1.0, &ex->skin) ||
       proto_cfg_num(&c, "overlap_tolerance", PROTO_OPTIONAL, 0.0, 1.0, &m->overlap_tolerance) ||
       proto_cfg_num(&c, "max_overlap_ratio", PROTO_OPTIONAL, 1e-6, 1.0, &m->max_overlap_ratio) ||
-      proto_cfg_int(&c, "threads", PROTO_OPTIONAL, 0, 1024, &threads) ||
+      read_threads(&c, &threads) || read_sleep(&c, &m->sleep) ||
       proto_cfg_int(&c, "surface_material", PROTO_OPTIONAL, 0, m->n_materials - 1, &surf) ||
-      proto_cfg_bool(&c, "unsafe_dt", PROTO_OPTIONAL, &unsafe))
+      proto_cfg_bool(&c, "unsafe_dt", PROTO_OPTIONAL, &unsafe) ||
+      proto_cfg_bool(&c, "orientation", PROTO_OPTIONAL, &orientation))
     goto fail;
   memcpy(m->gravity, g, sizeof g);
   m->threads = (int)threads;
   m->surface_material = (int)surf;
   m->unsafe_dt = unsafe;
+  m->orientation = orientation;
   if (each_object(m, &c, "walls", PROTO_OPTIONAL, read_wall, NULL, err) < 0) goto fail;
   if (read_particles(m, &c, ex, err) || proto_cfg_end(&c)) goto fail;
   if (m->n_grains == 0) {

@@ -1,13 +1,27 @@
-/* dem_neigh.c — O(N) neighbour search: linked cells, grains re-sorted by cell
- * for memory locality, a half Verlet list with skin whose contact history is
- * carried across rebuilds (and across the re-sorting). */
+/* dem_neigh.c — O(N) neighbour search: linked cells visited in Morton
+ * (Z-curve) order, grains re-sorted by cell so that neighbours are near in
+ * memory and mostly in the same chunk of DEM_CHUNK slots (dem_force.c sums a
+ * chunk's pairs in place and only the few crossing a chunk boundary through
+ * a reverse index), a half Verlet list with skin whose contact history is
+ * carried across rebuilds (and across the re-sorting). Every pass is
+ * parallel except two counting sorts; the result does not depend on the
+ * number of threads. */
 #include "dem_server/dem_internal.h"
 
 #include <float.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define GROW(ptr, count, type) ((ptr) = realloc((ptr), sizeof(type) * (size_t)(count)))
+#define PERM_MAX_TASKS (20 + DEM_MAX_PLANES)
+#define PERM_MAX_REC (3 * DEM_MESH_SLOTS * sizeof(double))
+
+/* realloc that keeps the old block on failure */
+static int grow(void **p, size_t bytes) {
+  void *q = realloc(*p, bytes ? bytes : 1);
+  if (!q) return -1;
+  *p = q;
+  return 0;
+}
 
 int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
@@ -21,90 +35,147 @@ int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->plane_mask = calloc(n, sizeof(uint64_t));
   w->plane_touch = calloc(n, sizeof(uint64_t));
   w->cell_of = calloc(n, sizeof(int));
-  w->pair_u = calloc(n, sizeof(double));
-  w->pair_contacts = calloc(n, sizeof(int));
   w->ratio = calloc(n, sizeof(double));
-  w->cap = w->old_cap = 8 * s->n + 64;
-  w->nl_j = malloc(sizeof(int) * (size_t)w->cap);
-  w->rev_k = malloc(sizeof(int) * (size_t)w->cap);
-  w->nl_shear = calloc(3 * (size_t)w->cap, sizeof(double));
-  w->pair_ft = malloc(6 * sizeof(double) * (size_t)w->cap);
-  w->pair_touch = calloc((size_t)w->cap, 1);
-  if (m->has_rolling) w->pair_roll = malloc(3 * sizeof(double) * (size_t)w->cap);
-  w->old_j = malloc(sizeof(int) * (size_t)w->old_cap);
-  w->old_shear = malloc(3 * sizeof(double) * (size_t)w->old_cap);
-  if (!w->nl_start || !w->old_start || !w->rev_start || !w->rev_fill || !w->old_of ||
-      !w->x_ref || !w->plane_mask || !w->plane_touch || !w->cell_of || !w->pair_u || !w->pair_contacts || !w->ratio || !w->nl_j ||
-      !w->rev_k || !w->nl_shear || !w->pair_ft || !w->pair_touch || !w->old_j || !w->old_shear ||
-      (m->has_rolling && !w->pair_roll))
+  w->nchunk = (s->n + DEM_CHUNK - 1) / DEM_CHUNK;
+  w->cbuf = calloc((size_t)w->nchunk, sizeof(int *));
+  w->cbuf_cap = calloc((size_t)w->nchunk, sizeof(int));
+  const int threads = w->probe.cap > w->nthreads ? w->probe.cap : w->nthreads;
+  for (int t = 0; t < threads; t++)
+    if (!(w->perm_tmp[t] = malloc(PERM_MAX_REC * n + 1))) return proto_fail(err, "out of memory");
+  if (!w->cbuf || !w->cbuf_cap || !w->nl_start || !w->old_start || !w->rev_start || !w->rev_fill || !w->old_of || !w->x_ref ||
+      !w->plane_mask || !w->plane_touch || !w->cell_of || !w->ratio ||
+      dem_neigh_reserve(m, s, 8 * s->n + 64, err))
     return proto_fail(err, "out of memory for the neighbour list of %d grains", s->n);
   return 0;
 }
 
 void dem_neigh_free(struct dem_work *w) {
   free(w->nl_start); free(w->old_start); free(w->rev_start); free(w->rev_fill);
-  free(w->old_of); free(w->x_ref); free(w->plane_mask); free(w->plane_touch); free(w->cell_of); free(w->cell_start);
-  free(w->pair_u); free(w->pair_contacts); free(w->ratio);
+  free(w->old_of); free(w->x_ref); free(w->plane_mask); free(w->plane_touch); free(w->cell_of);
+  free(w->cell_start); free(w->cell_rank); free(w->ratio);
+  if (w->cbuf)
+    for (int c = 0; c < w->nchunk; c++) free(w->cbuf[c]);
+  free(w->cbuf); free(w->cbuf_cap);
   free(w->nl_j); free(w->rev_k); free(w->nl_shear); free(w->pair_ft); free(w->pair_touch);
   free(w->pair_roll); free(w->old_j); free(w->old_shear);
+  for (int t = 0; t < DEM_MAX_THREADS; t++) free(w->perm_tmp[t]);
 }
 
-/* ---- permutation of every per-grain array by old_of (new slot <- old slot) ---- */
-static void perm_d(double *a, int cols, const int *old_of, int n, double *tmp) {
-  for (int i = 0; i < n; i++)
-    for (int k = 0; k < cols; k++) tmp[(size_t)i * cols + k] = a[(size_t)old_of[i] * cols + k];
-  memcpy(a, tmp, sizeof(double) * (size_t)n * cols);
-}
-static void perm_i32(int32_t *a, const int *old_of, int n, int64_t *tmp) {
-  for (int i = 0; i < n; i++) tmp[i] = a[old_of[i]];
-  for (int i = 0; i < n; i++) a[i] = (int32_t)tmp[i];
-}
-static void perm_u8(uint8_t *a, const int *old_of, int n, int64_t *tmp) {
-  for (int i = 0; i < n; i++) tmp[i] = a[old_of[i]];
-  for (int i = 0; i < n; i++) a[i] = (uint8_t)tmp[i];
-}
-
-static void permute_grains(const dem_model *m, dem_state *s) {
+int dem_neigh_reserve(const dem_model *m, dem_state *s, int need, proto_err *err) {
   struct dem_work *w = s->work;
-  const int n = s->n, *o = w->old_of;
-  double *tmp = w->tmp;
-  perm_d(s->x, 3, o, n, tmp); perm_d(s->v, 3, o, n, tmp); perm_d(s->omega, 3, o, n, tmp);
-  perm_d(s->q, 4, o, n, tmp);
-  perm_d(s->radius, 1, o, n, tmp); perm_d(s->inv_mass, 1, o, n, tmp);
-  perm_d(s->inv_inertia, 1, o, n, tmp);
-  perm_d(w->mass, 1, o, n, tmp); perm_d(w->inertia, 1, o, n, tmp);
-  perm_i32(s->material, o, n, w->itmp); perm_i32(s->id, o, n, w->itmp);
-  perm_u8(s->fix_rotation, o, n, w->itmp);
-  for (int p = 0; p < m->n_planes; p++) perm_d(dem_wall_shear(w, n, 0, p), 3, o, n, w->tmp);
-  if (m->n_meshes > 0) {
-    const int K = DEM_MESH_SLOTS;
-    for (int k = 0; k < K; k++) {
-      /* slot arrays are [n][K]: permute each of the K columns */
-      for (int i = 0; i < n; i++) w->itmp[i] = w->mc_key[(size_t)o[i] * K + k];
-      for (int i = 0; i < n; i++) w->mc_key[(size_t)i * K + k] = w->itmp[i];
-      for (int i = 0; i < n; i++) w->itmp[i] = w->mc_mesh[(size_t)o[i] * K + k];
-      for (int i = 0; i < n; i++) w->mc_mesh[(size_t)i * K + k] = (int8_t)w->itmp[i];
-    }
-    perm_d(w->mc_shear, 3 * K, o, n, w->mc_force); /* mc_force is recomputed: usable as scratch */
-    perm_d(w->mc_normal, 3 * K, o, n, w->mc_force);
+  const size_t cap = (size_t)need + (size_t)need / 4 + 64; /* rare: when the list outgrows it */
+  if ((size_t)need > w->cap) {
+    if (grow((void **)&w->nl_j, sizeof(int) * cap) || grow((void **)&w->nl_shear, 3 * sizeof(double) * cap))
+      return proto_fail(err, "out of memory for %d neighbour pairs", need);
+    w->cap = cap;
   }
+  if ((size_t)need > w->pair_cap) {
+    if (grow((void **)&w->rev_k, sizeof(int) * cap) || grow((void **)&w->pair_ft, 6 * sizeof(double) * cap) ||
+        grow((void **)&w->pair_touch, cap) ||
+        (m->has_rolling && grow((void **)&w->pair_roll, 3 * sizeof(double) * cap)))
+      return proto_fail(err, "out of memory for %d neighbour pairs", need);
+    w->pair_cap = cap;
+  }
+  return 0;
 }
+
+/* ------------------------------------------------ permutation of the grains */
+
+/* One per-grain array: n records of `rec` bytes, permuted by old_of. */
+typedef struct perm_task {
+  void *a;
+  size_t rec;
+} perm_task;
+
+static void perm_run(const perm_task *t, const int *restrict o, int n, char *restrict tmp) {
+  const size_t rec = t->rec;
+  char *restrict a = t->a;
+  switch (rec) { /* the common sizes as fixed-size copies */
+  case 8:
+    for (int i = 0; i < n; i++) memcpy(tmp + 8 * (size_t)i, a + 8 * (size_t)o[i], 8);
+    break;
+  case 24:
+    for (int i = 0; i < n; i++) memcpy(tmp + 24 * (size_t)i, a + 24 * (size_t)o[i], 24);
+    break;
+  case 32:
+    for (int i = 0; i < n; i++) memcpy(tmp + 32 * (size_t)i, a + 32 * (size_t)o[i], 32);
+    break;
+  case 4:
+    for (int i = 0; i < n; i++) memcpy(tmp + 4 * (size_t)i, a + 4 * (size_t)o[i], 4);
+    break;
+  default:
+    for (int i = 0; i < n; i++) memcpy(tmp + rec * i, a + rec * o[i], rec);
+  }
+  memcpy(a, tmp, rec * (size_t)n);
+}
+
+/* Every per-grain array that lives across steps; one array per task. */
+static int perm_tasks(const dem_model *m, dem_state *s, perm_task *t) {
+  struct dem_work *w = s->work;
+  const size_t d = sizeof(double), K = DEM_MESH_SLOTS;
+  int c = 0;
+  t[c++] = (perm_task){s->x, 3 * d};
+  t[c++] = (perm_task){s->v, 3 * d};
+  t[c++] = (perm_task){s->omega, 3 * d};
+  if (m->orientation) t[c++] = (perm_task){s->q, 4 * d}; /* else identity everywhere */
+  t[c++] = (perm_task){s->radius, d};
+  t[c++] = (perm_task){s->inv_mass, d};
+  t[c++] = (perm_task){s->inv_inertia, d};
+  t[c++] = (perm_task){w->mass, d};
+  t[c++] = (perm_task){w->inertia, d};
+  t[c++] = (perm_task){s->material, sizeof(int32_t)};
+  t[c++] = (perm_task){s->id, sizeof(int32_t)};
+  t[c++] = (perm_task){s->fix_rotation, 1};
+  if (m->sleep.on) {
+    t[c++] = (perm_task){w->asleep, 1};
+    t[c++] = (perm_task){w->rest, sizeof(int32_t)};
+  }
+  for (int p = 0; p < m->n_planes; p++) t[c++] = (perm_task){dem_wall_shear(w, s->n, 0, p), 3 * d};
+  if (m->n_meshes > 0) {
+    t[c++] = (perm_task){w->mc_key, K * sizeof(int64_t)};
+    t[c++] = (perm_task){w->mc_mesh, K};
+    t[c++] = (perm_task){w->mc_shear, 3 * K * d};
+    t[c++] = (perm_task){w->mc_normal, 3 * K * d};
+  }
+  return c;
+}
+
+
+static int permute_grains(const dem_model *m, dem_state *s, proto_err *err) {
+  struct dem_work *w = s->work;
+  perm_task t[PERM_MAX_TASKS];
+  const int nt = perm_tasks(m, s, t);
+  for (int k = 0; k < w->nthreads; k++)
+    if (!w->perm_tmp[k] && !(w->perm_tmp[k] = malloc(PERM_MAX_REC * (size_t)s->n + 1)))
+      return proto_fail(err, "out of memory for re-sorting %d grains", s->n);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads)
+  for (int k = 0; k < nt; k++) perm_run(&t[k], w->old_of, s->n, w->perm_tmp[omp_get_thread_num()]);
+  return 0;
+}
+
+/* ------------------------------------------------------------------ cells */
 
 /* Grid over the grains' bounding box; cells at least one interaction range wide. */
 static int setup_cells(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
   double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, rmax = 0;
-  for (int i = 0; i < s->n; i++) {
+  int bad = 0;
+  const int n = s->n;
+  const double *x = s->x;
+#pragma omp parallel for schedule(static) num_threads(w->nthreads) \
+    reduction(min : lo[:3]) reduction(max : hi[:3], rmax) reduction(| : bad)
+  for (int i = 0; i < n; i++) {
     for (int k = 0; k < 3; k++) {
-      double xk = s->x[3 * i + k];
-      if (!isfinite(xk))
-        return proto_fail(err, "step %lld: grain %d has a non-finite position", (long long)s->step,
-                          (int)s->id[i]);
-      if (xk < lo[k]) lo[k] = xk;
-      if (xk > hi[k]) hi[k] = xk;
+      const double xk = x[3 * i + k];
+      bad |= !isfinite(xk);
+      lo[k] = xk < lo[k] ? xk : lo[k];
+      hi[k] = xk > hi[k] ? xk : hi[k];
     }
-    if (s->radius[i] > rmax) rmax = s->radius[i];
+    rmax = s->radius[i] > rmax ? s->radius[i] : rmax;
   }
+  for (int i = 0; bad && i < n; i++)
+    if (!isfinite(x[3 * i] + x[3 * i + 1] + x[3 * i + 2]))
+      return proto_fail(err, "step %lld: grain %d has a non-finite position", (long long)s->step, (int)s->id[i]);
   double size = 2 * rmax + m->skin;
   long long total;
   for (;;) {
@@ -120,8 +191,11 @@ static int setup_cells(const dem_model *m, dem_state *s, proto_err *err) {
   w->cell_size = size;
   memcpy(w->cell_lo, lo, sizeof lo);
   if (total + 1 > w->cell_cap) {
-    if (!GROW(w->cell_start, total + 1, int)) return proto_fail(err, "out of memory for cells");
+    if (grow((void **)&w->cell_start, sizeof(int) * (size_t)(total + 1)) ||
+        grow((void **)&w->cell_rank, sizeof(int) * (size_t)(total + 1)))
+      return proto_fail(err, "out of memory for cells");
     w->cell_cap = (int)total + 1;
+    w->rank_dim[0] = -1; /* ranks to redo */
   }
   return (int)total;
 }
@@ -131,50 +205,146 @@ static inline int cell_coord(const struct dem_work *w, double x, int k) {
   return c < 0 ? 0 : (c >= w->cell_dim[k] ? w->cell_dim[k] - 1 : c);
 }
 
-/* Counting sort of grains by cell: old_of[new slot] = old slot. */
+static inline int cell_index(const struct dem_work *w, int x, int y, int z) {
+  return (z * w->cell_dim[1] + y) * w->cell_dim[0] + x;
+}
+
+/* Morton rank of every cell: the cells of a power-of-two cube visited in
+ * Z-curve order, cubes outside the grid skipped (O(cells) for any shape). */
+static void morton_visit(struct dem_work *w, int x, int y, int z, int size, int *next) {
+  if (x >= w->cell_dim[0] || y >= w->cell_dim[1] || z >= w->cell_dim[2]) return;
+  if (size == 1) {
+    w->cell_rank[cell_index(w, x, y, z)] = (*next)++;
+    return;
+  }
+  const int h = size / 2;
+  for (int c = 0; c < 8; c++) morton_visit(w, x + (c & 1) * h, y + (c >> 1 & 1) * h, z + (c >> 2) * h, h, next);
+}
+
+static void morton_ranks(struct dem_work *w) {
+  if (!memcmp(w->rank_dim, w->cell_dim, sizeof w->rank_dim)) return; /* same grid shape */
+  int size = 1, next = 0;
+  while (size < w->cell_dim[0] || size < w->cell_dim[1] || size < w->cell_dim[2]) size *= 2;
+  morton_visit(w, 0, 0, 0, size, &next);
+  memcpy(w->rank_dim, w->cell_dim, sizeof w->rank_dim);
+}
+
+/* Counting sort of grains by the Morton rank of their cell:
+ * old_of[new slot] = old slot; cell_start indexed by rank. */
 static void sort_by_cell(dem_state *s, int ncell) {
   struct dem_work *w = s->work;
-  memset(w->cell_start, 0, sizeof(int) * (size_t)(ncell + 1));
-  for (int i = 0; i < s->n; i++) {
-    int c = (cell_coord(w, s->x[3 * i + 2], 2) * w->cell_dim[1] + cell_coord(w, s->x[3 * i + 1], 1)) *
-                w->cell_dim[0] + cell_coord(w, s->x[3 * i], 0);
-    w->cell_of[i] = c;
-    w->cell_start[c + 1]++;
+  const int n = s->n;
+  morton_ranks(w);
+#pragma omp parallel for schedule(static) num_threads(w->nthreads)
+  for (int i = 0; i < n; i++) {
+    const double *x = &s->x[3 * i];
+    w->cell_of[i] = w->cell_rank[cell_index(w, cell_coord(w, x[0], 0), cell_coord(w, x[1], 1), cell_coord(w, x[2], 2))];
   }
+  memset(w->cell_start, 0, sizeof(int) * (size_t)(ncell + 1));
+  for (int i = 0; i < n; i++) w->cell_start[w->cell_of[i] + 1]++;
   for (int c = 0; c < ncell; c++) w->cell_start[c + 1] += w->cell_start[c];
-  for (int i = 0; i < s->n; i++) w->old_of[w->cell_start[w->cell_of[i]]++] = i;
+  for (int i = 0; i < n; i++) w->old_of[w->cell_start[w->cell_of[i]]++] = i;
   for (int c = ncell; c > 0; c--) w->cell_start[c] = w->cell_start[c - 1];
   w->cell_start[0] = 0;
 }
 
-/* Visits the candidate partners j > i of slot i; count-only when out is NULL. */
-static int list_row(const dem_model *m, const dem_state *s, int i, int *out) {
-  const struct dem_work *w = s->work;
-  const double *xi = &s->x[3 * i];
-  int c[3], cnt = 0;
-  for (int k = 0; k < 3; k++) c[k] = cell_coord(w, xi[k], k);
-  for (int dz = -1; dz <= 1; dz++) {
-    int z = c[2] + dz;
-    if (z < 0 || z >= w->cell_dim[2]) continue;
-    for (int dy = -1; dy <= 1; dy++) {
-      int y = c[1] + dy;
-      if (y < 0 || y >= w->cell_dim[1]) continue;
-      int x0 = c[0] > 0 ? c[0] - 1 : 0, x1 = c[0] + 1 < w->cell_dim[0] ? c[0] + 1 : c[0];
-      int row = (z * w->cell_dim[1] + y) * w->cell_dim[0];
-      /* cells x0..x1 of a row are contiguous slots */
-      int j0 = w->cell_start[row + x0], j1 = w->cell_start[row + x1 + 1];
-      if (j0 <= i) j0 = i + 1;
-      for (int j = j0; j < j1; j++) {
-        double d[3] = {s->x[3 * j] - xi[0], s->x[3 * j + 1] - xi[1], s->x[3 * j + 2] - xi[2]};
-        double cut = s->radius[i] + s->radius[j] + m->skin;
-        if (dem_dot(d, d) < cut * cut) {
-          if (out) out[cnt] = j;
-          cnt++;
-        }
+/* Candidates of one cell: the slots of its neighbour cells that come at or
+ * after it in Morton order (earlier cells hold only smaller slots), in
+ * increasing slot order, with positions and radii as structure of arrays so
+ * that the distance tests of each row vectorise. */
+typedef struct cand_set {
+  int n, cap;
+  int *j;
+  double *x, *y, *z, *r;
+  uint8_t *hit;
+} cand_set;
+
+static void cand_bind(cand_set *c, void *mem, int n) {
+  /* mem: PERM_MAX_REC * n bytes (the thread's re-sorting scratch, idle now) */
+  c->n = 0;
+  c->cap = n;
+  c->x = mem;
+  c->y = c->x + n;
+  c->z = c->y + n;
+  c->r = c->z + n;
+  c->j = (int *)(c->r + n);
+  c->hit = (uint8_t *)(c->j + n);
+}
+
+static void cell_candidates(const struct dem_work *w, const dem_state *s, int rank, const int *cc, cand_set *c) {
+  int lo[27], hi[27], nr = 0;
+  for (int z = cc[2] > 0 ? cc[2] - 1 : 0; z <= cc[2] + 1 && z < w->cell_dim[2]; z++)
+    for (int y = cc[1] > 0 ? cc[1] - 1 : 0; y <= cc[1] + 1 && y < w->cell_dim[1]; y++)
+      for (int x = cc[0] > 0 ? cc[0] - 1 : 0; x <= cc[0] + 1 && x < w->cell_dim[0]; x++) {
+        const int r = w->cell_rank[cell_index(w, x, y, z)];
+        if (r < rank || w->cell_start[r] == w->cell_start[r + 1]) continue;
+        int q = nr++; /* ranges in increasing start (insertion; disjoint) */
+        for (; q > 0 && lo[q - 1] > w->cell_start[r]; q--) { lo[q] = lo[q - 1]; hi[q] = hi[q - 1]; }
+        lo[q] = w->cell_start[r];
+        hi[q] = w->cell_start[r + 1];
       }
+  c->n = 0;
+  for (int q = 0; q < nr; q++)
+    for (int j = lo[q]; j < hi[q]; j++) {
+      const int k = c->n++;
+      c->j[k] = j;
+      c->x[k] = s->x[3 * j]; c->y[k] = s->x[3 * j + 1]; c->z[k] = s->x[3 * j + 2];
+      c->r[k] = s->radius[j];
     }
+}
+
+/* Partners j > i of slot i within reach (r_i + r_j + skin) among the cell's
+ * candidates, into out in increasing j; returns the count, −1 if out is
+ * shorter than the candidates. */
+static int list_row(const dem_model *m, const dem_state *s, int i, cand_set *restrict c, int *restrict out,
+                    int room) {
+  const double xi0 = s->x[3 * i], xi1 = s->x[3 * i + 1], xi2 = s->x[3 * i + 2], ri = s->radius[i] + m->skin;
+  int q0 = 0;
+  while (q0 < c->n && c->j[q0] <= i) q0++;
+  if (c->n - q0 > room) return -1;
+  const double *restrict cx = c->x, *restrict cy = c->y, *restrict cz = c->z, *restrict cr = c->r;
+  uint8_t *restrict hit = c->hit;
+  for (int q = q0; q < c->n; q++) { /* vectorised */
+    const double d0 = cx[q] - xi0, d1 = cy[q] - xi1, d2 = cz[q] - xi2, cut = ri + cr[q];
+    hit[q] = d0 * d0 + d1 * d1 + d2 * d2 < cut * cut;
+  }
+  int cnt = 0;
+  for (int q = q0; q < c->n; q++) {
+    out[cnt] = c->j[q];
+    cnt += hit[q];
   }
   return cnt;
+}
+
+/* Rows lo..hi−1 into the chunk's buffer (grown if needed: rare, at the
+ * first rebuilds); row lengths into nl_start[i + 1]. */
+static int list_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi, void *scratch) {
+  struct dem_work *w = s->work;
+  cand_set cs;
+  cand_bind(&cs, scratch, s->n);
+  int used = 0, rank = w->cell_of[w->old_of[lo]]; /* cell_of: rank by old slot */
+  for (int i = lo; i < hi; i++) {
+    if (i == lo || i >= w->cell_start[rank + 1]) { /* a new cell: its candidates */
+      while (i >= w->cell_start[rank + 1]) rank++;
+      int cc[3];
+      for (int k = 0; k < 3; k++) cc[k] = cell_coord(w, s->x[3 * i + k], k);
+      cell_candidates(w, s, rank, cc, &cs);
+    }
+    for (;;) {
+      int room = w->cbuf_cap[c] - used, got = list_row(m, s, i, &cs, w->cbuf[c] + used, room);
+      if (got >= 0) {
+        w->nl_start[i + 1] = got;
+        used += got;
+        break;
+      }
+      const int cap = 2 * w->cbuf_cap[c] + cs.n + (hi - lo) * 8;
+      int *nb = realloc(w->cbuf[c], sizeof(int) * (size_t)cap);
+      if (!nb) return -1;
+      w->cbuf[c] = nb;
+      w->cbuf_cap[c] = cap;
+    }
+  }
+  return 0;
 }
 
 /* History of new pair (i, j) from the previous list (in old slots). */
@@ -194,28 +364,24 @@ static void carry_history(const struct dem_work *w, int i, int j, double *shear)
     }
 }
 
-int dem_neigh_reserve(const dem_model *m, dem_state *s, int need, proto_err *err) {
-  struct dem_work *w = s->work;
-  if (need <= w->cap) return 0;
-  int cap = need + need / 4 + 64; /* rare: only when the list outgrows its capacity */
-  if (!GROW(w->nl_j, cap, int) || !GROW(w->rev_k, cap, int) || !GROW(w->nl_shear, 3 * cap, double) ||
-      !GROW(w->pair_ft, 6 * cap, double) || !GROW(w->pair_touch, cap, uint8_t) ||
-      (m->has_rolling && !GROW(w->pair_roll, 3 * cap, double)))
-    return proto_fail(err, "out of memory for %d neighbour pairs", need);
-  w->cap = cap;
-  return 0;
-}
-
-/* For each slot, the pairs where it is the partner j, in list order. */
+/* The pairs (i', j) whose row i' lies in an earlier chunk than j: for each
+ * j in descending i' (the order dem_force.c adds their shares in). */
 void dem_neigh_reverse(dem_state *s) {
   struct dem_work *w = s->work;
   const int n = s->n;
   memset(w->rev_start, 0, sizeof(int) * (size_t)(n + 1));
-  for (int k = 0; k < w->nl_start[n]; k++) w->rev_start[w->nl_j[k] + 1]++;
+  for (int i = 0; i < n; i++) {
+    const int end = (i / DEM_CHUNK + 1) * DEM_CHUNK;
+    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++)
+      if (w->nl_j[k] >= end) w->rev_start[w->nl_j[k] + 1]++;
+  }
   for (int i = 0; i < n; i++) w->rev_start[i + 1] += w->rev_start[i];
   memcpy(w->rev_fill, w->rev_start, sizeof(int) * (size_t)n);
-  for (int i = 0; i < n; i++)
-    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) w->rev_k[w->rev_fill[w->nl_j[k]]++] = k;
+  for (int i = n - 1; i >= 0; i--) {
+    const int end = (i / DEM_CHUNK + 1) * DEM_CHUNK;
+    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++)
+      if (w->nl_j[k] >= end) w->rev_k[w->rev_fill[w->nl_j[k]]++] = k;
+  }
 }
 
 int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
@@ -224,37 +390,36 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
   int ncell = setup_cells(m, s, err);
   if (ncell < 0) return -1;
   sort_by_cell(s, ncell);
-  /* the current list becomes the old one (old slot numbering) */
-  int npairs = w->nl_start[n];
-  if (npairs > w->old_cap) {
-    if (!GROW(w->old_j, npairs, int) || !GROW(w->old_shear, 3 * npairs, double))
-      return proto_fail(err, "out of memory for %d neighbour pairs", npairs);
-    w->old_cap = npairs;
-  }
-  memcpy(w->old_start, w->nl_start, sizeof(int) * (size_t)(n + 1));
-  memcpy(w->old_j, w->nl_j, sizeof(int) * (size_t)npairs);
-  memcpy(w->old_shear, w->nl_shear, 3 * sizeof(double) * (size_t)npairs);
-  permute_grains(m, s);
-  /* count pass, prefix sum, fill pass (parallel and deterministic) */
-#pragma omp parallel for schedule(dynamic, 256) num_threads(w->nthreads)
-  for (int i = 0; i < n; i++) w->nl_start[i + 1] = list_row(m, s, i, NULL);
+  /* the current list becomes the old one (old slot numbering): swap buffers */
+  { int *t = w->old_start; w->old_start = w->nl_start; w->nl_start = t; }
+  { int *t = w->old_j; w->old_j = w->nl_j; w->nl_j = t; }
+  { double *t = w->old_shear; w->old_shear = w->nl_shear; w->nl_shear = t; }
+  { size_t t = w->old_cap; w->old_cap = w->cap; w->cap = t; }
+  if (permute_grains(m, s, err)) return -1;
+  /* rows per chunk into the chunk's buffer, prefix sum, copy and carry the
+   * history (parallel and deterministic) */
+  const int nchunk = (n + DEM_CHUNK - 1) / DEM_CHUNK;
+  int oom = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads) reduction(| : oom)
+  for (int c = 0; c < nchunk; c++)
+    oom |= list_chunk(m, s, c, c * DEM_CHUNK, (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n,
+                      w->perm_tmp[omp_get_thread_num()]) != 0;
+  if (oom) return proto_fail(err, "out of memory for the neighbour list of %d grains", n);
   w->nl_start[0] = 0;
   for (int i = 0; i < n; i++) w->nl_start[i + 1] += w->nl_start[i];
   if (dem_neigh_reserve(m, s, w->nl_start[n], err)) return -1;
 #pragma omp parallel for schedule(dynamic, 256) num_threads(w->nthreads)
   for (int i = 0; i < n; i++) {
-    list_row(m, s, i, &w->nl_j[w->nl_start[i]]);
+    const int c = i / DEM_CHUNK, from = w->nl_start[i] - w->nl_start[c * DEM_CHUNK];
+    const int len = w->nl_start[i + 1] - w->nl_start[i];
+    if (len > 0) memcpy(&w->nl_j[w->nl_start[i]], w->cbuf[c] + from, sizeof(int) * (size_t)len);
     for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) {
       double *sh = &w->nl_shear[3 * k];
       carry_history(w, i, w->nl_j[k], sh);
       w->pair_touch[k] = sh[0] != 0 || sh[1] != 0 || sh[2] != 0; /* a spring to reset if open */
     }
-  }
-  w->have_old = 1;
-  dem_neigh_reverse(s);
-  /* planes a grain can touch before the next rebuild (it moves < skin/2);
-   * the springs of the others are cleared */
-  for (int i = 0; i < n; i++) {
+    /* planes a grain can touch before the next rebuild (it moves < skin/2);
+     * the springs of the others are cleared */
     uint64_t mask = 0, touch = 0;
     for (int p = 0; p < m->n_planes; p++) {
       const dem_plane *pl = &m->planes[p];
@@ -269,14 +434,18 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
     }
     w->plane_mask[i] = mask;
     w->plane_touch[i] = touch;
+    /* quaternions: the hot loop does not renormalise (|dq| = 1 + O(h⁶)); here */
+    if (m->orientation) {
+      double *q = &s->q[4 * i];
+      const double nrm = 1.0 / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+      for (int k = 0; k < 4; k++) q[k] *= nrm;
+    }
+    memcpy(&w->x_ref[3 * i], &s->x[3 * i], 3 * sizeof(double));
   }
-  /* quaternions: the hot loop does not renormalise (|dq| = 1 + O(h⁶)); here */
-  for (int i = 0; i < n; i++) {
-    double *q = &s->q[4 * i];
-    const double nrm = 1.0 / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    for (int k = 0; k < 4; k++) q[k] *= nrm;
-  }
-  memcpy(w->x_ref, s->x, 3 * sizeof(double) * (size_t)n);
+  w->have_old = 1;
+  dem_neigh_reverse(s);
+  dem_sleep_count(m, s); /* chunks hold other grains now */
   s->rebuilds++;
-  return 0;
+  if (dem_sleep_partners(m, s, err)) return -1;
+  return m->n_meshes > 0 ? dem_mesh_lists(m, s, err) : 0;
 }

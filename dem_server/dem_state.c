@@ -3,7 +3,7 @@
  * of eq. 9's Euler angles, which are singular at sin φ2 = 0). */
 #include "dem_server/dem_internal.h"
 
-#include <omp.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -13,9 +13,7 @@ static int alloc_state(const dem_model *m, dem_state *s, proto_err *err) {
   s->work = calloc(1, sizeof *s->work);
   if (!s->work) return proto_fail(err, "out of memory");
   struct dem_work *w = s->work;
-  /* default: all threads for big scenes; one for small ones, where fork/join
-   * costs more than it saves (and a loaded machine makes it far worse) */
-  w->nthreads = m->threads > 0 ? m->threads : (m->n_grains >= 4096 ? omp_get_max_threads() : 1);
+  if (dem_threads_init(m, s, err)) return -1;
   s->x = malloc(3 * n * sizeof(double));
   s->v = malloc(3 * n * sizeof(double));
   s->omega = malloc(3 * n * sizeof(double));
@@ -33,50 +31,68 @@ static int alloc_state(const dem_model *m, dem_state *s, proto_err *err) {
   w->wall_shear = calloc(np, sizeof(double));
   w->mass = malloc(n * sizeof(double));
   w->inertia = malloc(n * sizeof(double));
-  w->ke_part = calloc(n / DEM_CHUNK + 1, sizeof(double));
+  w->chunk = calloc(n / DEM_CHUNK + 1, sizeof(dem_chunk_sum));
   w->wall_part = calloc(3 * (size_t)(m->n_planes + 1) * (n / DEM_CHUNK + 1), sizeof(double));
-  w->wall_u = calloc(n, sizeof(double));
-  w->wall_contacts = calloc(n, 1);
-  size_t cols = 3 * DEM_MESH_SLOTS > 3 * (size_t)m->n_planes ? 3 * DEM_MESH_SLOTS : 3 * (size_t)m->n_planes;
-  w->tmp = malloc(cols * n * sizeof(double) + 1); /* widest per-grain record permuted */
-  w->itmp = malloc(n * sizeof(int64_t) * DEM_MESH_SLOTS);
   if (!s->x || !s->v || !s->omega || !s->q || !s->force || !s->torque || !s->radius ||
       !s->inv_mass || !s->inv_inertia || !s->material || !s->id || !s->fix_rotation ||
-      !s->wall_force || !w->wall_shear || !w->wall_part || !w->ke_part || !w->mass || !w->inertia || !w->wall_u || !w->wall_contacts ||
-      !w->tmp || !w->itmp)
+      !s->wall_force || !w->wall_shear || !w->wall_part || !w->chunk || !w->mass || !w->inertia)
     return proto_fail(err, "out of memory for %d grains", m->n_grains);
   return 0;
 }
 
+/* Overlap of slots i, j as a fraction of the smaller radius; of slot i and
+ * plane p (distance of the centre below r) as a fraction of r. */
+static double pair_overlap(const dem_state *s, int i, int j) {
+  const double d[3] = {s->x[3 * i] - s->x[3 * j], s->x[3 * i + 1] - s->x[3 * j + 1], s->x[3 * i + 2] - s->x[3 * j + 2]};
+  const double rmin = s->radius[i] < s->radius[j] ? s->radius[i] : s->radius[j];
+  return (s->radius[i] + s->radius[j] - sqrt(dem_dot(d, d))) / rmin;
+}
+
+static double plane_distance(const dem_plane *pl, const double *x) {
+  const double d[3] = {x[0] - pl->point[0], x[1] - pl->point[1], x[2] - pl->point[2]};
+  return dem_dot(d, pl->normal);
+}
+
+double dem_worst_overlap(const dem_model *m, const dem_state *s) {
+  const struct dem_work *w = s->work;
+  double worst = 0;
+  for (int i = 0; i < s->n; i++) {
+    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) worst = fmax(worst, pair_overlap(s, i, w->nl_j[k]));
+    for (int p = 0; p < m->n_planes; p++)
+      worst = fmax(worst, (s->radius[i] - plane_distance(&m->planes[p], &s->x[3 * i])) / s->radius[i]);
+  }
+  return worst;
+}
+
+/* Overlaps beyond the tolerance (overlap_tolerance, or what a bed file saved
+ * from a run recorded: a settled bed has its own), grains behind a wall. */
 static int check_initial(const dem_model *m, const dem_state *s, proto_err *err) {
   const struct dem_work *w = s->work;
+  const double tol = fmax(m->overlap_tolerance, m->bed_max_overlap);
+  char why[160];
+  snprintf(why, sizeof why, "overlap_tolerance %.3g%s", m->overlap_tolerance,
+           m->bed_max_overlap > 0 ? "; the bed file records a largest overlap of " : "");
+  if (m->bed_max_overlap > 0) snprintf(why + strlen(why), sizeof why - strlen(why), "%.6g", m->bed_max_overlap);
   for (int i = 0; i < s->n; i++) {
     for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) {
-      int j = w->nl_j[k];
-      double d[3] = {s->x[3 * i] - s->x[3 * j], s->x[3 * i + 1] - s->x[3 * j + 1],
-                     s->x[3 * i + 2] - s->x[3 * j + 2]};
-      double rmin = s->radius[i] < s->radius[j] ? s->radius[i] : s->radius[j];
-      double delta = s->radius[i] + s->radius[j] - sqrt(dem_dot(d, d));
-      if (delta > m->overlap_tolerance * rmin) {
+      const int j = w->nl_j[k];
+      const double ratio = pair_overlap(s, i, j);
+      if (ratio > tol) {
         int a = s->id[i] < s->id[j] ? s->id[i] : s->id[j], b = s->id[i] ^ s->id[j] ^ a;
+        const double rmin = s->radius[i] < s->radius[j] ? s->radius[i] : s->radius[j];
         return proto_fail(err, "%s.particles: grains %d and %d overlap by %.3g m = %.3g of the smaller "
-                          "radius (overlap_tolerance %.3g)", m->key_path, a, b, delta, delta / rmin,
-                          m->overlap_tolerance);
+                          "radius (%s)", m->key_path, a, b, ratio * rmin, ratio, why);
       }
     }
     for (int p = 0; p < m->n_planes; p++) {
       const dem_plane *pl = &m->planes[p];
-      double d[3] = {s->x[3 * i] - pl->point[0], s->x[3 * i + 1] - pl->point[1],
-                     s->x[3 * i + 2] - pl->point[2]};
-      double dist = dem_dot(d, pl->normal), r = s->radius[i];
-      const double *x = &s->x[3 * i];
+      const double *x = &s->x[3 * i], dist = plane_distance(pl, x), r = s->radius[i];
       if (dist < 0)
         return proto_fail(err, "%s.particles: grain %d at (%g, %g, %g) is outside the domain (behind "
                           "walls[%d])", m->key_path, (int)s->id[i], x[0], x[1], x[2], pl->wall);
-      if (r - dist > m->overlap_tolerance * r)
-        return proto_fail(err, "%s.particles: grain %d overlaps walls[%d] by %.3g of its radius "
-                          "(overlap_tolerance %.3g)", m->key_path, (int)s->id[i], pl->wall, (r - dist) / r,
-                          m->overlap_tolerance);
+      if ((r - dist) / r > tol)
+        return proto_fail(err, "%s.particles: grain %d overlaps walls[%d] by %.3g of its radius (%s)",
+                          m->key_path, (int)s->id[i], pl->wall, (r - dist) / r, why);
     }
   }
   return 0;
@@ -108,7 +124,8 @@ int dem_state_init(const dem_model *m, dem_state *s, proto_err *err) {
     dem_grain_constants(m, s, i, i);
     if (m->fix_rotation[i]) memset(&s->omega[3 * i], 0, 3 * sizeof(double));
   }
-  if (dem_neigh_alloc(m, s, err) || dem_mesh_alloc(m, s, err) || dem_neigh_rebuild(m, s, err) ||
+  if (dem_neigh_alloc(m, s, err) || dem_mesh_alloc(m, s, err) || dem_sleep_alloc(m, s, err) ||
+      dem_neigh_rebuild(m, s, err) ||
       check_initial(m, s, err))
     goto fail;
   dem_compute_forces(m, s, 0);
@@ -128,8 +145,9 @@ void dem_state_free(dem_state *s) {
     struct dem_work *w = s->work;
     dem_neigh_free(w);
     dem_mesh_free(NULL, s);
-    free(w->wall_shear); free(w->wall_part); free(w->ke_part); free(w->mass); free(w->inertia); free(w->wall_u); free(w->wall_contacts);
-    free(w->tmp); free(w->itmp); free(w->io_mesh);
+    dem_sleep_free(w);
+    free(w->wall_shear); free(w->wall_part); free(w->chunk); free(w->mass); free(w->inertia);
+    free(w->io_mesh);
     free(w);
   }
   free(s->x); free(s->v); free(s->omega); free(s->q); free(s->force); free(s->torque);
@@ -176,20 +194,28 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   const double dt = m->dt, half = 0.5 * dt, lim2 = 0.25 * m->skin * m->skin;
   const double *g = m->gravity;
   int rebuild = 0, jumped = 0;
-#pragma omp parallel for schedule(dynamic, 512) reduction(| : rebuild, jumped) num_threads(w->nthreads)
-  for (int i = 0; i < s->n; i++) {
-    double *x = &s->x[3 * i], *v = &s->v[3 * i], *o = &s->omega[3 * i];
-    const double *f = &s->force[3 * i], *t = &s->torque[3 * i], *xr = &w->x_ref[3 * i];
-    const double im = s->inv_mass[i], ii = s->inv_inertia[i], r = s->radius[i];
-    double d2 = 0;
-    for (int a = 0; a < 3; a++) {
-      v[a] += half * (f[a] * im + g[a]);
-      o[a] += half * t[a] * ii;
-      x[a] += dt * v[a];
-      d2 += (x[a] - xr[a]) * (x[a] - xr[a]);
+  dem_threads_begin(s);
+  const uint8_t *asleep = w->asleep; /* NULL unless "sleep" is on */
+  const int n = s->n;
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : rebuild, jumped) num_threads(w->nthreads)
+  for (int c = 0; c < w->nchunk; c++) {
+    if (asleep && w->chunk_awake[c] == 0) continue;
+    const int hi = (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n;
+    for (int i = c * DEM_CHUNK; i < hi; i++) {
+      if (asleep && asleep[i]) continue;
+      double *x = &s->x[3 * i], *v = &s->v[3 * i], *o = &s->omega[3 * i];
+      const double *f = &s->force[3 * i], *t = &s->torque[3 * i], *xr = &w->x_ref[3 * i];
+      const double im = s->inv_mass[i], ii = s->inv_inertia[i], r = s->radius[i];
+      double d2 = 0;
+      for (int a = 0; a < 3; a++) {
+        v[a] += half * (f[a] * im + g[a]);
+        o[a] += half * t[a] * ii;
+        x[a] += dt * v[a];
+        d2 += (x[a] - xr[a]) * (x[a] - xr[a]);
+      }
+      rebuild |= d2 > lim2;
+      jumped |= !(dem_dot(v, v) * dt * dt <= r * r); /* moved more than its radius, or NaN */
     }
-    rebuild |= d2 > lim2;
-    jumped |= !(dem_dot(v, v) * dt * dt <= r * r); /* moved more than its radius, or NaN */
   }
   dem_mesh_move(m, s, dt);
   s->t += dt;
@@ -198,12 +224,9 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
     s->kinetic_energy = NAN;
     return check_health(m, s, 2.0, err);
   }
-  if (rebuild && dem_neigh_rebuild(m, s, err)) return -1;
+  if (rebuild ? dem_neigh_rebuild(m, s, err) : (m->n_meshes > 0 && dem_mesh_lists_check(m, s, err))) return -1;
   dem_compute_forces(m, s, 1); /* and the second half kick */
-  const int nchunk = (s->n + DEM_CHUNK - 1) / DEM_CHUNK;
-  double ke = 0;
-  for (int c = 0; c < nchunk; c++) ke += w->ke_part[c];
-  s->kinetic_energy = ke;
+  dem_threads_end(s);
   return check_health(m, s, 0.0, err);
 }
 
@@ -219,7 +242,8 @@ void dem_mesh_set_nodes(const dem_model *m, dem_state *s, int mesh, const double
   const dem_mesh *me = &m->meshes[mesh];
   memcpy(s->mesh_x[mesh], x, sizeof(double) * 3 * (size_t)me->n_nodes);
   memcpy(s->mesh_v[mesh], v, sizeof(double) * 3 * (size_t)me->n_nodes);
-  dem_bvh_update(&s->work->bvh[mesh], s->mesh_x[mesh], me->tri, me->n_tri);
+  s->work->mesh_set[mesh] = 1; /* lists: checked at the next step */
+  dem_mesh_velocities_changed(m, s, mesh);
 }
 
 void dem_gather(const dem_state *s, const double *slot_data, int cols, double *out) {
@@ -229,9 +253,7 @@ void dem_gather(const dem_state *s, const double *slot_data, int cols, double *o
 
 double dem_coordination(const dem_model *m, const dem_state *s) {
   (void)m;
-  int64_t c = 0;
-  for (int i = 0; i < s->n; i++) c += s->work->pair_contacts[i];
-  return s->n ? 2.0 * (double)c / s->n : 0;
+  return s->n ? 2.0 * (double)s->work->pair_contacts / s->n : 0;
 }
 
 int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain, int64_t max_steps,

@@ -17,7 +17,10 @@
 _Static_assert(sizeof(int) == 4, "neighbour-list indices travel as i4");
 
 #define IO_FORMAT 1 /* bump when the set or meaning of the arrays changes */
-enum { IO_C_FORMAT, IO_C_MODEL, IO_C_STEP, IO_C_REBUILDS, IO_C_CONTACTS, IO_NCOUNTERS };
+/* IO_C_MESH_FLAGS: bit k = nodes of mesh k set since the list build, bit
+ * DEM_MAX_MESHES = lists to rebuild (the rebuild schedule decides the sleep
+ * "near" flags, so it travels too) */
+enum { IO_C_FORMAT, IO_C_MODEL, IO_C_STEP, IO_C_REBUILDS, IO_C_CONTACTS, IO_C_SLEEPING, IO_C_MESH_FLAGS, IO_NCOUNTERS };
 enum { IO_S_T, IO_S_KE, IO_S_ELASTIC, IO_S_OVERLAP, IO_NSCALARS };
 #define IO_MAX 32 /* the arrays of one export (PROTO_MAX_ARRAYS) */
 
@@ -83,6 +86,12 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
     add(e, &c, "state.mesh_x", PROTO_F8, w->io_mesh, 2, nodes, 3, 0);
     add(e, &c, "state.mesh_v", PROTO_F8, w->io_mesh + 3 * nodes, 2, nodes, 3, 0);
     add(e, &c, "state.mesh_force", PROTO_F8, w->io_mesh + 6 * nodes, 2, nodes, 3, 0);
+    add(e, &c, "state.mesh_xref", PROTO_F8, w->io_mesh + 9 * nodes, 2, nodes, 3, 0);
+  }
+  if (m->sleep.on) {
+    add(e, &c, "state.asleep", PROTO_U1, w->asleep, 1, n, 0, 0);
+    add(e, &c, "state.rest", PROTO_I4, w->rest, 1, n, 0, 0);
+    add(e, &c, "state.near", PROTO_U1, w->near, 1, n, 0, 0);
   }
   return c;
 }
@@ -121,6 +130,7 @@ static int64_t model_fingerprint(const dem_model *m) {
     h = fnv(h, &me->material, sizeof me->material);
   }
   h = fnv(h, &m->skin, sizeof m->skin);
+  h = fnv(h, &m->sleep.on, sizeof m->sleep.on); /* the set of arrays */
   return (int64_t)h;
 }
 
@@ -128,7 +138,7 @@ static int64_t model_fingerprint(const dem_model *m) {
 static int io_scratch(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
   if (m->n_meshes == 0 || w->io_mesh) return 0;
-  w->io_mesh = malloc(sizeof(double) * 9 * (size_t)total_nodes(m) + 1);
+  w->io_mesh = malloc(sizeof(double) * 12 * (size_t)total_nodes(m) + 1);
   return w->io_mesh ? 0 : proto_fail(err, "out of memory for the state export");
 }
 
@@ -141,6 +151,7 @@ int dem_state_export(const dem_model *m, const dem_state *cs, proto_msg *out, pr
   w->io_counters[IO_C_STEP] = s->step;
   w->io_counters[IO_C_REBUILDS] = s->rebuilds;
   w->io_counters[IO_C_CONTACTS] = s->contacts;
+  w->io_counters[IO_C_SLEEPING] = s->sleeping;
   w->io_scalars[IO_S_T] = s->t;
   w->io_scalars[IO_S_KE] = s->kinetic_energy;
   w->io_scalars[IO_S_ELASTIC] = s->elastic_energy;
@@ -152,8 +163,12 @@ int dem_state_export(const dem_model *m, const dem_state *cs, proto_msg *out, pr
     memcpy(w->io_mesh + 3 * off, s->mesh_x[mi], b);
     memcpy(w->io_mesh + 3 * (nodes + off), s->mesh_v[mi], b);
     memcpy(w->io_mesh + 3 * (2 * nodes + off), s->mesh_force[mi], b);
+    memcpy(w->io_mesh + 3 * (3 * nodes + off), w->mesh_xref[mi], b);
     off += m->meshes[mi].n_nodes;
   }
+  int64_t flags = (int64_t)w->lists_dirty << DEM_MAX_MESHES;
+  for (int mi = 0; mi < m->n_meshes; mi++) flags |= (int64_t)w->mesh_set[mi] << mi;
+  w->io_counters[IO_C_MESH_FLAGS] = flags;
   io_entry e[IO_MAX];
   const int ne = layout(m, s, w->nl_start[s->n], e);
   for (int k = 0; k < ne; k++)
@@ -181,7 +196,8 @@ static int check_contents(const dem_model *m, dem_state *s, const void *const *s
                           int ne, proto_err *err) {
   const int n = s->n;
   const int32_t *id = NULL, *start = NULL, *nj = NULL;
-  const uint8_t *touch = NULL, *mesh = NULL;
+  const uint8_t *touch = NULL, *mesh = NULL, *asleep = NULL, *near = NULL;
+  const int32_t *rest = NULL;
   const int64_t *key = NULL, *mask = NULL, *ptouch = NULL, *cnt = NULL;
   int64_t npairs = 0;
   for (int k = 0; k < ne; k++) {
@@ -195,6 +211,9 @@ static int check_contents(const dem_model *m, dem_state *s, const void *const *s
     else if (!strcmp(nm, "state.plane_mask")) mask = src[k];
     else if (!strcmp(nm, "state.plane_touch")) ptouch = src[k];
     else if (!strcmp(nm, "state.counters")) cnt = src[k];
+    else if (!strcmp(nm, "state.asleep")) asleep = src[k];
+    else if (!strcmp(nm, "state.rest")) rest = src[k];
+    else if (!strcmp(nm, "state.near")) near = src[k];
   }
   int *seen = s->work->old_of; /* scratch outside a rebuild */
   memset(seen, 0, sizeof(int) * (size_t)n);
@@ -224,6 +243,10 @@ static int check_contents(const dem_model *m, dem_state *s, const void *const *s
     if (key[k] != 0 && mesh[k] >= m->n_meshes)
       return proto_fail(err, "state import: 'state.mc_mesh'[%lld] = %d, only %d meshes", (long long)k,
                         (int)mesh[k], m->n_meshes);
+  for (int i = 0; asleep && i < n; i++)
+    if (asleep[i] > 1 || rest[i] < 0 || near[i] > 1)
+      return proto_fail(err, "state import: 'state.asleep'/'state.rest'/'state.near'[%d] = %d/%d/%d (expected 0/1, "
+                        ">= 0, 0/1)", i, (int)asleep[i], (int)rest[i], (int)near[i]);
   if (cnt[IO_C_STEP] < 0 || cnt[IO_C_REBUILDS] < 0)
     return proto_fail(err, "state import: 'state.counters' has a negative step or rebuild count");
   return 0;
@@ -270,14 +293,19 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   s->step = cnt[IO_C_STEP];
   s->rebuilds = cnt[IO_C_REBUILDS];
   s->contacts = cnt[IO_C_CONTACTS];
+  s->sleeping = cnt[IO_C_SLEEPING];
   s->t = w->io_scalars[IO_S_T];
   s->kinetic_energy = w->io_scalars[IO_S_KE];
   s->elastic_energy = w->io_scalars[IO_S_ELASTIC];
   s->max_overlap_ratio = w->io_scalars[IO_S_OVERLAP];
   /* what follows from the slot order: the grains' constants and the reverse
-   * pair index; the meshes' BVH (contact order does not depend on its shape) */
+   * pair index; the meshes' BVH and candidate lists (the contacts and their
+   * order do not depend on them) */
   for (int i = 0; i < n; i++) dem_grain_constants(m, s, i, s->id[i]);
   dem_neigh_reverse(s);
+  dem_sleep_count(m, s);
+  if (w->wake) memset(w->wake, 0, (size_t)n);
+  if (dem_sleep_partners(m, s, err)) return -1;
   w->have_old = 1;
   const int64_t nodes = total_nodes(m);
   int64_t off = 0;
@@ -287,9 +315,15 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
     memcpy(s->mesh_x[mi], w->io_mesh + 3 * off, b);
     memcpy(s->mesh_v[mi], w->io_mesh + 3 * (nodes + off), b);
     memcpy(s->mesh_force[mi], w->io_mesh + 3 * (2 * nodes + off), b);
+    memcpy(w->mesh_xref[mi], w->io_mesh + 3 * (3 * nodes + off), b);
     off += me->n_nodes;
+    dem_mesh_velocities_changed(m, s, mi);
+    w->mesh_set[mi] = (uint8_t)(cnt[IO_C_MESH_FLAGS] >> mi & 1);
     if (dem_bvh_build(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri))
       return proto_fail(err, "state import: out of memory for the BVH of mesh %d", mi);
   }
-  return 0;
+  w->lists_dirty = (int)(cnt[IO_C_MESH_FLAGS] >> DEM_MAX_MESHES & 1);
+  /* the candidate lists from the current positions (a superset until the
+   * schedule above, which is the exported one, rebuilds them) */
+  return m->n_meshes > 0 ? dem_mesh_lists_build(m, s, err) : 0;
 }

@@ -19,6 +19,7 @@ typedef struct dem_app {
   int have_model, have_state;
   double run_dt;
   int surface;         /* mesh index of the coupled FEM surface, -1 if none */
+  int threads_logged;  /* thread count last written to the log */
   double series[6];
   double *wall_row;    /* t, then Fx Fy Fz per wall (means over the step) */
   double *surface_force; /* [n*3] nodal force, mean over the step's sub-steps */
@@ -61,11 +62,19 @@ static int add_surface(dem_app *a, const proto_msg *welcome, proto_err *err) {
                                (const int32_t *)tri->data, err);
 }
 
+/* The thread count and why (it may change with the machine's load). */
+static void log_threads(dem_app *a) {
+  if (a->state.threads == a->threads_logged) return;
+  fprintf(stderr, "dem_server: t = %.6g s: %s\n", a->state.t, a->state.threads_why);
+  a->threads_logged = a->state.threads;
+}
+
 static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_err *err) {
   dem_app *a = user;
   dem_model *m = &a->model;
   if (add_surface(a, welcome, err) || dem_state_init(m, &a->state, err)) return -1;
   a->have_state = 1;
+  log_threads(a);
   if (m->cfg.settle_steps > 0) {
     double t0 = proto_now();
     if (dem_settle(m, &a->state, m->cfg.settle_ke, (int64_t)m->cfg.settle_steps, err)) return -1;
@@ -159,6 +168,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
   }
   to_mean(a->surface_force, nn3, nsub);
   to_mean(a->wall_row + 1, nw3, nsub);
+  log_threads(a);
   const double t = info->t_end;
   double row[6] = {t, s->kinetic_energy, (double)s->contacts, s->max_overlap_ratio,
                    s->elastic_energy, dem_coordination(m, s)};
@@ -207,6 +217,7 @@ static void finish(void *user) {
 }
 
 int main(int argc, char **argv) {
+  dem_openmp_env(argv); /* short barrier spin: the machine may be shared */
   static dem_app app;
   const proto_participant_ops ops = {.role = PROTO_ROLE_DEM, .configure = configure, .init = init,
                                      .step = step, .finish = finish, .state_save = state_save,

@@ -54,6 +54,20 @@ int main(void) {
                P(0, 0, 0, 0.01) "]}", "processes.dem.walls[0].type");
   expect_error("missing bed file", "{" MAT ",\"particles\":{\"file\":\"/nonexistent/bed.h5\"}}",
                "processes.dem.particles.file");
+  expect_error("pair: material index", "{" MAT ",\"pairs\":[{\"materials\":[0,1],\"friction\":0.3}],"
+               "\"particles\":[" P(0, 0, 0, 0.01) "]}", "processes.dem.pairs[0].materials[1]: 1 is not a material index");
+  expect_error("pair: given twice", "{\"materials\":[{\"density\":2600,\"E\":1e7,\"nu\":0.3,\"restitution\":0.5,"
+               "\"friction\":0.5},{\"density\":2600,\"E\":1e7,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.5}],"
+               "\"pairs\":[{\"materials\":[0,1],\"friction\":0.3},{\"materials\":[1,0],\"restitution\":0.3}],"
+               "\"particles\":[" P(0, 0, 0, 0.01) "]}", "processes.dem.pairs[1].materials: pair [1, 0] given twice");
+  expect_error("pair: restitution 0", "{" MAT ",\"pairs\":[{\"materials\":[0,0],\"restitution\":0}],"
+               "\"particles\":[" P(0, 0, 0, 0.01) "]}", "processes.dem.pairs[0].restitution");
+  expect_error("pair: unknown key", "{" MAT ",\"pairs\":[{\"materials\":[0,0],\"frictoin\":0.2}],"
+               "\"particles\":[" P(0, 0, 0, 0.01) "]}", "processes.dem.pairs[0].frictoin: unknown key");
+  expect_error("sleep: bad value", "{" MAT ",\"sleep\":{\"velocity\":-1},\"particles\":[" P(0, 0, 0, 0.01) "]}",
+               "processes.dem.sleep.velocity");
+  expect_error("threads: bad value", "{" MAT ",\"threads\":\"many\",\"particles\":[" P(0, 0, 0, 0.01) "]}",
+               "processes.dem.threads: expected \"auto\"");
   /* and a good one is accepted, with exec ignored */
   {
     dem_model m;
