@@ -35,6 +35,12 @@ int proto_fail(proto_err *err, const char *fmt, ...)
 /* Prefixes the existing message: "context: <old message>". Returns -1. */
 int proto_wrap(proto_err *err, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));
+/* Makes text safe to print on a terminal, in place: control characters
+ * (C0 but newline and tab, DEL, C1) and bytes that are not UTF-8 become
+ * '?'. proto_fail and proto_wrap apply it to every message, so names and
+ * messages that came from a file or the wire never reach a terminal as
+ * escape sequences. */
+void proto_sanitize(char *text);
 
 /* ---------------------------------------------------------------- messages */
 
@@ -48,6 +54,22 @@ typedef enum proto_dtype {
 #define PROTO_MAX_ARRAYS 64
 #define PROTO_MAX_NDIM 3
 #define PROTO_NAME_LEN 48
+
+/* Names that become HDF5 paths, file names, XDMF text or terminal output
+ * (process names, array names, series datasets, snapshot names, message
+ * types, topics) follow one grammar, checked here and nowhere else:
+ * 1 to PROTO_NAME_LEN - 1 characters; a segment is [A-Za-z0-9_-]+; a plain
+ * name is one segment, a dotted name (array names with a prefix such as
+ * "series.wall_forces", bus topics "soil.series") segments joined by single
+ * dots. So no '/', no empty, "." or ".." segment, no space, quote or control
+ * character. `what` names the name in the error ("array name", "process
+ * name"); the offending name is quoted sanitised. */
+typedef enum { PROTO_NAME_PLAIN = 0, PROTO_NAME_DOTTED = 1 } proto_name_kind;
+int proto_name_check(const char *name, proto_name_kind kind, const char *what,
+                     proto_err *err);
+/* The same grammar for a name stored in cap bytes (a scene's name). */
+int proto_name_check_len(const char *name, size_t cap, proto_name_kind kind,
+                         const char *what, proto_err *err);
 
 typedef struct proto_array {
   char name[PROTO_NAME_LEN];
@@ -120,6 +142,15 @@ int proto_decode(proto_msg *m, int nframes, const void *const *frames,
 
 /* Largest array frame accepted (bytes); larger frames are rejected. */
 #define PROTO_MAX_FRAME_BYTES ((size_t)1 << 30)
+/* Largest header frame accepted (bytes): a welcome carries a config section. */
+#define PROTO_MAX_HEADER_BYTES ((size_t)64 << 20)
+/* Integer header fields (step, iteration) are within +-2^53: exact doubles. */
+#define PROTO_MAX_HEADER_INT 9007199254740992.0
+/* Reads an optional integer header field of a received message into *out
+ * (def when absent): it must be an integer in [lo, hi]. Errors name the
+ * message type and the field. */
+int proto_header_int(const proto_msg *m, const char *key, int64_t lo,
+                     int64_t hi, int64_t def, int64_t *out, proto_err *err);
 
 /* Waits up to timeout_ms for the socket to become readable.
  * Returns 1 readable, 0 timeout, -1 interrupted (EINTR). */
@@ -224,19 +255,33 @@ size_t proto_dtype_size(proto_dtype d);       /* bytes per element */
  * "messages", "dims"}. */
 cJSON *proto_role_table_json(void);
 
-/* Sizes the table's symbolic dims refer to, as one side of a conversation
- * knows them. A dim < 0 is unbound: the first array that has it binds it. */
+/* Limits of what a ready message may declare (PROTOCOL.md "Series",
+ * "Snapshots"). */
+#define PROTO_MAX_SERIES 8       /* series datasets per participant */
+#define PROTO_MAX_COLUMNS 64     /* columns per series dataset */
+#define PROTO_MAX_SNAP_ATTRS 16  /* snapshot attributes shown in XDMF */
+
+/* What one side of a conversation has bound so far: the sizes the table's
+ * symbolic dims refer to (a dim < 0 is unbound: the first array that has it
+ * binds it), and the series datasets the participant declared in its ready
+ * message, which every done must then carry. */
 typedef struct proto_dims {
   int64_t nodes, tris; /* -1 until bound */
   int surface;         /* a coupled surface exists (WHEN_SURFACE arrays due) */
+  int n_series;        /* datasets declared in ready.series */
+  char series[PROTO_MAX_SERIES][PROTO_NAME_LEN]; /* their names */
+  int series_cols[PROTO_MAX_SERIES];             /* their column counts */
 } proto_dims;
 void proto_dims_init(proto_dims *d);
 /* Checks message m (kind of role) against the table: every array the table
  * lists for it (and due under d->surface) is present with its dtype and
  * shape. In welcome/ready, the presence of any WHEN_SURFACE array sets
  * d->surface. Errors name the array, the expected shape with its symbols
- * and values, and its meaning. Arrays the table does not list (series,
- * snap., mesh., state.) are not checked here. */
+ * and values, and its meaning. Beyond the table: a ready's "series" and
+ * "snapshot" declarations are checked (names by proto_name_check, column
+ * lists, limits) and the series kept in d; a done must then carry exactly
+ * the declared series arrays (f8 [columns] each), so no row goes missing
+ * from one dataset while the others grow. */
 int proto_role_check(proto_role role, proto_msg_kind kind, const proto_msg *m,
                      proto_dims *d, proto_err *err);
 /* Data of an array already checked by proto_role_check (NULL if absent). */
@@ -347,13 +392,32 @@ int proto_peer_publish(proto_peer *peer, const proto_msg *m);
 
 /* ------------------------------------------------------------------ config */
 
+#define PROTO_PATH_CAP 256 /* key paths in messages ("processes.dem.walls[2].n") */
+/* Largest JSON text read (a scene, a section on stdin). */
+#define PROTO_MAX_JSON_BYTES ((size_t)256 << 20)
+
 /* Parses JSON text; malformed input reports line and column:
- * "scene.json:12:5: malformed JSON near '...'" . Returns NULL on error. */
+ * "scene.json:12:5: malformed JSON near '...'". A key given twice in any
+ * object (cJSON would keep both silently) is an error naming its path:
+ * "scene.json: processes.dem.materials[1].E: duplicate key (given 2
+ * times)". Returns NULL on error. */
 cJSON *proto_json_parse(const char *text, const char *source_name,
                         proto_err *err);
-cJSON *proto_json_load(const char *path, proto_err *err);
-/* Applies "a.b[2].c=value" (value parsed as JSON if it parses, else as a
- * string). Creates missing object keys. */
+cJSON *proto_json_load(const char *path, proto_err *err); /* "-": stdin */
+/* The duplicate-key check alone, on a parsed tree (path: its key path, may
+ * be "" for the root). Received headers get it too (proto_decode). */
+int proto_json_check_unique(const cJSON *node, const char *path,
+                            proto_err *err);
+/* Applies one --set override (README "--set"). Two forms:
+ *   KEY.PATH=VALUE   VALUE is text. It stays a string when the scene has a
+ *                    string at KEY.PATH, or when it is not as a whole one
+ *                    JSON value ("output.dir=2024/run1" is the string
+ *                    "2024/run1"); otherwise (a number, true, false, null, a
+ *                    "quoted string", {...} or [...]) it is that JSON value.
+ *   KEY.PATH:=JSON   VALUE must be one JSON value, of any type.
+ * Missing object keys on the path are created; an index [i] must exist.
+ * A value that the key's reader does not accept is reported by the reader
+ * (e.g. "output.dir: expected a string, got a number"). */
 int proto_json_set(cJSON *root, const char *assignment, proto_err *err);
 
 /* Key reader: wraps an object and its path; every getter marks the key as
@@ -363,7 +427,7 @@ int proto_json_set(cJSON *root, const char *assignment, proto_err *err);
  * default given. */
 typedef struct proto_cfg {
   const cJSON *obj;
-  char path[256];
+  char path[PROTO_PATH_CAP];
   uint64_t used; /* bitmask over the object's first 64 keys */
   proto_err *err;
 } proto_cfg;
