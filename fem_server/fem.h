@@ -121,6 +121,8 @@ void fem_snap_tread(void *radii /* double[3] = {R_i, R_groove, R_o} */,
  * groups (matched to boundary faces; a triangle that is not a boundary face
  * is an error). Points and lines are ignored; other 3-D types are errors. */
 int fem_msh_read(const char *path, fem_mesh *m, proto_err *err);
+/* Largest .msh file read (bytes). */
+#define FEM_MSH_MAX_BYTES ((int64_t)16 << 30)
 int fem_msh_write(const char *path, const fem_mesh *m, int binary,
                   proto_err *err);
 

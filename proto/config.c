@@ -292,13 +292,15 @@ int proto_json_set(cJSON *root, const char *assignment, proto_err *err) {
   const cJSON *old = t.index >= 0 ? cJSON_GetArrayItem(t.parent, t.index)
                                   : cJSON_GetObjectItemCaseSensitive(t.parent, t.key);
   const char *text = eq + 1;
-  cJSON *value = NULL;
-  if (json_only || !cJSON_IsString(old)) {
-    value = cJSON_ParseWithOpts(text, NULL, 1);
-    if (value && proto_json_check_unique(value, path, err) < 0) {
-      cJSON_Delete(value);
-      return proto_wrap(err, "--set '%s'", assignment);
-    }
+  cJSON *value = cJSON_ParseWithOpts(text, NULL, 1);
+  /* where the scene has a string, only a "quoted" JSON string is JSON */
+  if (value && !json_only && cJSON_IsString(old) && !cJSON_IsString(value)) {
+    cJSON_Delete(value);
+    value = NULL;
+  }
+  if (value && proto_json_check_unique(value, path, err) < 0) {
+    cJSON_Delete(value);
+    return proto_wrap(err, "--set '%s'", assignment);
   }
   if (!value && json_only)
     return proto_fail(err, "--set '%s': '%s' is not one JSON value (KEY=VALUE "

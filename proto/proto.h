@@ -409,11 +409,13 @@ cJSON *proto_json_load(const char *path, proto_err *err); /* "-": stdin */
 int proto_json_check_unique(const cJSON *node, const char *path,
                             proto_err *err);
 /* Applies one --set override (README "--set"). Two forms:
- *   KEY.PATH=VALUE   VALUE is text. It stays a string when the scene has a
- *                    string at KEY.PATH, or when it is not as a whole one
- *                    JSON value ("output.dir=2024/run1" is the string
- *                    "2024/run1"); otherwise (a number, true, false, null, a
- *                    "quoted string", {...} or [...]) it is that JSON value.
+ *   KEY.PATH=VALUE   VALUE is text. It stays a string when it is not as a
+ *                    whole one JSON value ("output.dir=2024/run1" is the
+ *                    string "2024/run1"), and when the scene has a string at
+ *                    KEY.PATH (then "output.dir=2024" is the string "2024";
+ *                    only a "quoted" VALUE is read as a JSON string there).
+ *                    Otherwise a number, true, false, null, a "quoted
+ *                    string", {...} or [...] is that JSON value.
  *   KEY.PATH:=JSON   VALUE must be one JSON value, of any type.
  * Missing object keys on the path are created; an index [i] must exist.
  * A value that the key's reader does not accept is reported by the reader
@@ -494,6 +496,41 @@ int64_t proto_series_rows(const proto_series *s);
  * "<group>/<a->name>"; groups made as needed. */
 int proto_h5_write_array(proto_h5 *f, const char *group, const proto_array *a,
                          proto_err *err);
+
+/* ------------------------------------------------------------- HDF5 input
+ *
+ * Reading HDF5 files made elsewhere (roads, springs, Green's functions,
+ * saved beds), which may be damaged or hostile. Objects are looked up level
+ * by level; a dataset's class must be numeric and its rank and dims are
+ * checked against what the reader expects, its element count
+ * (overflow-checked) against max_elems, before anything is allocated; its
+ * values must be finite; an attribute must hold exactly one value. Errors
+ * name "<file>:<object>: <what>". */
+typedef struct proto_h5in proto_h5in;
+#define PROTO_H5IN_MAX_RANK 4
+
+proto_h5in *proto_h5in_open(const char *path, proto_err *err);
+void proto_h5in_close(proto_h5in *f); /* NULL is fine */
+const char *proto_h5in_path(const proto_h5in *f);
+/* 1 if the object (group or dataset, "/a/b") exists, else 0. */
+int proto_h5in_exists(proto_h5in *f, const char *obj);
+/* The rank of dataset obj, or -1. */
+int proto_h5in_rank(proto_h5in *f, const char *obj, proto_err *err);
+/* Reads dataset obj of the given rank as doubles (any integer or float
+ * type). dims[i] in: the size expected, or -1 for any; out: the size found.
+ * *out is malloc'ed (caller frees). */
+int proto_h5in_read_f8(proto_h5in *f, const char *obj, int rank, int64_t *dims,
+                       int64_t max_elems, double **out, proto_err *err);
+/* The same as int32 (integer types only; values beyond int32 saturate: the
+ * caller checks the range it needs). */
+int proto_h5in_read_i4(proto_h5in *f, const char *obj, int rank, int64_t *dims,
+                       int64_t max_elems, int32_t **out, proto_err *err);
+/* Attribute `name` of object obj: 0 read, 1 absent (out untouched), -1 bad
+ * (not one value, wrong type, not finite). Strings are truncated to cap. */
+int proto_h5in_attr_f8(proto_h5in *f, const char *obj, const char *name,
+                       double *v, proto_err *err);
+int proto_h5in_attr_str(proto_h5in *f, const char *obj, const char *name,
+                        char *out, size_t cap, proto_err *err);
 
 /* XDMF companion: describes snapshot groups of the HDF5 file so ParaView can
  * open them as a time series. Points (grains) or tetrahedra (a mesh). */

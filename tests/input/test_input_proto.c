@@ -63,6 +63,8 @@ static void test_set(void) {
         strcmp(at(j, "output", "dir")->valuestring, "2024") == 0);
   CHECK(proto_json_set(j, "output.dir=true", &err) == 0);
   CHECK(cJSON_IsString(at(j, "output", "dir")));
+  CHECK(proto_json_set(j, "output.dir=\"q\"", &err) == 0); /* quoted: JSON string */
+  CHECK(strcmp(at(j, "output", "dir")->valuestring, "q") == 0);
   /* a number where the scene has a number */
   CHECK(proto_json_set(j, "output.every=20", &err) == 0);
   CHECK(cJSON_IsNumber(at(j, "output", "every")) && at(j, "output", "every")->valuedouble == 20);
