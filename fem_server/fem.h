@@ -316,7 +316,7 @@ void fem_config_defaults(fem_config *c);
 int fem_config_read(const cJSON *section, const char *path, fem_config *c,
                     proto_err *err);
 /* Builds the mesh (file or generator, TET10 if asked), the model, the
- * constraints and K. */
+ * constraints and K. On failure nothing is left allocated in md. */
 int fem_config_build(const fem_config *c, fem_model *md, proto_err *err);
 /* Pressure loads of the config into b (zeroed first). */
 int fem_config_loads(const fem_config *c, const fem_model *md, double *b,

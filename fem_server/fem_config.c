@@ -245,13 +245,17 @@ int fem_config_build(const fem_config *c, fem_model *md, proto_err *err) {
     fem_mesh_free(&mesh);
     return -1;
   }
-  if (fem_model_init(md, &mesh, &c->mat, err)) return -1;
-  if (c->element == FEM_TET4_ANP && fem_model_set_anp(md, err)) return -1;
-  for (int i = 0; i < c->n_fixed; i++)
+  /* from here md owns the mesh; a failure frees all of it (no half model) */
+  rc = fem_model_init(md, &mesh, &c->mat, err);
+  if (rc == 0 && c->element == FEM_TET4_ANP) rc = fem_model_set_anp(md, err);
+  for (int i = 0; rc == 0 && i < c->n_fixed; i++)
     if (fem_model_fix_group(md, c->fixed_group[i], c->fixed_mask[i], err))
-      return proto_wrap(err, "%s.fixed[%d].group", c->path, i);
-  if (fem_mesh_group(&md->mesh, c->surface_group, err) < 0) return proto_wrap(err, "%s.surface", c->path);
-  return fem_model_assemble(md, err);
+      rc = proto_wrap(err, "%s.fixed[%d].group", c->path, i);
+  if (rc == 0 && fem_mesh_group(&md->mesh, c->surface_group, err) < 0)
+    rc = proto_wrap(err, "%s.surface", c->path);
+  if (rc == 0) rc = fem_model_assemble(md, err);
+  if (rc) fem_model_free(md);
+  return rc;
 }
 
 int fem_config_loads(const fem_config *c, const fem_model *md, double *b, proto_err *err) {

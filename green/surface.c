@@ -52,6 +52,9 @@ int grn_surface_generate(const grn_surface_params *p, grn_surface *s,
   if (p->lambda_short < 2 * fmax(p->dx, p->dy))
     return proto_fail(err, "road: lambda_short = %g m is below two pitches (%g m)",
                       p->lambda_short, 2 * fmax(p->dx, p->dy));
+  if ((int64_t)p->Nx * p->Ny > GRN_MAX_POINTS)
+    return proto_fail(err, "road: points = %d x %d: more than %lld", p->Nx, p->Ny,
+                      (long long)GRN_MAX_POINTS);
   const int Nx = p->Nx, Ny = p->Ny, nqx = Nx / 2 + 1;
   fftw_complex *c = fftw_alloc_complex((size_t)Ny * nqx);
   s->z = malloc((size_t)Nx * Ny * sizeof *s->z);
