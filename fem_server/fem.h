@@ -121,6 +121,9 @@ void fem_snap_tread(void *radii /* double[3] = {R_i, R_groove, R_o} */,
  * groups (matched to boundary faces; a triangle that is not a boundary face
  * is an error). Points and lines are ignored; other 3-D types are errors. */
 int fem_msh_read(const char *path, fem_mesh *m, proto_err *err);
+/* Most elements a mesh may have (generated or read): int32 indices with
+ * room for the TET10 nodes. */
+#define FEM_MAX_ELEMS ((int64_t)200000000)
 /* Largest .msh file read (bytes). */
 #define FEM_MSH_MAX_BYTES ((int64_t)16 << 30)
 int fem_msh_write(const char *path, const fem_mesh *m, int binary,

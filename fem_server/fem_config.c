@@ -36,6 +36,10 @@ static int read_cells(proto_cfg *m, const char *key, int *cells, proto_err *err)
       return proto_fail(err, "%s.%s[%d]: must be an integer >= 1 (got %g)", m->path, key, d, v[d]);
     cells[d] = (int)v[d];
   }
+  if ((double)cells[0] * cells[1] * cells[2] * 6 > FEM_MAX_ELEMS)
+    return proto_fail(err, "%s.%s: %d x %d x %d cells make more than the %lld elements a mesh "
+                      "may have", m->path, key, cells[0], cells[1], cells[2],
+                      (long long)FEM_MAX_ELEMS);
   return 0;
 }
 

@@ -328,7 +328,7 @@ static int read_elements(rd *r, msh_data *d, fem_mesh *m) {
       int npe = type == 4 ? 4 : 10;
       if (d->npe && d->npe != npe) return rfail(r, "mixed tet4 and tet10 volume elements");
       d->npe = npe;
-      if (d->n_tets + (size_t)nb > (size_t)INT32_MAX) return rfail(r, "more than 2^31 elements");
+      if (d->n_tets + (size_t)nb > (size_t)FEM_MAX_ELEMS) return rfail(r, "more elements than a mesh may have");
       if (grow(r, (void **)&m->conn, &cap_tet, d->n_tets + (size_t)nb, sizeof(int32_t) * (size_t)npe))
         return -1;
     }

@@ -236,6 +236,8 @@ fem = {"exec": "fem_server", "material": {"E": 2e7, "nu": 0.45, "density": 1100}
 huge = os.path.join(FUZZ_CORPUS, "fuzz_msh", "regress_oom_node_count_6.8GB")
 check_config("fem_server", dict(fem, mesh={"file": huge}),
              ["regress_oom_node_count_6.8GB", "section $Nodes", "does not fit in the"], "msh_huge")
+check_config("fem_server", dict(fem, mesh={"generate": "bar", "cells": [100000, 100000, 100000]}),
+             ["processes.p.mesh.cells: 100000 x 100000 x 100000 cells make more than"], "fem_cells")
 bad_msh = os.path.join(d, "bad.msh")
 with open(bad_msh, "w") as f:
     f.write("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2 1 2\n3 1 0 2\n1\n2\n0 0 0\n"
