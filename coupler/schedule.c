@@ -302,7 +302,8 @@ static int run_stage(cpl_runner *r, int stage, int64_t k, int iteration, int out
     if (check_reply(r, from, k, iteration) < 0) return -1;
     const cJSON *c = cJSON_GetObjectItemCaseSensitive(r->peers[from].reply.header,
                                                       PROTO_H_COMPUTE_S);
-    cpl_timing_reply(r, from, now, cJSON_IsNumber(c) ? c->valuedouble : 0);
+    const double compute = cJSON_IsNumber(c) ? c->valuedouble : 0;
+    cpl_timing_reply(r, from, now, compute >= 0 && compute < 1e9 ? compute : 0);
   }
   /* outputs in exchange order: sums do not depend on arrival order */
   for (int f = 0; f < CPL_N_FIELDS; f++) r->fields[f].given = 0;

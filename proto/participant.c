@@ -405,6 +405,7 @@ int proto_participant_main(int argc, char **argv,
   proto_dims_init(&p.dims);
   p.ctx = zmq_ctx_new();
   p.dealer = zmq_socket(p.ctx, ZMQ_DEALER);
+  proto_socket_limits(p.dealer);
   int linger = 2000;
   zmq_setsockopt(p.dealer, ZMQ_LINGER, &linger, sizeof linger);
   zmq_setsockopt(p.dealer, ZMQ_ROUTING_ID, p.name, strlen(p.name));

@@ -189,9 +189,9 @@ int proto_msg_add(proto_msg *m, const char *name, proto_dtype dtype, int ndim,
   if (m->narrays >= PROTO_MAX_ARRAYS || ndim < 1 || ndim > PROTO_MAX_NDIM ||
       strlen(name) >= PROTO_NAME_LEN || (unsigned)dtype > PROTO_U1)
     return -1;
-  /* names go into the JSON header verbatim: keep them plain */
-  for (const char *c = name; *c; c++)
-    if (*c == '"' || *c == '\\' || (unsigned char)*c < 0x20) return -1;
+  /* names go into the JSON header verbatim, and the receiver holds them to
+   * the name grammar: refuse here what it would refuse */
+  if (proto_name_check(name, PROTO_NAME_DOTTED, "array name", NULL) < 0) return -1;
   proto_array *a = &m->arrays[m->narrays++];
   memset(a, 0, sizeof *a);
   snprintf(a->name, sizeof a->name, "%s", name);
@@ -666,6 +666,12 @@ int proto_recv(void *socket, proto_msg *m, char *identity, proto_err *err) {
     return -1;
   }
   return 0;
+}
+
+int proto_socket_limits(void *socket) {
+  int64_t max = (int64_t)(PROTO_MAX_FRAME_BYTES > PROTO_MAX_HEADER_BYTES
+                              ? PROTO_MAX_FRAME_BYTES : PROTO_MAX_HEADER_BYTES);
+  return zmq_setsockopt(socket, ZMQ_MAXMSGSIZE, &max, sizeof max);
 }
 
 int proto_poll_in(void *socket, int timeout_ms) {

@@ -100,7 +100,8 @@ void proto_msg_reset(proto_msg *m, const char *topic, const char *type,
 void proto_msg_free(proto_msg *m);
 /* Adds an array that points at the caller's buffer (no copy). The buffer must
  * stay valid and unchanged until the peer has answered (lock-step) — for the
- * bus, proto_publish copies. shape has ndim entries. Returns -1 if full. */
+ * bus, proto_publish copies. shape has ndim entries. Returns -1 if full or
+ * if the name breaks proto_name_check (dotted), which the receiver enforces. */
 int proto_msg_add(proto_msg *m, const char *name, proto_dtype dtype, int ndim,
                   const int64_t *shape, const void *data);
 /* Shorthands for the common cases. */
@@ -152,6 +153,10 @@ int proto_decode(proto_msg *m, int nframes, const void *const *frames,
 int proto_header_int(const proto_msg *m, const char *key, int64_t lo,
                      int64_t hi, int64_t def, int64_t *out, proto_err *err);
 
+/* Sets the input limits of a receiving socket: a peer that sends a frame
+ * larger than PROTO_MAX_FRAME_BYTES is disconnected by ZeroMQ before the
+ * frame is allocated (proto_recv would refuse it only after). */
+int proto_socket_limits(void *socket);
 /* Waits up to timeout_ms for the socket to become readable.
  * Returns 1 readable, 0 timeout, -1 interrupted (EINTR). */
 int proto_poll_in(void *socket, int timeout_ms);
