@@ -103,19 +103,6 @@ static hid_t open_dataset(proto_h5in *f, const char *obj, int rank,
   return ds;
 }
 
-/* "[3, 5]" */
-static void dims_str(int rank, const int64_t *dims, char *out, size_t cap) {
-  size_t len = (size_t)snprintf(out, cap, "[");
-  for (int i = 0; i < rank && len < cap; i++) {
-    if (dims[i] < 0)
-      len += (size_t)snprintf(out + len, cap - len, "%s*", i ? ", " : "");
-    else
-      len += (size_t)snprintf(out + len, cap - len, "%s%lld", i ? ", " : "",
-                              (long long)dims[i]);
-  }
-  if (len < cap) snprintf(out + len, cap - len, "]");
-}
-
 /* Checks hdims against want (-1: any), the product against max_elems. */
 static int check_dims(proto_h5in *f, const char *obj, int rank,
                       const hsize_t *hdims, int64_t *want, int64_t max_elems,
@@ -130,13 +117,13 @@ static int check_dims(proto_h5in *f, const char *obj, int rank,
   for (int i = 0; i < rank; i++)
     if (want[i] >= 0 && want[i] != got[i]) {
       char w[96], g[96];
-      dims_str(rank, want, w, sizeof w);
-      dims_str(rank, got, g, sizeof g);
+      proto_shape_str(w, sizeof w, rank, want);
+      proto_shape_str(g, sizeof g, rank, got);
       return proto_fail(err, "%s:%s: shape %s, expected %s", f->path, obj, g, w);
     }
   if (over || n > (uint64_t)max_elems) {
     char g[96];
-    dims_str(rank, got, g, sizeof g);
+    proto_shape_str(g, sizeof g, rank, got);
     return proto_fail(err, "%s:%s: shape %s holds more than the %lld elements "
                       "this reader accepts", f->path, obj, g, (long long)max_elems);
   }

@@ -238,7 +238,7 @@ const proto_array *proto_msg_find(const proto_msg *m, const char *name) {
   return NULL;
 }
 
-static void shape_str(char *out, size_t cap, int ndim, const int64_t *shape) {
+void proto_shape_str(char *out, size_t cap, int ndim, const int64_t *shape) {
   size_t len = (size_t)snprintf(out, cap, "[");
   for (int i = 0; i < ndim && len < cap; i++) {
     if (shape[i] < 0)
@@ -255,13 +255,13 @@ const proto_array *proto_msg_get(const proto_msg *m, const char *name,
                                  const int64_t *shape, proto_err *err) {
   const proto_array *a = proto_msg_find(m, name);
   char want[96], got[96];
-  shape_str(want, sizeof want, ndim, shape);
+  proto_shape_str(want, sizeof want, ndim, shape);
   if (!a) {
     proto_fail(err, "message '%s': missing array '%s' (%s %s)", m->type, name,
                dtype_names[dtype], want);
     return NULL;
   }
-  shape_str(got, sizeof got, a->ndim, a->shape);
+  proto_shape_str(got, sizeof got, a->ndim, a->shape);
   int ok = a->dtype == dtype && a->ndim == ndim;
   for (int i = 0; ok && i < ndim; i++)
     if (shape[i] >= 0 && a->shape[i] != shape[i]) ok = 0;

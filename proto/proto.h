@@ -118,6 +118,8 @@ cJSON *proto_msg_header(proto_msg *m);
 const proto_array *proto_msg_get(const proto_msg *m, const char *name,
                                  proto_dtype dtype, int ndim,
                                  const int64_t *shape, proto_err *err);
+/* "[2,3]" (an entry < 0 is shown as "*"), for messages. */
+void proto_shape_str(char *out, size_t cap, int ndim, const int64_t *shape);
 /* The same for f8 arrays: rows x cols (cols == 0: 1-D; -1: any). */
 const double *proto_msg_get_f8(const proto_msg *m, const char *name,
                                int64_t rows, int64_t cols, proto_err *err);
