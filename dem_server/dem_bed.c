@@ -4,6 +4,7 @@
 #include "dem_server/dem_internal.h"
 
 #include <hdf5.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -45,7 +46,10 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err) {
   for (int k = 0; k < b->n_layers; k++) {
     const dem_bed_layer *L = &b->layers[k];
     const double dmax = L->diameter + L->spread, a = dmax + b->gap; /* lattice pitch */
-    const int nx = (int)(b->size[0] / a), ny = (int)(b->size[1] / a);
+    /* lattice cells per row; more than DEM_MAX_GRAINS would stay empty (and
+     * a footprint of 1e30 m must not overflow the int) */
+    const int nx = (int)fmin(b->size[0] / a, (double)DEM_MAX_GRAINS),
+              ny = (int)fmin(b->size[1] / a, (double)DEM_MAX_GRAINS);
     if (nx < 1 || ny < 1)
       return proto_fail(err, "bed: footprint %g x %g m smaller than one grain of layer %d",
                         b->size[0], b->size[1], k);
