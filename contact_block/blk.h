@@ -160,6 +160,9 @@ int blk_green_halfspace(blk_model *m, double E, double nu, proto_err *err);
 int blk_green_synthetic(blk_model *m, const blk_synth *s, proto_err *err);
 /* Reads green.h5 (green/FORMATS.md). */
 int blk_green_load(blk_model *m, const char *path, proto_err *err);
+/* Limits of what a file may hold (checked before reading). */
+#define BLK_MAX_GREEN_SAMPLES 65536 /* samples Q per Green's function */
+#define BLK_MAX_SPRING_KNOTS 65536  /* knots K per spring table */
 /* Refines the sampling rate by an integer factor (appendix C.2): "point"
  * samples by linear interpolation of g (the thesis), "zoh" samples by
  * cubic interpolation of the step response and differencing. */

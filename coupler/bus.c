@@ -39,6 +39,7 @@ cpl_bus *cpl_bus_start(void *ctx, const char *inner, const char *public_ep,
   if (!b) return NULL;
   int linger = 0;
   b->xsub = zmq_socket(ctx, ZMQ_XSUB);
+  proto_socket_limits(b->xsub);
   b->xpub = zmq_socket(ctx, ZMQ_XPUB);
   b->control_thread = zmq_socket(ctx, ZMQ_PAIR);
   b->control_main = zmq_socket(ctx, ZMQ_PAIR);

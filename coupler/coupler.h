@@ -9,6 +9,9 @@
 #define CPL_MAX_PROCS 16
 #define CPL_PATH_LEN 512
 #define CPL_MAX_ARGV 16 /* exec as a list: launcher prefix + participant */
+/* The coupler's own name in results.h5 (/coupler/...) and on the bus
+ * ("coupler.progress"): no process may take it. */
+#define CPL_RESERVED_NAME "coupler"
 
 /* One process of the scene. Its role is not part of the scene: the process
  * says it in its hello (names are free). */
@@ -94,6 +97,10 @@ typedef struct cpl_scene {
  * hellos (cpl_check_roles). */
 int cpl_scene_load(cpl_scene *s, const char *path, int nset,
                    char *const *sets, proto_err *err);
+/* The same from parsed JSON (taken over: cpl_scene_free frees it); source
+ * names it in errors. */
+int cpl_scene_from_json(cpl_scene *s, cJSON *json, const char *source,
+                        int nset, char *const *sets, proto_err *err);
 void cpl_scene_free(cpl_scene *s);
 /* Finds a process's executable (argv[0]): a path with '/' as given, else
  * next to the cosim binary, else on PATH. Fills p->resolved and

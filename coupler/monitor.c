@@ -78,6 +78,7 @@ int cpl_monitor_main(int argc, char **argv) {
   signal(SIGINT, on_int);
   signal(SIGTERM, on_int);
   void *ctx = zmq_ctx_new(), *sub = zmq_socket(ctx, ZMQ_SUB);
+  proto_socket_limits(sub);
   int linger = 0;
   zmq_setsockopt(sub, ZMQ_LINGER, &linger, sizeof linger);
   if (ntopics == 0) zmq_setsockopt(sub, ZMQ_SUBSCRIBE, "", 0);

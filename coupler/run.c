@@ -127,6 +127,7 @@ static int setup_sockets(cpl_runner *r) {
   cpl_scene *s = r->scene;
   r->ctx = zmq_ctx_new();
   r->router = zmq_socket(r->ctx, ZMQ_ROUTER);
+  proto_socket_limits(r->router);
   int on = 1, linger = 0;
   zmq_setsockopt(r->router, ZMQ_ROUTER_MANDATORY, &on, sizeof on);
   zmq_setsockopt(r->router, ZMQ_LINGER, &linger, sizeof linger);

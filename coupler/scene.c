@@ -224,11 +224,14 @@ static int read_processes(proto_cfg *root, cpl_scene *s) {
                           "name may appear once)", it->string);
     if (s->nprocs == CPL_MAX_PROCS)
       return proto_fail(c.err, "processes: more than %d processes", CPL_MAX_PROCS);
-    if (!it->string[0] || strlen(it->string) >= PROTO_NAME_LEN - 16 ||
-        strpbrk(it->string, "/ .\"\\"))
-      return proto_fail(c.err, "processes.%s: a process name has 1 to %d "
-                        "characters, without '/', '.', spaces or quotes",
-                        it->string, PROTO_NAME_LEN - 17);
+    /* the name becomes a routing identity, an HDF5 group, a log file name
+     * and a bus topic prefix ("<name>.series"): room for the suffix */
+    if (proto_name_check_len(it->string, PROTO_NAME_LEN - 16, PROTO_NAME_PLAIN,
+                             "processes: process name", c.err) < 0)
+      return -1;
+    if (strcmp(it->string, CPL_RESERVED_NAME) == 0)
+      return proto_fail(c.err, "processes.%s: the name is reserved for the "
+                        "coupler's own output and bus topics", it->string);
     cpl_process *p = &s->procs[s->nprocs++];
     memset(p, 0, sizeof *p);
     snprintf(p->name, sizeof p->name, "%s", it->string);
@@ -271,24 +274,30 @@ int cpl_check_roles(const cpl_scene *s, const proto_role *roles, proto_err *err)
 int cpl_scene_load(cpl_scene *s, const char *path, int nset,
                    char *const *sets, proto_err *err) {
   memset(s, 0, sizeof *s);
-  snprintf(s->source, sizeof s->source, "%s", path);
-  s->root = proto_json_load(path, err);
-  if (!s->root) return -1;
+  cJSON *root = proto_json_load(path, err);
+  return root ? cpl_scene_from_json(s, root, path, nset, sets, err) : -1;
+}
+
+int cpl_scene_from_json(cpl_scene *s, cJSON *json, const char *source,
+                        int nset, char *const *sets, proto_err *err) {
+  memset(s, 0, sizeof *s);
+  snprintf(s->source, sizeof s->source, "%s", source);
+  s->root = json;
   for (int i = 0; i < nset; i++)
     if (proto_json_set(s->root, sets[i], err) < 0) return -1;
   proto_cfg root;
   if (proto_cfg_open(&root, s->root, "", err) < 0) return -1;
   if (proto_cfg_str(&root, "name", PROTO_REQUIRED, s->name, sizeof s->name) < 0)
     return -1;
-  for (const char *p = s->name; *p; p++)
-    if (*p == '/' || *p == ' ')
-      return proto_fail(err, "name: '%s' must not contain '/' or spaces",
-                        s->name);
+  /* the name goes into the run's directory and temporary paths */
+  if (proto_name_check_len(s->name, sizeof s->name, PROTO_NAME_DOTTED, "name",
+                           err) < 0)
+    return -1;
   if (read_time(&root, s) < 0 || read_output(&root, s) < 0 ||
       read_bus(&root, s) < 0 || read_coupling(&root, s) < 0 ||
       read_scenario(&root, s) < 0 || read_processes(&root, s) < 0 ||
       proto_cfg_end(&root) < 0)
-    return proto_wrap(err, "%s", path);
+    return proto_wrap(err, "%s", source);
   return 0;
 }
 

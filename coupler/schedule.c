@@ -227,15 +227,16 @@ static int send_request(cpl_runner *r, int i, int64_t k, int iteration, int outp
 static int check_reply(cpl_runner *r, int i, int64_t k, int iteration) {
   cpl_peer *p = &r->peers[i];
   const proto_msg *m = &p->reply;
-  const cJSON *it = cJSON_GetObjectItemCaseSensitive(m->header, PROTO_H_ITERATION);
-  int got_it = cJSON_IsNumber(it) ? (int)it->valuedouble : 0;
+  int64_t got_it = -1;
   r->failed_peer = i;
+  if (proto_header_int(m, PROTO_H_ITERATION, 0, INT32_MAX, 0, &got_it, &r->err) < 0)
+    return proto_wrap(&r->err, "participant '%s'", p->proc->name);
   if (strcmp(m->type, proto_msg_type(PROTO_MSG_DONE)) != 0 || m->step != k ||
       got_it != iteration)
     return proto_fail(&r->err, "participant '%s': expected 'done' for step %lld "
                       "(iteration %d), got '%s' for step %lld (iteration %d)",
                       p->proc->name, (long long)k, iteration, m->type,
-                      (long long)m->step, got_it);
+                      (long long)m->step, (int)got_it);
   if (proto_role_check(p->role, PROTO_MSG_DONE, m, &p->dims, &r->err) < 0)
     return proto_wrap(&r->err, "participant '%s'", p->proc->name);
   for (int b = 0; b < N_BINDINGS; b++) {
@@ -301,7 +302,8 @@ static int run_stage(cpl_runner *r, int stage, int64_t k, int iteration, int out
     if (check_reply(r, from, k, iteration) < 0) return -1;
     const cJSON *c = cJSON_GetObjectItemCaseSensitive(r->peers[from].reply.header,
                                                       PROTO_H_COMPUTE_S);
-    cpl_timing_reply(r, from, now, cJSON_IsNumber(c) ? c->valuedouble : 0);
+    const double compute = cJSON_IsNumber(c) ? c->valuedouble : 0;
+    cpl_timing_reply(r, from, now, compute >= 0 && compute < 1e9 ? compute : 0);
   }
   /* outputs in exchange order: sums do not depend on arrival order */
   for (int f = 0; f < CPL_N_FIELDS; f++) r->fields[f].given = 0;

@@ -233,10 +233,14 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err);
 /* Runs until the kinetic energy per grain is below ke_per_grain or max_steps. */
 int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain,
                int64_t max_steps, proto_err *err);
+/* Most grains a model may have (generated or read). */
+#define DEM_MAX_GRAINS ((int64_t)100000000)
 /* HDF5 beds: datasets x [n,3], v [n,3], omega [n,3], r [n], material [n] (i4),
  * max_overlap [1]: the largest overlap (grain pairs: of the smaller radius;
  * walls: of the radius) of the state saved, which loading accepts (a settled
- * bed is compressed by its weight); a file without it gets overlap_tolerance. */
+ * bed is compressed by its weight); a file without it gets overlap_tolerance.
+ * The load checks every shape against r's n (<= DEM_MAX_GRAINS) before it
+ * allocates; values must be finite, radii > 0 (materials: the caller). */
 int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto_err *err);
 int dem_bed_load(dem_model *m, const char *path, proto_err *err);
 

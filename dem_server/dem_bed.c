@@ -4,10 +4,11 @@
 #include "dem_server/dem_internal.h"
 
 #include <hdf5.h>
-
-#define DEM_BED_MAX_OVERLAP "max_overlap" /* dataset: largest overlap when saved */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
+
+#define DEM_BED_MAX_OVERLAP "max_overlap" /* dataset: largest overlap when saved */
 
 void dem_bed_paper(dem_bed_spec *b, double scale) {
   memset(b, 0, sizeof *b);
@@ -38,7 +39,8 @@ static double uniform(uint64_t *st) {
 int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err) {
   int64_t total = 0;
   for (int k = 0; k < b->n_layers; k++) total += b->layers[k].count;
-  if (total <= 0 || total > 100000000) return proto_fail(err, "bed: %lld grains", (long long)total);
+  if (total <= 0 || total > DEM_MAX_GRAINS)
+    return proto_fail(err, "bed: %lld grains (1 to %lld)", (long long)total, (long long)DEM_MAX_GRAINS);
   if (dem_model_alloc_grains(m, (int)total, err)) return -1;
   uint64_t st = b->seed;
   double z = 0;
@@ -46,7 +48,10 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err) {
   for (int k = 0; k < b->n_layers; k++) {
     const dem_bed_layer *L = &b->layers[k];
     const double dmax = L->diameter + L->spread, a = dmax + b->gap; /* lattice pitch */
-    const int nx = (int)(b->size[0] / a), ny = (int)(b->size[1] / a);
+    /* lattice cells per row; more than DEM_MAX_GRAINS would stay empty (and
+     * a footprint of 1e30 m must not overflow the int) */
+    const int nx = (int)fmin(b->size[0] / a, (double)DEM_MAX_GRAINS),
+              ny = (int)fmin(b->size[1] / a, (double)DEM_MAX_GRAINS);
     if (nx < 1 || ny < 1)
       return proto_fail(err, "bed: footprint %g x %g m smaller than one grain of layer %d",
                         b->size[0], b->size[1], k);
@@ -105,59 +110,55 @@ int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto
   return rc ? proto_fail(err, "%s: cannot write the bed (HDF5 error)", path) : 0;
 }
 
-static int read_ds(hid_t f, const char *name, hid_t type, hsize_t n, hsize_t cols, void *out,
-                   int optional, const char *path, proto_err *err) {
-  if (H5Lexists(f, name, H5P_DEFAULT) <= 0)
-    return optional ? 0 : proto_fail(err, "%s: dataset '%s' missing", path, name);
-  hid_t ds = H5Dopen2(f, name, H5P_DEFAULT);
-  hid_t sp = H5Dget_space(ds);
-  hsize_t dims[2] = {0, 0};
-  int rank = H5Sget_simple_extent_dims(sp, dims, NULL);
-  int ok = dims[0] == n && (cols == 1 ? (rank == 1 || (rank == 2 && dims[1] == 1)) : (rank == 2 && dims[1] == cols));
-  herr_t rc = ok ? H5Dread(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out) : -1;
-  H5Sclose(sp);
-  H5Dclose(ds);
-  if (!ok) return proto_fail(err, "%s: dataset '%s' must have shape [%llu, %llu]", path, name,
-                             (unsigned long long)n, (unsigned long long)cols);
-  return rc < 0 ? proto_fail(err, "%s: cannot read '%s'", path, name) : 0;
+/* A per-grain dataset of n rows and cols columns ([n] or [n, 1] when cols
+ * is 1) into out; optional datasets may be absent. */
+static int read_grains(proto_h5in *f, const char *name, int64_t n, int cols, int integer,
+                       void *out, int optional, proto_err *err) {
+  if (!proto_h5in_exists(f, name))
+    return optional ? 0 : proto_fail(err, "%s: dataset '%s' missing", proto_h5in_path(f), name);
+  int rank = cols == 1 ? proto_h5in_rank(f, name, err) : 2;
+  if (rank < 0) return -1;
+  if (rank != 1 && rank != 2) rank = 2; /* the reader names the expected rank */
+  int64_t dims[2] = {n, cols};
+  void *buf = NULL;
+  int rc = integer ? proto_h5in_read_i4(f, name, rank, dims, n * cols, (int32_t **)&buf, err)
+                   : proto_h5in_read_f8(f, name, rank, dims, n * cols, (double **)&buf, err);
+  if (rc == 0) memcpy(out, buf, (size_t)(n * cols) * (integer ? sizeof(int32_t) : sizeof(double)));
+  free(buf);
+  return rc;
 }
 
 int dem_bed_load(dem_model *m, const char *path, proto_err *err) {
-  H5E_auto2_t fn;
-  void *data;
-  H5Eget_auto2(H5E_DEFAULT, &fn, &data);
-  H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
-  hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+  proto_h5in *f = proto_h5in_open(path, err);
+  if (!f) return -1;
   int rc = -1;
-  if (f < 0) {
-    proto_fail(err, "%s: cannot open the bed file", path);
-    goto out;
-  }
-  hid_t ds = H5Dopen2(f, "r", H5P_DEFAULT);
-  hsize_t dims[2] = {0, 0};
-  if (ds >= 0) {
-    hid_t sp = H5Dget_space(ds);
-    H5Sget_simple_extent_dims(sp, dims, NULL);
-    H5Sclose(sp);
-    H5Dclose(ds);
-  }
-  if (ds < 0 || dims[0] == 0) {
+  /* the grain count from r, bounded before anything is allocated */
+  int rank = proto_h5in_exists(f, "r") ? proto_h5in_rank(f, "r", err) : -1;
+  int64_t dims[2] = {-1, 1};
+  double *r = NULL;
+  if (rank < 0) {
     proto_fail(err, "%s: no dataset 'r' (grain radii)", path);
-  } else if (!dem_model_alloc_grains(m, (int)dims[0], err) &&
-             !read_ds(f, "x", H5T_NATIVE_DOUBLE, dims[0], 3, m->x0, 0, path, err) &&
-             !read_ds(f, "r", H5T_NATIVE_DOUBLE, dims[0], 1, m->radius, 0, path, err) &&
-             !read_ds(f, "v", H5T_NATIVE_DOUBLE, dims[0], 3, m->v0, 1, path, err) &&
-             !read_ds(f, "omega", H5T_NATIVE_DOUBLE, dims[0], 3, m->omega0, 1, path, err) &&
-             !read_ds(f, "material", H5T_NATIVE_INT32, dims[0], 1, m->material, 1, path, err) &&
-             !read_ds(f, DEM_BED_MAX_OVERLAP, H5T_NATIVE_DOUBLE, 1, 1, &m->bed_max_overlap, 1, path, err)) {
-    rc = 0;
-    if (!(m->bed_max_overlap >= 0 && m->bed_max_overlap < 1))
-      rc = proto_fail(err, "%s: %s = %g (expected a fraction in [0, 1))", path, DEM_BED_MAX_OVERLAP, m->bed_max_overlap);
-    for (int i = 0; i < m->n_grains && !rc; i++)
-      if (!(m->radius[i] > 0)) rc = proto_fail(err, "%s: grain %d has radius %g (must be > 0)", path, i, m->radius[i]);
+  } else if (proto_h5in_read_f8(f, "r", rank == 2 ? 2 : 1, dims, DEM_MAX_GRAINS, &r, err) == 0) {
+    const int64_t n = dims[0];
+    if (n == 0) {
+      proto_fail(err, "%s: dataset 'r' holds no grains", path);
+    } else if (!dem_model_alloc_grains(m, (int)n, err) &&
+               !read_grains(f, "x", n, 3, 0, m->x0, 0, err) &&
+               !read_grains(f, "v", n, 3, 0, m->v0, 1, err) &&
+               !read_grains(f, "omega", n, 3, 0, m->omega0, 1, err) &&
+               !read_grains(f, "material", n, 1, 1, m->material, 1, err) &&
+               !read_grains(f, DEM_BED_MAX_OVERLAP, 1, 1, 0, &m->bed_max_overlap, 1, err)) {
+      memcpy(m->radius, r, (size_t)n * sizeof(double));
+      rc = 0;
+      if (!(m->bed_max_overlap >= 0 && m->bed_max_overlap < 1))
+        rc = proto_fail(err, "%s: %s = %g (expected a fraction in [0, 1))", path, DEM_BED_MAX_OVERLAP,
+                        m->bed_max_overlap);
+      for (int i = 0; i < m->n_grains && !rc; i++)
+        if (!(m->radius[i] > 0))
+          rc = proto_fail(err, "%s: grain %d has radius %g (must be > 0)", path, i, m->radius[i]);
+    }
   }
-  H5Fclose(f);
-out:
-  H5Eset_auto2(H5E_DEFAULT, fn, data);
+  free(r);
+  proto_h5in_close(f);
   return rc;
 }

@@ -230,8 +230,8 @@ static int read_mesh(dem_model *m, proto_cfg *c, dem_wall *w) {
   for (const cJSON *e = nodes->child; e && !rc; e = e->next, i++)
     for (int k = 0; k < 3; k++) {
       const cJSON *v = cJSON_GetArrayItem(e, k);
-      if (cJSON_GetArraySize(e) != 3 || !cJSON_IsNumber(v)) {
-        rc = proto_fail(c->err, "%s.nodes[%d]: expected 3 numbers", c->path, i);
+      if (cJSON_GetArraySize(e) != 3 || !cJSON_IsNumber(v) || !isfinite(v->valuedouble)) {
+        rc = proto_fail(c->err, "%s.nodes[%d]: expected 3 finite numbers", c->path, i);
         break;
       }
       x[3 * i + k] = v->valuedouble;
@@ -240,7 +240,8 @@ static int read_mesh(dem_model *m, proto_cfg *c, dem_wall *w) {
   for (const cJSON *e = tris->child; e && !rc; e = e->next, i++)
     for (int k = 0; k < 3; k++) {
       const cJSON *v = cJSON_GetArrayItem(e, k);
-      if (cJSON_GetArraySize(e) != 3 || !cJSON_IsNumber(v) || v->valueint < 0 || v->valueint >= nn) {
+      if (cJSON_GetArraySize(e) != 3 || !cJSON_IsNumber(v) || !(v->valuedouble >= 0) ||
+          v->valuedouble >= nn || v->valuedouble != floor(v->valuedouble)) {
         rc = proto_fail(c->err, "%s.triangles[%d]: expected 3 node indices in [0, %d)", c->path, i, nn);
         break;
       }

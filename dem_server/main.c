@@ -37,8 +37,8 @@ static int configure(void *user, const proto_run_info *info, const cJSON *sectio
   dem_app *a = user;
   if (a->have_model) dem_model_free(&a->model);
   a->have_model = 0;
+  a->have_model = 1; /* also a half-read model: finish() frees it */
   if (dem_model_from_json(&a->model, section, info->key_path, err)) return -1;
-  a->have_model = 1;
   a->run_dt = info->dt;
   snprintf(a->name, sizeof a->name, "%s", info->name ? info->name : "dem");
   /* the initial configuration too (overlaps, grains outside): also for --check-config */

@@ -121,6 +121,11 @@ void fem_snap_tread(void *radii /* double[3] = {R_i, R_groove, R_o} */,
  * groups (matched to boundary faces; a triangle that is not a boundary face
  * is an error). Points and lines are ignored; other 3-D types are errors. */
 int fem_msh_read(const char *path, fem_mesh *m, proto_err *err);
+/* Most elements a mesh may have (generated or read): int32 indices with
+ * room for the TET10 nodes. */
+#define FEM_MAX_ELEMS ((int64_t)200000000)
+/* Largest .msh file read (bytes). */
+#define FEM_MSH_MAX_BYTES ((int64_t)16 << 30)
 int fem_msh_write(const char *path, const fem_mesh *m, int binary,
                   proto_err *err);
 
@@ -314,7 +319,7 @@ void fem_config_defaults(fem_config *c);
 int fem_config_read(const cJSON *section, const char *path, fem_config *c,
                     proto_err *err);
 /* Builds the mesh (file or generator, TET10 if asked), the model, the
- * constraints and K. */
+ * constraints and K. On failure nothing is left allocated in md. */
 int fem_config_build(const fem_config *c, fem_model *md, proto_err *err);
 /* Pressure loads of the config into b (zeroed first). */
 int fem_config_loads(const fem_config *c, const fem_model *md, double *b,

@@ -36,6 +36,10 @@ static int read_cells(proto_cfg *m, const char *key, int *cells, proto_err *err)
       return proto_fail(err, "%s.%s[%d]: must be an integer >= 1 (got %g)", m->path, key, d, v[d]);
     cells[d] = (int)v[d];
   }
+  if ((double)cells[0] * cells[1] * cells[2] * 6 > FEM_MAX_ELEMS)
+    return proto_fail(err, "%s.%s: %d x %d x %d cells make more than the %lld elements a mesh "
+                      "may have", m->path, key, cells[0], cells[1], cells[2],
+                      (long long)FEM_MAX_ELEMS);
   return 0;
 }
 
@@ -245,13 +249,17 @@ int fem_config_build(const fem_config *c, fem_model *md, proto_err *err) {
     fem_mesh_free(&mesh);
     return -1;
   }
-  if (fem_model_init(md, &mesh, &c->mat, err)) return -1;
-  if (c->element == FEM_TET4_ANP && fem_model_set_anp(md, err)) return -1;
-  for (int i = 0; i < c->n_fixed; i++)
+  /* from here md owns the mesh; a failure frees all of it (no half model) */
+  rc = fem_model_init(md, &mesh, &c->mat, err);
+  if (rc == 0 && c->element == FEM_TET4_ANP) rc = fem_model_set_anp(md, err);
+  for (int i = 0; rc == 0 && i < c->n_fixed; i++)
     if (fem_model_fix_group(md, c->fixed_group[i], c->fixed_mask[i], err))
-      return proto_wrap(err, "%s.fixed[%d].group", c->path, i);
-  if (fem_mesh_group(&md->mesh, c->surface_group, err) < 0) return proto_wrap(err, "%s.surface", c->path);
-  return fem_model_assemble(md, err);
+      rc = proto_wrap(err, "%s.fixed[%d].group", c->path, i);
+  if (rc == 0 && fem_mesh_group(&md->mesh, c->surface_group, err) < 0)
+    rc = proto_wrap(err, "%s.surface", c->path);
+  if (rc == 0) rc = fem_model_assemble(md, err);
+  if (rc) fem_model_free(md);
+  return rc;
 }
 
 int fem_config_loads(const fem_config *c, const fem_model *md, double *b, proto_err *err) {

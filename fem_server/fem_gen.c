@@ -26,6 +26,9 @@ typedef int (*face_classifier)(const void *ctx, const int ijk[3][3]);
 static int grid_mesh(fem_mesh *m, const grid_spec *g, int32_t **node_ijk,
                      proto_err *err) {
   const int n0 = g->n[0], n1 = g->n[1], n2 = g->n[2];
+  if (n0 < 1 || n1 < 1 || n2 < 1 || (double)n0 * n1 * n2 > FEM_MAX_ELEMS / 6)
+    return proto_fail(err, "grid of %d x %d x %d cells: more than the %lld elements (6 per "
+                      "cell) a mesh may have", n0, n1, n2, (long long)FEM_MAX_ELEMS);
   const int p1 = g->periodic_j ? n1 : n1 + 1; /* node layers along j */
   size_t n_grid_nodes = (size_t)(n0 + 1) * p1 * (n2 + 1);
   size_t n_cells = 0;

@@ -4,28 +4,48 @@
  * sections are skipped). Elements carry only their entity tag; the entity's
  * physical tags name the groups. Binary: counts and tags size_t, block
  * headers int, coordinates double, little-endian (checked by the int 1 after
- * the format line). */
+ * the format line).
+ *
+ * The reader takes any bytes: every count is checked against the bytes left
+ * in the file before anything is allocated (a count of items needs at least
+ * that many items' bytes), node tags are looked up in a sorted table (no
+ * array sized by the file's maxTag), each section may appear once, and every
+ * error names the file, the section and the line (ASCII) or byte offset. */
 #include "fem_server/fem.h"
 #include "fem_server/fem_internal.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+enum {
+  MSH_SECTION_LEN = 64,
+  MSH_MAX_PHYS_PER_ENTITY = 8, /* physical tags kept per entity (more are read, ignored) */
+  MSH_MAX_GROUPS = 1024,       /* surface groups built from physical tags */
+  MSH_MAX_PARAM_DIM = 3        /* parametric coordinates per node: dim <= 3 */
+};
 
 typedef struct rd {
   const char *buf, *p, *end;
   int binary;
   const char *path;
-  const char *section;
+  char section[MSH_SECTION_LEN];
   proto_err *err;
   int failed;
 } rd;
 
 static int rfail(rd *r, const char *what) {
-  if (!r->failed)
-    proto_fail(r->err, "%s: section $%s: %s (at byte %ld)", r->path, r->section, what,
-               (long)(r->p - r->buf));
+  if (!r->failed) {
+    long line = 1;
+    for (const char *q = r->buf; q < r->p && q < r->end; q++) line += *q == '\n';
+    if (r->binary)
+      proto_fail(r->err, "%s: section $%s: %s (at byte %ld)", r->path, r->section, what,
+                 (long)(r->p - r->buf));
+    else
+      proto_fail(r->err, "%s:%ld: section $%s: %s", r->path, line, r->section, what);
+  }
   r->failed = 1;
   return -1;
 }
@@ -34,7 +54,9 @@ static void skip_ws(rd *r) {
   while (r->p < r->end && (*r->p == ' ' || *r->p == '\n' || *r->p == '\r' || *r->p == '\t')) r->p++;
 }
 
+/* The buffer ends with a NUL (slurp), so strtoll/strtod stop there. */
 static int64_t ascii_int(rd *r) {
+  if (r->failed) return 0;
   skip_ws(r);
   if (r->p >= r->end) return rfail(r, "unexpected end of file"), 0;
   char *e;
@@ -47,6 +69,7 @@ static int64_t ascii_int(rd *r) {
 
 static int64_t rd_size(rd *r) {
   if (!r->binary) return ascii_int(r);
+  if (r->failed) return 0;
   if (r->end - r->p < 8) return rfail(r, "truncated (size_t)"), 0;
   uint64_t v;
   memcpy(&v, r->p, 8);
@@ -57,6 +80,7 @@ static int64_t rd_size(rd *r) {
 
 static int64_t rd_int(rd *r) {
   if (!r->binary) return ascii_int(r);
+  if (r->failed) return 0;
   if (r->end - r->p < 4) return rfail(r, "truncated (int)"), 0;
   int32_t v;
   memcpy(&v, r->p, 4);
@@ -65,26 +89,43 @@ static int64_t rd_int(rd *r) {
 }
 
 static double rd_dbl(rd *r) {
+  if (r->failed) return 0;
+  double v;
   if (r->binary) {
     if (r->end - r->p < 8) return rfail(r, "truncated (double)"), 0;
-    double v;
     memcpy(&v, r->p, 8);
     r->p += 8;
-    return v;
+  } else {
+    skip_ws(r);
+    char *e;
+    v = strtod(r->p, &e);
+    if (e == r->p || e > r->end) return rfail(r, "expected a number"), 0;
+    r->p = e;
   }
-  skip_ws(r);
-  char *e;
-  double v = strtod(r->p, &e);
-  if (e == r->p) return rfail(r, "expected a number"), 0;
-  r->p = e;
+  if (!isfinite(v)) return rfail(r, "a coordinate is not a finite number"), 0;
   return v;
+}
+
+/* A count of items of `fields` numbers each (bytes: their binary size) must
+ * fit in what is left of the file: ASCII needs at least a character and a
+ * separator per number. Checked before anything is allocated for them. */
+static int fits(rd *r, int64_t count, int fields, int bytes, const char *what) {
+  if (r->failed) return -1;
+  const int64_t left = r->end - r->p, per = r->binary ? bytes : 2 * fields;
+  if (count < 0 || (per > 0 && count > left / per)) {
+    char msg[160];
+    snprintf(msg, sizeof msg, "%s: count %lld does not fit in the %lld bytes left", what,
+             (long long)count, (long long)left);
+    return rfail(r, msg);
+  }
+  return 0;
 }
 
 /* After a section's data: expect "$End<section>". */
 static int expect_end(rd *r) {
   if (r->failed) return -1;
   skip_ws(r);
-  char tag[64];
+  char tag[MSH_SECTION_LEN + 8];
   snprintf(tag, sizeof tag, "$End%s", r->section);
   size_t n = strlen(tag);
   if ((size_t)(r->end - r->p) < n || memcmp(r->p, tag, n) != 0)
@@ -93,7 +134,7 @@ static int expect_end(rd *r) {
   return 0;
 }
 
-static int nodes_of_type(int type) {
+static int nodes_of_type(int64_t type) {
   switch (type) {
   case 15: return 1;
   case 1: return 2;
@@ -107,32 +148,39 @@ static int nodes_of_type(int type) {
 }
 
 typedef struct phys_name { int dim, tag; char name[FEM_NAME_LEN]; } phys_name;
-typedef struct entity { int dim, tag, nphys; int phys[8]; } entity;
+typedef struct entity { int dim, tag, nphys; int phys[MSH_MAX_PHYS_PER_ENTITY]; } entity;
 typedef struct tri_rec { int32_t c[3]; int entity; } tri_rec;
+typedef struct node_tag { int64_t tag; int32_t index; } node_tag;
 
 typedef struct msh_data {
   phys_name *names; int n_names;
   entity *ents; int n_ents;
-  int64_t max_tag;
-  int32_t *tag2idx;    /* node tag -> index */
+  node_tag *tags; int64_t n_tags; /* sorted by tag */
   tri_rec *tris; size_t n_tris;
   int npe;
   size_t n_tets;
+  unsigned seen; /* sections read (each may appear once) */
 } msh_data;
 
 static int read_physical_names(rd *r, msh_data *d) {
-  int64_t n = ascii_int(r); /* always ASCII */
-  if (r->failed || n < 0 || n > 100000) return rfail(r, "bad count");
+  int64_t n = ascii_int(r); /* always ASCII, also in a binary file */
+  if (r->failed) return -1;
+  if (n < 0 || n > (r->end - r->p) / 6) /* "0 0 \"\"" at least */
+    return rfail(r, "the count of physical names does not fit in the file");
   d->names = calloc((size_t)n + 1, sizeof *d->names);
+  if (!d->names) return rfail(r, "out of memory");
   for (int64_t i = 0; i < n && !r->failed; i++) {
     phys_name *q = &d->names[i];
     q->dim = (int)ascii_int(r);
     q->tag = (int)ascii_int(r);
     skip_ws(r);
+    if (r->failed) return -1;
     if (r->p >= r->end || *r->p != '"') return rfail(r, "expected a quoted name");
     const char *s = ++r->p;
     while (r->p < r->end && *r->p != '"' && *r->p != '\n') r->p++;
     if (r->p >= r->end || *r->p != '"') return rfail(r, "unterminated name");
+    if (r->p - s >= FEM_NAME_LEN || memchr(s, 0, (size_t)(r->p - s)))
+      return rfail(r, "physical name longer than 63 bytes or with a NUL byte");
     snprintf(q->name, sizeof q->name, "%.*s", (int)(r->p - s), s);
     r->p++;
     d->n_names++;
@@ -141,12 +189,16 @@ static int read_physical_names(rd *r, msh_data *d) {
 }
 
 static int read_entities(rd *r, msh_data *d) {
-  int64_t cnt[4];
-  for (int k = 0; k < 4; k++) cnt[k] = rd_size(r);
-  if (r->failed) return -1;
-  int64_t tot = cnt[0] + cnt[1] + cnt[2] + cnt[3];
-  if (tot < 0 || tot > 10000000) return rfail(r, "bad entity counts");
+  int64_t cnt[4], tot = 0;
+  for (int k = 0; k < 4; k++) {
+    cnt[k] = rd_size(r);
+    /* a point entity has at least a tag, 3 coordinates and a tag count */
+    if (fits(r, cnt[k], 5, 4 + 3 * 8 + 8, "entities") < 0) return -1;
+    tot += cnt[k];
+  }
+  if (fits(r, tot, 5, 4 + 3 * 8 + 8, "entities") < 0) return -1;
   d->ents = calloc((size_t)tot + 1, sizeof *d->ents);
+  if (!d->ents) return rfail(r, "out of memory");
   for (int dim = 0; dim < 4; dim++)
     for (int64_t i = 0; i < cnt[dim] && !r->failed; i++) {
       entity *en = &d->ents[d->n_ents++];
@@ -154,96 +206,121 @@ static int read_entities(rd *r, msh_data *d) {
       en->tag = (int)rd_int(r);
       for (int k = 0; k < (dim == 0 ? 3 : 6); k++) rd_dbl(r);
       int64_t np = rd_size(r);
-      if (np < 0 || np > 1000) return rfail(r, "bad physical tag count");
-      for (int64_t k = 0; k < np; k++) {
+      if (fits(r, np, 1, 4, "physical tags of an entity") < 0) return -1;
+      for (int64_t k = 0; k < np && !r->failed; k++) {
         int t = (int)rd_int(r);
-        if (k < 8) en->phys[en->nphys++] = t;
+        if (k < MSH_MAX_PHYS_PER_ENTITY) en->phys[en->nphys++] = t;
       }
       if (dim > 0) {
         int64_t nb = rd_size(r);
-        if (nb < 0 || nb > 10000000) return rfail(r, "bad bounding count");
-        for (int64_t k = 0; k < nb; k++) rd_int(r);
+        if (fits(r, nb, 1, 4, "bounding entities") < 0) return -1;
+        for (int64_t k = 0; k < nb && !r->failed; k++) rd_int(r);
       }
     }
   return expect_end(r);
+}
+
+static int tag_cmp(const void *a, const void *b) {
+  const node_tag *x = a, *y = b;
+  return (x->tag > y->tag) - (x->tag < y->tag);
 }
 
 static int read_nodes(rd *r, msh_data *d, fem_mesh *m) {
   int64_t nblocks = rd_size(r), nnodes = rd_size(r);
+  rd_size(r); /* minNodeTag, maxNodeTag: the tags themselves are checked */
   rd_size(r);
-  int64_t maxtag = rd_size(r);
-  if (r->failed || nnodes <= 0 || nnodes > INT32_MAX / 3 || maxtag < nnodes || nblocks < 0)
-    return rfail(r, "bad node counts");
+  if (r->failed) return -1;
+  if (nnodes <= 0 || nnodes > INT32_MAX / 3) return rfail(r, "bad node count");
+  /* a node: its tag and 3 coordinates; a block: 3 ints and a count */
+  if (fits(r, nnodes, 4, 8 + 3 * 8, "nodes") < 0 || fits(r, nblocks, 4, 3 * 4 + 8, "node blocks") < 0)
+    return -1;
   m->x = malloc(sizeof *m->x * 3 * (size_t)nnodes);
-  d->tag2idx = malloc(sizeof *d->tag2idx * ((size_t)maxtag + 1));
-  int64_t *tags = malloc(sizeof *tags * (size_t)nnodes);
-  if (!m->x || !d->tag2idx || !tags) {
-    free(tags);
-    return rfail(r, "out of memory");
-  }
-  d->max_tag = maxtag;
-  for (int64_t i = 0; i <= maxtag; i++) d->tag2idx[i] = -1;
+  d->tags = malloc(sizeof *d->tags * (size_t)nnodes);
+  if (!m->x || !d->tags) return rfail(r, "out of memory");
   int64_t k = 0;
   for (int64_t b = 0; b < nblocks && !r->failed; b++) {
-    int dim = (int)rd_int(r);
+    int64_t dim = rd_int(r);
     rd_int(r);
-    int param = (int)rd_int(r);
+    int64_t param = rd_int(r);
     int64_t nb = rd_size(r);
-    if (r->failed || nb < 0 || k + nb > nnodes) {
-      free(tags);
-      return rfail(r, "node block larger than the node count");
+    if (r->failed) return -1;
+    if (param && (dim < 0 || dim > MSH_MAX_PARAM_DIM))
+      return rfail(r, "parametric node block of entity dimension outside 0..3");
+    if (nb < 0 || nb > nnodes - k) return rfail(r, "node block larger than the node count");
+    for (int64_t i = 0; i < nb && !r->failed; i++) {
+      int64_t tag = rd_size(r);
+      if (!r->failed && tag < 1) return rfail(r, "node tag < 1");
+      d->tags[k + i] = (node_tag){tag, (int32_t)(k + i)};
     }
-    for (int64_t i = 0; i < nb; i++) {
-      tags[k + i] = rd_size(r);
-      if (tags[k + i] < 1 || tags[k + i] > maxtag) {
-        free(tags);
-        return rfail(r, "node tag out of [1, maxTag]");
-      }
-      if (d->tag2idx[tags[k + i]] >= 0) {
-        free(tags);
-        return rfail(r, "duplicate node tag");
-      }
-      d->tag2idx[tags[k + i]] = (int32_t)(k + i);
-    }
-    for (int64_t i = 0; i < nb; i++) {
+    for (int64_t i = 0; i < nb && !r->failed; i++) {
       for (int c = 0; c < 3; c++) m->x[3 * (k + i) + c] = rd_dbl(r);
-      if (param)
-        for (int c = 0; c < dim; c++) rd_dbl(r);
+      for (int64_t c = 0; param && c < dim; c++) rd_dbl(r);
     }
     k += nb;
   }
-  free(tags);
-  if (!r->failed && k != nnodes) return rfail(r, "fewer nodes than the header says");
+  if (r->failed) return -1;
+  if (k != nnodes) return rfail(r, "fewer nodes than the header says");
+  qsort(d->tags, (size_t)nnodes, sizeof *d->tags, tag_cmp);
+  for (int64_t i = 1; i < nnodes; i++)
+    if (d->tags[i].tag == d->tags[i - 1].tag) {
+      char msg[64];
+      snprintf(msg, sizeof msg, "duplicate node tag %lld", (long long)d->tags[i].tag);
+      return rfail(r, msg);
+    }
+  d->n_tags = nnodes;
   m->n_nodes = (int32_t)nnodes;
   return expect_end(r);
 }
 
-static int node_index(rd *r, msh_data *d, int64_t tag, int32_t *out) {
-  if (tag < 1 || tag > d->max_tag || d->tag2idx[tag] < 0) return rfail(r, "element refers to an unknown node tag");
-  *out = d->tag2idx[tag];
+static int node_index(rd *r, const msh_data *d, int64_t tag, int32_t *out) {
+  const node_tag key = {tag, 0};
+  const node_tag *hit = bsearch(&key, d->tags, (size_t)d->n_tags, sizeof key, tag_cmp);
+  if (!hit) {
+    char msg[80];
+    snprintf(msg, sizeof msg, "element refers to unknown node tag %lld", (long long)tag);
+    return rfail(r, msg);
+  }
+  *out = hit->index;
+  return 0;
+}
+
+/* Grows *p (elements of size sz) to hold at least n; doubles. */
+static int grow(rd *r, void **p, size_t *cap, size_t n, size_t sz) {
+  if (n <= *cap) return 0;
+  size_t want = 2 * n;
+  void *q = realloc(*p, want * sz);
+  if (!q) return rfail(r, "out of memory");
+  *p = q;
+  *cap = want;
   return 0;
 }
 
 static int read_elements(rd *r, msh_data *d, fem_mesh *m) {
-  if (!d->tag2idx) return rfail(r, "$Elements before $Nodes");
+  if (!d->tags) return rfail(r, "$Elements before $Nodes");
   int64_t nblocks = rd_size(r), nelem = rd_size(r);
   rd_size(r);
   rd_size(r);
-  if (r->failed || nelem < 0 || nblocks < 0) return rfail(r, "bad element counts");
+  if (r->failed) return -1;
+  if (fits(r, nblocks, 4, 3 * 4 + 8, "element blocks") < 0 ||
+      fits(r, nelem, 2, 2 * 8, "elements") < 0)
+    return -1;
   size_t cap_tet = 0, cap_tri = 0;
+  int64_t total = 0;
   for (int64_t b = 0; b < nblocks && !r->failed; b++) {
-    int dim = (int)rd_int(r), etag = (int)rd_int(r), type = (int)rd_int(r);
+    int64_t dim = rd_int(r), etag = rd_int(r), type = rd_int(r);
     int64_t nb = rd_size(r);
     if (r->failed) break;
     int nn = nodes_of_type(type);
     if (nn < 0 || (dim == 3 && type != 4 && type != 11) || (dim == 2 && type != 2 && type != 9)) {
       char msg[200];
-      snprintf(msg, sizeof msg, "unsupported element type %d in entity (dim %d, tag %d): "
+      snprintf(msg, sizeof msg, "unsupported element type %lld in entity (dim %lld, tag %lld): "
                "supported are tet4 (4), tet10 (11), tri3 (2), tri6 (9), points and lines",
-               type, dim, etag);
+               (long long)type, (long long)dim, (long long)etag);
       return rfail(r, msg);
     }
-    if (nb < 0 || nb > nelem) return rfail(r, "element block larger than the element count");
+    if (nb < 0 || nb > nelem - total) return rfail(r, "element blocks hold more elements than the header says");
+    if (fits(r, nb, 1 + nn, 8 * (1 + nn), "elements of a block") < 0) return -1;
+    total += nb;
     int ent = -1;
     for (int q = 0; q < d->n_ents; q++)
       if (d->ents[q].dim == dim && d->ents[q].tag == etag) ent = q;
@@ -251,26 +328,20 @@ static int read_elements(rd *r, msh_data *d, fem_mesh *m) {
       int npe = type == 4 ? 4 : 10;
       if (d->npe && d->npe != npe) return rfail(r, "mixed tet4 and tet10 volume elements");
       d->npe = npe;
-      if (d->n_tets + (size_t)nb > cap_tet) {
-        cap_tet = 2 * (d->n_tets + (size_t)nb);
-        int32_t *c = realloc(m->conn, sizeof *c * cap_tet * npe);
-        if (!c) return rfail(r, "out of memory");
-        m->conn = c;
-      }
+      if (d->n_tets + (size_t)nb > (size_t)FEM_MAX_ELEMS) return rfail(r, "more elements than a mesh may have");
+      if (grow(r, (void **)&m->conn, &cap_tet, d->n_tets + (size_t)nb, sizeof(int32_t) * (size_t)npe))
+        return -1;
     }
-    if (dim == 2 && d->n_tris + (size_t)nb > cap_tri) {
-      cap_tri = 2 * (d->n_tris + (size_t)nb);
-      tri_rec *t = realloc(d->tris, sizeof *t * cap_tri);
-      if (!t) return rfail(r, "out of memory");
-      d->tris = t;
-    }
+    if (dim == 2 && grow(r, (void **)&d->tris, &cap_tri, d->n_tris + (size_t)nb, sizeof *d->tris))
+      return -1;
     for (int64_t i = 0; i < nb && !r->failed; i++) {
       rd_size(r); /* element tag */
       int32_t idx[10];
-      for (int a = 0; a < nn; a++) {
+      for (int a = 0; a < nn && !r->failed; a++) {
         int64_t t = rd_size(r);
-        if (dim >= 2 && node_index(r, d, t, &idx[a])) return -1;
+        if (!r->failed && dim >= 2 && node_index(r, d, t, &idx[a])) return -1;
       }
+      if (r->failed) break;
       if (dim == 3) {
         memcpy(m->conn + d->n_tets * d->npe, idx, sizeof(int32_t) * d->npe);
         d->n_tets++;
@@ -314,7 +385,11 @@ static int build_groups(rd *r, msh_data *d, fem_mesh *m) {
       int g = -1;
       for (int k = 0; k < m->n_groups; k++)
         if (strcmp(m->groups[k].name, name) == 0) g = k;
-      if (g < 0 && (g = fem_mesh_add_group(m, name, r->err)) < 0) rc = -1;
+      if (g < 0 && m->n_groups == MSH_MAX_GROUPS)
+        rc = proto_fail(r->err, "%s: more than %d physical surface groups", r->path,
+                        MSH_MAX_GROUPS);
+      else if (g < 0 && (g = fem_mesh_add_group(m, name, r->err)) < 0)
+        rc = -1;
       if (rc == 0) rc = fem_mesh_group_add_face(m, g, e, loc, r->err);
     }
   }
@@ -329,20 +404,25 @@ static const char *find_bytes(const char *p, const char *end, const char *s) {
   return NULL;
 }
 
+/* Whole file, NUL-terminated; at most FEM_MSH_MAX_BYTES. */
 static char *slurp(const char *path, size_t *n, proto_err *err) {
   FILE *f = fopen(path, "rb");
   if (!f) {
     proto_fail(err, "%s: cannot open (%s)", path, strerror(errno));
     return NULL;
   }
-  fseek(f, 0, SEEK_END);
-  long sz = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *b = sz >= 0 ? malloc((size_t)sz + 1) : NULL;
+  long sz = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  if (sz > FEM_MSH_MAX_BYTES) {
+    fclose(f);
+    proto_fail(err, "%s: %ld bytes, more than the %lld a mesh may have", path, sz,
+               (long long)FEM_MSH_MAX_BYTES);
+    return NULL;
+  }
+  char *b = sz >= 0 && fseek(f, 0, SEEK_SET) == 0 ? malloc((size_t)sz + 1) : NULL;
   if (!b || fread(b, 1, (size_t)sz, f) != (size_t)sz) {
     free(b);
     fclose(f);
-    proto_fail(err, "%s: read error", path);
+    proto_fail(err, "%s: read error (not a regular file?)", path);
     return NULL;
   }
   fclose(f);
@@ -351,15 +431,36 @@ static char *slurp(const char *path, size_t *n, proto_err *err) {
   return b;
 }
 
+/* The sections the reader knows, and the bit of each in msh_data.seen. */
+static const char *const known_sections[] = {"MeshFormat", "PhysicalNames", "Entities",
+                                             "Nodes", "Elements", NULL};
+
+static int read_format(rd *r) {
+  double ver = rd_dbl(r);
+  int64_t ft = ascii_int(r), ds = ascii_int(r);
+  if (r->failed) return -1;
+  if (ver < 4.1 || ver >= 5)
+    return rfail(r, "only MSH version 4.1 is supported (use Mesh.MshFileVersion = 4.1)");
+  if (ds != 8) return rfail(r, "data size must be 8");
+  if (ft != 0 && ft != 1) return rfail(r, "file type must be 0 (ASCII) or 1 (binary)");
+  r->binary = ft == 1;
+  if (r->binary) {
+    if (r->p < r->end && *r->p == '\n') r->p++;
+    if (rd_int(r) != 1) return r->failed ? -1 : rfail(r, "binary file of other endianness");
+  }
+  return expect_end(r);
+}
+
 int fem_msh_read(const char *path, fem_mesh *m, proto_err *err) {
   memset(m, 0, sizeof *m);
   size_t n;
   char *buf = slurp(path, &n, err);
   if (!buf) return -1;
-  rd r = {buf, buf, buf + n, 0, path, "MeshFormat", err, 0};
+  rd r = {.buf = buf, .p = buf, .end = buf + n, .path = path, .section = "MeshFormat",
+          .err = err};
   msh_data d;
   memset(&d, 0, sizeof d);
-  int rc = 0, seen_format = 0;
+  int rc = 0;
   while (rc == 0) {
     skip_ws(&r);
     if (r.p >= r.end) break;
@@ -367,50 +468,34 @@ int fem_msh_read(const char *path, fem_mesh *m, proto_err *err) {
       rc = rfail(&r, "expected a section header ($Name)");
       break;
     }
-    static char sec[64];
     int len = 0;
     const char *s = ++r.p;
-    while (r.p < r.end && *r.p != '\n' && *r.p != '\r' && len < 63) len++, r.p++;
-    snprintf(sec, sizeof sec, "%.*s", len, s);
-    r.section = sec;
-    if (strcmp(sec, "MeshFormat") == 0) {
-      double ver = rd_dbl(&r);
-      int ft = (int)ascii_int(&r), ds = (int)ascii_int(&r);
-      if (r.failed || ver < 4.1 || ver >= 5) {
-        rc = r.failed ? -1 : rfail(&r, "only MSH version 4.1 is supported (use Mesh.MshFileVersion = 4.1)");
-        break;
-      }
-      if (ds != 8) { rc = rfail(&r, "data size must be 8"); break; }
-      r.binary = ft == 1;
-      if (r.binary) {
-        if (r.p < r.end && *r.p == '\n') r.p++;
-        int one = (int)rd_int(&r);
-        if (one != 1) { rc = rfail(&r, "binary file of other endianness"); break; }
-      }
-      seen_format = 1;
-      rc = expect_end(&r);
-    } else if (!seen_format) {
-      rc = rfail(&r, "file does not start with $MeshFormat (not a Gmsh mesh?)");
-    } else if (strcmp(sec, "PhysicalNames") == 0) {
-      rc = read_physical_names(&r, &d);
-    } else if (strcmp(sec, "Entities") == 0) {
-      if (r.binary && r.p < r.end && *r.p == '\n') r.p++;
-      rc = read_entities(&r, &d);
-    } else if (strcmp(sec, "Nodes") == 0) {
-      if (r.binary && r.p < r.end && *r.p == '\n') r.p++;
-      rc = read_nodes(&r, &d, m);
-    } else if (strcmp(sec, "Elements") == 0) {
-      if (r.binary && r.p < r.end && *r.p == '\n') r.p++;
-      rc = read_elements(&r, &d, m);
-    } else { /* skip unknown section */
-      char tag[80];
-      snprintf(tag, sizeof tag, "\n$End%s", sec);
+    while (r.p < r.end && *r.p != '\n' && *r.p != '\r' && len < MSH_SECTION_LEN - 1) len++, r.p++;
+    snprintf(r.section, sizeof r.section, "%.*s", len, s);
+    int which = -1;
+    for (int k = 0; known_sections[k]; k++)
+      if (strcmp(r.section, known_sections[k]) == 0) which = k;
+    if (which >= 0 && (d.seen & (1u << which))) {
+      rc = rfail(&r, "the section appears twice");
+      break;
+    }
+    if (which >= 0) d.seen |= 1u << which;
+    if (which > 0 && r.binary && r.p < r.end && *r.p == '\n') r.p++;
+    if (which == 0) rc = read_format(&r);
+    else if (!(d.seen & 1u)) rc = rfail(&r, "file does not start with $MeshFormat (not a Gmsh mesh?)");
+    else if (which == 1) rc = read_physical_names(&r, &d);
+    else if (which == 2) rc = read_entities(&r, &d);
+    else if (which == 3) rc = read_nodes(&r, &d, m);
+    else if (which == 4) rc = read_elements(&r, &d, m);
+    else { /* skip unknown section */
+      char tag[MSH_SECTION_LEN + 8];
+      snprintf(tag, sizeof tag, "\n$End%s", r.section);
       const char *q = find_bytes(r.p, r.end, tag);
       if (!q) rc = rfail(&r, "unterminated section");
       else r.p = q + strlen(tag);
     }
   }
-  if (rc == 0 && !seen_format) rc = proto_fail(err, "%s: empty or not a Gmsh mesh", path);
+  if (rc == 0 && !(d.seen & 1u)) rc = proto_fail(err, "%s: empty or not a Gmsh mesh", path);
   if (rc == 0 && m->n_elems == 0)
     rc = proto_fail(err, "%s: no volume elements (tet4/tet10) found", path);
   if (rc == 0) rc = fem_mesh_check(m, err);
@@ -418,7 +503,7 @@ int fem_msh_read(const char *path, fem_mesh *m, proto_err *err) {
   if (rc) fem_mesh_free(m);
   free(d.names);
   free(d.ents);
-  free(d.tag2idx);
+  free(d.tags);
   free(d.tris);
   free(buf);
   if (rc && err && strncmp(err->msg, path, strlen(path)) != 0) proto_wrap(err, "%s", path);

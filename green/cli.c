@@ -1,6 +1,7 @@
 /* cli.c — `cosim_green road|springs|green [options]` (also reached as
  * `cosim road|springs|green ...`): writes road.h5, springs.h5 and green.h5
  * (green/FORMATS.md) with progress on a terminal. */
+#include <errno.h>
 #include <getopt.h>
 #include <math.h>
 #include <stdio.h>
@@ -42,10 +43,21 @@ static int count(const char *opt, const char *s, int *out, proto_err *err) {
   return 0;
 }
 
+/* N or NXxNY, each in [1, 1e6] (no int overflow whatever the text) */
 static int pair(const char *opt, const char *s, int *a, int *b, proto_err *err) {
-  if (sscanf(s, "%dx%d", a, b) == 2 && *a > 0 && *b > 0) return 0;
-  if (sscanf(s, "%d", a) == 1 && *a > 0) { *b = *a; return 0; }
-  return proto_fail(err, "--%s = '%s': expected N or NXxNY", opt, s);
+  char *end;
+  errno = 0;
+  long x = strtol(s, &end, 10), y = x;
+  if (end != s && *end == 'x') {
+    const char *t = end + 1;
+    y = strtol(t, &end, 10);
+    if (end == t) y = 0;
+  }
+  if (end == s || *end || errno || x < 1 || y < 1 || x > 1000000 || y > 1000000)
+    return proto_fail(err, "--%s = '%s': expected N or NXxNY, each 1 to 1000000", opt, s);
+  *a = (int)x;
+  *b = (int)y;
+  return 0;
 }
 
 /* --size DX or DXxDY (m): square or rectangular elements */

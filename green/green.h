@@ -139,6 +139,8 @@ void grn_surface_free(grn_surface *s);
  * pitch from "# dx = ..." / "# dy = ..." lines or the arguments (> 0). */
 int grn_surface_read_text(const char *path, double dx, double dy,
                           grn_surface *s, proto_err *err);
+/* Largest road read or made (points). */
+#define GRN_MAX_POINTS ((int64_t)1 << 28)
 /* HDF5 /road/heights [Ny][Nx] with attributes dx, dy (FORMATS.md). */
 int grn_surface_read_h5(const char *path, grn_surface *s, proto_err *err);
 int grn_surface_write_h5(const char *path, const grn_surface *s,

@@ -40,11 +40,3 @@ int grn_h5_attr_s(hid_t loc, const char *name, const char *v) {
   H5Tclose(t);
   return rc;
 }
-int grn_h5_read_attr_d(hid_t loc, const char *name, double *v) {
-  if (H5Aexists(loc, name) <= 0)
-    return -1;
-  hid_t a = H5Aopen(loc, name, H5P_DEFAULT);
-  herr_t st = H5Aread(a, H5T_NATIVE_DOUBLE, v);
-  H5Aclose(a);
-  return st < 0 ? -1 : 0;
-}

@@ -1,4 +1,5 @@
-/* h5util.h — small HDF5 helpers for the green/ files (FORMATS.md). */
+/* h5util.h — small HDF5 helpers for writing the green/ files (FORMATS.md);
+ * they are read through proto_h5in_* (proto.h). */
 #ifndef COSIM_GREEN_H5UTIL_H
 #define COSIM_GREEN_H5UTIL_H
 #include <hdf5.h>
@@ -10,5 +11,4 @@ int grn_h5_write(hid_t loc, const char *name, int ndim, const hsize_t *dims,
 int grn_h5_attr_d(hid_t loc, const char *name, double v);
 int grn_h5_attr_i(hid_t loc, const char *name, long v);
 int grn_h5_attr_s(hid_t loc, const char *name, const char *v);
-int grn_h5_read_attr_d(hid_t loc, const char *name, double *v);
 #endif

@@ -52,6 +52,9 @@ int grn_surface_generate(const grn_surface_params *p, grn_surface *s,
   if (p->lambda_short < 2 * fmax(p->dx, p->dy))
     return proto_fail(err, "road: lambda_short = %g m is below two pitches (%g m)",
                       p->lambda_short, 2 * fmax(p->dx, p->dy));
+  if ((int64_t)p->Nx * p->Ny > GRN_MAX_POINTS)
+    return proto_fail(err, "road: points = %d x %d: more than %lld", p->Nx, p->Ny,
+                      (long long)GRN_MAX_POINTS);
   const int Nx = p->Nx, Ny = p->Ny, nqx = Nx / 2 + 1;
   fftw_complex *c = fftw_alloc_complex((size_t)Ny * nqx);
   s->z = malloc((size_t)Nx * Ny * sizeof *s->z);
@@ -171,16 +174,6 @@ int grn_surface_downsample_max(const grn_surface *s, int nx, int ny,
 
 /* ------------------------------------------------------------ readers */
 
-static int check_finite(const grn_surface *s, const char *where, proto_err *err) {
-  for (int j = 0; j < s->Ny; j++)
-    for (int i = 0; i < s->Nx; i++)
-      if (!isfinite(s->z[(size_t)j * s->Nx + i]))
-        return proto_fail(err, "%s: height[%d][%d] = %g (row %d, column %d) is not a "
-                               "finite number", where, j, i, s->z[(size_t)j * s->Nx + i],
-                          j + 1, i + 1);
-  return 0;
-}
-
 int grn_surface_read_text(const char *path, double dx, double dy,
                           grn_surface *s, proto_err *err) {
   memset(s, 0, sizeof *s);
@@ -218,6 +211,11 @@ int grn_surface_read_text(const char *path, double dx, double dy,
                    (int)fmin(20, strcspn(p, " \t,\r\n")), p);
         goto done;
       }
+      if ((int64_t)n == GRN_MAX_POINTS) {
+        proto_fail(err, "%s:%d: more than %lld heights", path, lineno,
+                   (long long)GRN_MAX_POINTS);
+        goto done;
+      }
       if (n == cap) {
         cap = cap ? 2 * cap : 4096;
         double *nz = realloc(z, cap * sizeof *z);
@@ -240,7 +238,7 @@ int grn_surface_read_text(const char *path, double dx, double dy,
     proto_fail(err, "%s: need at least 2 x 2 heights, found %d x %d", path, rows, cols < 0 ? 0 : cols);
     goto done;
   }
-  if (!(dx > 0) || !(dy > 0)) {
+  if (!(dx > 0) || !(dy > 0) || !isfinite(dx) || !isfinite(dy)) {
     proto_fail(err, "%s: pitch dx = %g, dy = %g: give '# dx = ...' lines or options > 0", path, dx, dy);
     goto done;
   }
@@ -256,39 +254,29 @@ done:
 
 int grn_surface_read_h5(const char *path, grn_surface *s, proto_err *err) {
   memset(s, 0, sizeof *s);
-  H5E_auto2_t fn; void *cd;
-  H5Eget_auto2(H5E_DEFAULT, &fn, &cd);
-  H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+  proto_h5in *f = proto_h5in_open(path, err);
+  if (!f) return -1;
   int rc = -1;
-  hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT), ds = -1, sp = -1, g = -1;
-  if (f < 0) { proto_fail(err, "%s: cannot open as HDF5", path); goto done; }
-  ds = H5Dopen2(f, "/road/heights", H5P_DEFAULT);
-  if (ds < 0) { proto_fail(err, "%s: no dataset /road/heights", path); goto done; }
-  sp = H5Dget_space(ds);
-  hsize_t dims[2];
-  if (H5Sget_simple_extent_ndims(sp) != 2) { proto_fail(err, "%s: /road/heights must be 2-D [Ny][Nx]", path); goto done; }
-  H5Sget_simple_extent_dims(sp, dims, NULL);
-  g = H5Gopen2(f, "/road", H5P_DEFAULT);
   double dx = 0, dy = 0;
-  if (grn_h5_read_attr_d(g, "dx", &dx) || grn_h5_read_attr_d(g, "dy", &dy) || !(dx > 0) || !(dy > 0)) {
+  int64_t dims[2] = {-1, -1};
+  int ax = proto_h5in_attr_f8(f, "/road", "dx", &dx, err);
+  int ay = ax < 0 ? -1 : proto_h5in_attr_f8(f, "/road", "dy", &dy, err);
+  if (ax < 0 || ay < 0) goto done;
+  if (ax || ay || !(dx > 0) || !(dy > 0)) {
     proto_fail(err, "%s: /road needs attributes dx, dy > 0 (m)", path);
     goto done;
   }
-  s->Ny = (int)dims[0]; s->Nx = (int)dims[1]; s->dx = dx; s->dy = dy;
-  s->z = malloc(dims[0] * dims[1] * sizeof *s->z);
-  if (!s->z || H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, s->z) < 0) {
-    proto_fail(err, "%s: cannot read /road/heights", path);
+  if (proto_h5in_read_f8(f, "/road/heights", 2, dims, GRN_MAX_POINTS, &s->z, err) < 0)
+    goto done;
+  if (dims[0] < 2 || dims[1] < 2 || dims[0] > INT32_MAX || dims[1] > INT32_MAX) {
+    proto_fail(err, "%s:/road/heights: need at least 2 x 2 heights, found %lld x %lld",
+               path, (long long)dims[0], (long long)dims[1]);
     goto done;
   }
-  char where[600];
-  snprintf(where, sizeof where, "%s:/road/heights", path);
-  rc = check_finite(s, where, err);
+  s->Ny = (int)dims[0]; s->Nx = (int)dims[1]; s->dx = dx; s->dy = dy;
+  rc = 0;
 done:
-  if (g >= 0) H5Gclose(g);
-  if (sp >= 0) H5Sclose(sp);
-  if (ds >= 0) H5Dclose(ds);
-  if (f >= 0) H5Fclose(f);
-  H5Eset_auto2(H5E_DEFAULT, fn, cd);
+  proto_h5in_close(f);
   if (rc) grn_surface_free(s);
   return rc;
 }

@@ -6,6 +6,7 @@
 #include "proto.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -131,25 +132,7 @@ static int parse_args(int argc, char **argv, const proto_participant_ops *ops,
 static int check_config(const args *a, const proto_participant_ops *ops,
                         void *user) {
   proto_err err = {{0}};
-  cJSON *section = NULL;
-  if (strcmp(a->check, "-") == 0) {
-    size_t cap = 1 << 16, len = 0;
-    char *text = malloc(cap);
-    size_t got;
-    while (text && (got = fread(text + len, 1, cap - len - 1, stdin)) > 0) {
-      len += got;
-      if (len + 1 == cap) text = realloc(text, cap *= 2);
-    }
-    if (!text) {
-      fprintf(stderr, "out of memory\n");
-      return 1;
-    }
-    text[len] = 0;
-    section = proto_json_parse(text, "<stdin>", &err);
-    free(text);
-  } else {
-    section = proto_json_load(a->check, &err);
-  }
+  cJSON *section = proto_json_load(a->check, &err); /* "-": stdin */
   char key_path[PROTO_NAME_LEN + 16];
   snprintf(key_path, sizeof key_path, "processes.%s", a->name);
   proto_run_info info = {.name = a->name, .key_path = key_path,
@@ -198,9 +181,12 @@ static const char *json_str(const cJSON *o, const char *key) {
   return cJSON_IsString(v) ? v->valuestring : NULL;
 }
 
+/* A number of the welcome's run object; def if absent, not finite or beyond
+ * +-2^53 (the counts among them are converted to integers). */
 static double json_num(const cJSON *o, const char *key, double def) {
   const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
-  return cJSON_IsNumber(v) ? v->valuedouble : def;
+  return cJSON_IsNumber(v) && fabs(v->valuedouble) <= PROTO_MAX_HEADER_INT
+             ? v->valuedouble : def;
 }
 
 /* welcome → configure → init → ready. */
@@ -316,20 +302,19 @@ static int parse_step(const proto_peer *p, const proto_msg *req,
                       proto_step_info *si, proto_err *err) {
   const cJSON *h = req->header;
   const cJSON *dt = cJSON_GetObjectItemCaseSensitive(h, PROTO_H_DT);
-  const cJSON *it = cJSON_GetObjectItemCaseSensitive(h, PROTO_H_ITERATION);
   double step_dt = dt ? (cJSON_IsNumber(dt) ? dt->valuedouble : -1) : p->run_dt;
-  if (!(step_dt > 0))
+  if (!(step_dt > 0) || !isfinite(step_dt))
     return proto_fail(err, "step %lld: header field 'dt' must be a positive "
                       "number", (long long)req->step);
-  if (it && (!cJSON_IsNumber(it) || it->valuedouble < 0))
-    return proto_fail(err, "step %lld: header field 'iteration' must be a "
-                      "number >= 0", (long long)req->step);
+  int64_t iteration;
+  if (proto_header_int(req, PROTO_H_ITERATION, 0, INT32_MAX, 0, &iteration, err) < 0)
+    return proto_wrap(err, "step %lld", (long long)req->step);
   si->k = req->step;
   si->t = req->t;
   si->dt = step_dt;
   si->t_end = req->t + si->dt;
   si->output = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(h, PROTO_H_OUTPUT));
-  si->iteration = it ? (int)it->valuedouble : 0;
+  si->iteration = (int)iteration;
   return 0;
 }
 
@@ -420,6 +405,7 @@ int proto_participant_main(int argc, char **argv,
   proto_dims_init(&p.dims);
   p.ctx = zmq_ctx_new();
   p.dealer = zmq_socket(p.ctx, ZMQ_DEALER);
+  proto_socket_limits(p.dealer);
   int linger = 2000;
   zmq_setsockopt(p.dealer, ZMQ_LINGER, &linger, sizeof linger);
   zmq_setsockopt(p.dealer, ZMQ_ROUTING_ID, p.name, strlen(p.name));

@@ -2,6 +2,7 @@
 #include "proto.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -11,12 +12,43 @@
 
 /* ------------------------------------------------------------------ errors */
 
+/* Length of the valid UTF-8 sequence at s (1..4), or 0 if it is not one or
+ * encodes a C1 control character (U+0080..U+009F). */
+static int utf8_len(const unsigned char *s) {
+  const unsigned char c = s[0];
+  int n = c >= 0xF0 && c <= 0xF4 ? 4 : c >= 0xE0 ? 3 : c >= 0xC2 ? 2 : 0;
+  if (c >= 0xF5 || n == 0) return 0;
+  for (int i = 1; i < n; i++)
+    if ((s[i] & 0xC0) != 0x80) return 0;
+  if (n == 2 && c == 0xC2 && s[1] < 0xA0) return 0;        /* C1 controls */
+  if (n == 3 && c == 0xE0 && s[1] < 0xA0) return 0;        /* overlong */
+  if (n == 3 && c == 0xED && s[1] >= 0xA0) return 0;       /* surrogates */
+  if (n == 4 && c == 0xF0 && s[1] < 0x90) return 0;        /* overlong */
+  if (n == 4 && c == 0xF4 && s[1] >= 0x90) return 0;       /* > U+10FFFF */
+  return n;
+}
+
+void proto_sanitize(char *text) {
+  unsigned char *s = (unsigned char *)text;
+  while (*s) {
+    if (*s < 0x80) {
+      if ((*s < 0x20 && *s != '\n' && *s != '\t') || *s == 0x7F) *s = '?';
+      s++;
+      continue;
+    }
+    int n = utf8_len(s);
+    if (n == 0) *s++ = '?';
+    else s += n;
+  }
+}
+
 int proto_fail(proto_err *err, const char *fmt, ...) {
   if (err) {
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(err->msg, sizeof err->msg, fmt, ap);
     va_end(ap);
+    proto_sanitize(err->msg);
   }
   return -1;
 }
@@ -30,7 +62,55 @@ int proto_wrap(proto_err *err, const char *fmt, ...) {
   va_end(ap);
   memcpy(old, err->msg, sizeof old);
   snprintf(err->msg, sizeof err->msg, "%s: %s", prefix, old);
+  proto_sanitize(err->msg);
   return -1;
+}
+
+/* ------------------------------------------------------------------ names */
+
+static int name_char(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+         (c >= '0' && c <= '9') || c == '_' || c == '-';
+}
+
+int proto_name_check(const char *name, proto_name_kind kind, const char *what,
+                     proto_err *err) {
+  return proto_name_check_len(name, PROTO_NAME_LEN, kind, what, err);
+}
+
+int proto_name_check_len(const char *name, size_t cap, proto_name_kind kind,
+                         const char *what, proto_err *err) {
+  const char *why = NULL;
+  size_t len = name ? strnlen(name, cap) : 0;
+  if (len == 0) {
+    return proto_fail(err, "%s: empty (a name has 1 to %zu characters of "
+                      "A-Z a-z 0-9 _ -)", what, cap - 1);
+  } else if (len >= cap) {
+    why = "longer than the limit";
+  } else {
+    int seg = 0; /* characters in the current segment */
+    for (size_t i = 0; i < len && !why; i++) {
+      if (name_char(name[i])) {
+        seg++;
+      } else if (name[i] == '.' && kind == PROTO_NAME_DOTTED) {
+        if (seg == 0) why = "has an empty segment (leading or double dot)";
+        seg = 0;
+      } else {
+        why = name[i] == '/' ? "contains '/'" : "contains a character outside "
+                                                "A-Z a-z 0-9 _ -";
+      }
+    }
+    if (!why && seg == 0) why = "ends with a dot";
+  }
+  if (!why) return 0;
+  char shown[PROTO_PATH_CAP]; /* one line: newlines and tabs shown as '?' */
+  snprintf(shown, sizeof shown, "%.*s", (int)(cap - 1), name);
+  for (char *c = shown; *c; c++)
+    if (*c == '\n' || *c == '\t') *c = '?';
+  return proto_fail(err, "%s '%s': %s (a name has 1 to %zu characters of "
+                    "A-Z a-z 0-9 _ -%s)", what, shown, why, cap - 1,
+                    kind == PROTO_NAME_DOTTED ? ", in segments joined by single dots"
+                                              : "");
 }
 
 double proto_now(void) {
@@ -109,9 +189,9 @@ int proto_msg_add(proto_msg *m, const char *name, proto_dtype dtype, int ndim,
   if (m->narrays >= PROTO_MAX_ARRAYS || ndim < 1 || ndim > PROTO_MAX_NDIM ||
       strlen(name) >= PROTO_NAME_LEN || (unsigned)dtype > PROTO_U1)
     return -1;
-  /* names go into the JSON header verbatim: keep them plain */
-  for (const char *c = name; *c; c++)
-    if (*c == '"' || *c == '\\' || (unsigned char)*c < 0x20) return -1;
+  /* names go into the JSON header verbatim, and the receiver holds them to
+   * the name grammar: refuse here what it would refuse */
+  if (proto_name_check(name, PROTO_NAME_DOTTED, "array name", NULL) < 0) return -1;
   proto_array *a = &m->arrays[m->narrays++];
   memset(a, 0, sizeof *a);
   snprintf(a->name, sizeof a->name, "%s", name);
@@ -158,7 +238,7 @@ const proto_array *proto_msg_find(const proto_msg *m, const char *name) {
   return NULL;
 }
 
-static void shape_str(char *out, size_t cap, int ndim, const int64_t *shape) {
+void proto_shape_str(char *out, size_t cap, int ndim, const int64_t *shape) {
   size_t len = (size_t)snprintf(out, cap, "[");
   for (int i = 0; i < ndim && len < cap; i++) {
     if (shape[i] < 0)
@@ -175,13 +255,13 @@ const proto_array *proto_msg_get(const proto_msg *m, const char *name,
                                  const int64_t *shape, proto_err *err) {
   const proto_array *a = proto_msg_find(m, name);
   char want[96], got[96];
-  shape_str(want, sizeof want, ndim, shape);
+  proto_shape_str(want, sizeof want, ndim, shape);
   if (!a) {
     proto_fail(err, "message '%s': missing array '%s' (%s %s)", m->type, name,
                dtype_names[dtype], want);
     return NULL;
   }
-  shape_str(got, sizeof got, a->ndim, a->shape);
+  proto_shape_str(got, sizeof got, a->ndim, a->shape);
   int ok = a->dtype == dtype && a->ndim == ndim;
   for (int i = 0; ok && i < ndim; i++)
     if (shape[i] >= 0 && a->shape[i] != shape[i]) ok = 0;
@@ -335,13 +415,18 @@ static int parse_dtype(const char *s) {
 
 static int decode_array_spec(proto_array *a, const cJSON *spec, int idx,
                              size_t frame_bytes, proto_err *err) {
+  if (!cJSON_IsObject(spec))
+    return proto_fail(err, "arrays[%d]: expected an object {name, dtype, shape}",
+                      idx);
   const cJSON *name = cJSON_GetObjectItemCaseSensitive(spec, "name");
   const cJSON *dtype = cJSON_GetObjectItemCaseSensitive(spec, "dtype");
   const cJSON *shape = cJSON_GetObjectItemCaseSensitive(spec, "shape");
-  if (!cJSON_IsString(name) || strlen(name->valuestring) == 0 ||
-      strlen(name->valuestring) >= PROTO_NAME_LEN)
-    return proto_fail(err, "arrays[%d].name: expected a string of 1..%d chars",
-                      idx, PROTO_NAME_LEN - 1);
+  char what[32];
+  snprintf(what, sizeof what, "arrays[%d].name", idx);
+  if (!cJSON_IsString(name))
+    return proto_fail(err, "%s: expected a string", what);
+  if (proto_name_check(name->valuestring, PROTO_NAME_DOTTED, what, err) < 0)
+    return -1;
   int dt = cJSON_IsString(dtype) ? parse_dtype(dtype->valuestring) : -1;
   if (dt < 0)
     return proto_fail(err, "arrays[%d].dtype: expected one of f8, i4, i8, u1",
@@ -354,14 +439,16 @@ static int decode_array_spec(proto_array *a, const cJSON *spec, int idx,
   snprintf(a->name, sizeof a->name, "%s", name->valuestring);
   a->dtype = (proto_dtype)dt;
   a->ndim = ndim;
+  /* each dim <= 1e12 and the byte count compared in double (exact to 2^53,
+   * and the product of three dims <= 1e36 cannot overflow it) before any
+   * conversion to an integer type */
   double count = 1;
   for (int d = 0; d < ndim; d++) {
     const cJSON *e = cJSON_GetArrayItem(shape, d);
-    if (!cJSON_IsNumber(e) || e->valuedouble < 0 ||
-        e->valuedouble != (double)(int64_t)e->valuedouble ||
-        e->valuedouble > 1e12)
-      return proto_fail(err, "arrays[%d].shape[%d]: expected a count >= 0", idx,
-                        d);
+    if (!cJSON_IsNumber(e) || !(e->valuedouble >= 0 && e->valuedouble <= 1e12) ||
+        e->valuedouble != floor(e->valuedouble))
+      return proto_fail(err, "arrays[%d].shape[%d]: expected a count in [0, 1e12]",
+                        idx, d);
     a->shape[d] = (int64_t)e->valuedouble;
     count *= e->valuedouble;
   }
@@ -378,33 +465,78 @@ static int decode_array_spec(proto_array *a, const cJSON *spec, int idx,
   return 0;
 }
 
+/* An optional number field of the header: absent -> def; it must be finite
+ * and, if integral, an integer within +-PROTO_MAX_HEADER_INT. */
+static int header_number(const cJSON *h, const char *key, int integral,
+                         double def, double *out, proto_err *err) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(h, key);
+  *out = def;
+  if (!v) return 0;
+  double x = cJSON_IsNumber(v) ? v->valuedouble : NAN;
+  if (!isfinite(x))
+    return proto_fail(err, "header.%s: expected a finite number", key);
+  if (integral && (x != floor(x) || fabs(x) > PROTO_MAX_HEADER_INT))
+    return proto_fail(err, "header.%s: expected an integer, got %.17g", key, x);
+  *out = x;
+  return 0;
+}
+
+int proto_header_int(const proto_msg *m, const char *key, int64_t lo,
+                     int64_t hi, int64_t def, int64_t *out, proto_err *err) {
+  double x;
+  if (header_number(m->header, key, 1, (double)def, &x, err) < 0 ||
+      x < (double)lo || x > (double)hi)
+    return proto_fail(err, "message '%s': header field '%s' must be an integer "
+                      "in [%lld, %lld]", m->type, key, (long long)lo,
+                      (long long)hi);
+  *out = (int64_t)x;
+  return 0;
+}
+
+/* Parses exactly len bytes as one JSON value (trailing whitespace only). */
+static cJSON *parse_exact(const char *text, size_t len) {
+  const char *end = NULL;
+  cJSON *h = cJSON_ParseWithLengthOpts(text, len, &end, 0);
+  if (!h) return NULL;
+  for (const char *p = end; p && p < text + len; p++)
+    if (*p != ' ' && *p != '\t' && *p != '\n' && *p != '\r') {
+      cJSON_Delete(h);
+      return NULL;
+    }
+  return h;
+}
+
 static int decode_header(proto_msg *m, const char *text, size_t len,
                          const cJSON **specs, proto_err *err) {
-  cJSON *h = cJSON_ParseWithLength(text, len);
+  if (len > PROTO_MAX_HEADER_BYTES)
+    return proto_fail(err, "header of %zu bytes exceeds the limit of %zu", len,
+                      PROTO_MAX_HEADER_BYTES);
+  cJSON *h = parse_exact(text, len);
   if (!h || !cJSON_IsObject(h)) {
     cJSON_Delete(h);
     return proto_fail(err, "header is not a JSON object");
   }
   m->header = h;
+  if (proto_json_check_unique(h, "header", err) < 0) return -1;
   const cJSON *v = cJSON_GetObjectItemCaseSensitive(h, "v");
   const cJSON *type = cJSON_GetObjectItemCaseSensitive(h, "type");
-  const cJSON *step = cJSON_GetObjectItemCaseSensitive(h, "step");
-  const cJSON *t = cJSON_GetObjectItemCaseSensitive(h, "t");
   if (!cJSON_IsNumber(v))
     return proto_fail(err, "header.v: expected the protocol version number");
-  if (v->valueint != PROTO_VERSION)
-    return proto_fail(err, "protocol version mismatch: peer speaks v%d, this "
-                      "build speaks v%d", v->valueint, PROTO_VERSION);
-  if (!cJSON_IsString(type) || strlen(type->valuestring) == 0 ||
-      strlen(type->valuestring) >= PROTO_NAME_LEN)
-    return proto_fail(err, "header.type: expected a non-empty string");
+  if (v->valuedouble != PROTO_VERSION)
+    return proto_fail(err, "protocol version mismatch: peer speaks v%g, this "
+                      "build speaks v%d (the version is the integer %d)",
+                      v->valuedouble, PROTO_VERSION, PROTO_VERSION);
+  if (!cJSON_IsString(type))
+    return proto_fail(err, "header.type: expected a string");
+  if (proto_name_check(type->valuestring, PROTO_NAME_PLAIN, "header.type", err) < 0)
+    return -1;
   snprintf(m->type, sizeof m->type, "%s", type->valuestring);
-  if (step && !cJSON_IsNumber(step))
-    return proto_fail(err, "header.step: expected a number");
-  if (t && !cJSON_IsNumber(t))
-    return proto_fail(err, "header.t: expected a number");
-  m->step = step ? (int64_t)step->valuedouble : 0;
-  m->t = t ? t->valuedouble : 0.0;
+  double step, t;
+  if (header_number(h, "step", 1, 0, &step, err) < 0 ||
+      header_number(h, "t", 0, 0, &t, err) < 0)
+    return -1;
+  m->step = (int64_t)step;
+  m->t = t;
   *specs = cJSON_GetObjectItemCaseSensitive(h, "arrays");
   if (*specs && !cJSON_IsArray(*specs))
     return proto_fail(err, "header.arrays: expected a list");
@@ -420,6 +552,14 @@ int proto_decode(proto_msg *m, int nframes, const void *const *frames,
     return proto_fail(err, "topic longer than %d bytes", PROTO_NAME_LEN - 1);
   memcpy(m->topic, frames[0], sizes[0]);
   m->topic[sizes[0]] = 0;
+  /* the topic is a sender's name or "<name>.<what>" (or empty); an
+   * embedded NUL or a stray character is a defect, not a shorter name */
+  if (sizes[0] > 0 && (strlen(m->topic) != sizes[0] ||
+                       proto_name_check(m->topic, PROTO_NAME_DOTTED, "topic", err) < 0)) {
+    if (strlen(m->topic) != sizes[0]) proto_fail(err, "topic contains a NUL byte");
+    m->topic[0] = 0;
+    goto fail;
+  }
   const cJSON *specs = NULL;
   if (decode_header(m, frames[1], sizes[1], &specs, err) < 0) goto fail;
   int n = specs ? cJSON_GetArraySize(specs) : 0;
@@ -526,6 +666,12 @@ int proto_recv(void *socket, proto_msg *m, char *identity, proto_err *err) {
     return -1;
   }
   return 0;
+}
+
+int proto_socket_limits(void *socket) {
+  int64_t max = (int64_t)(PROTO_MAX_FRAME_BYTES > PROTO_MAX_HEADER_BYTES
+                              ? PROTO_MAX_FRAME_BYTES : PROTO_MAX_HEADER_BYTES);
+  return zmq_setsockopt(socket, ZMQ_MAXMSGSIZE, &max, sizeof max);
 }
 
 int proto_poll_in(void *socket, int timeout_ms) {

@@ -35,6 +35,12 @@ int proto_fail(proto_err *err, const char *fmt, ...)
 /* Prefixes the existing message: "context: <old message>". Returns -1. */
 int proto_wrap(proto_err *err, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));
+/* Makes text safe to print on a terminal, in place: control characters
+ * (C0 but newline and tab, DEL, C1) and bytes that are not UTF-8 become
+ * '?'. proto_fail and proto_wrap apply it to every message, so names and
+ * messages that came from a file or the wire never reach a terminal as
+ * escape sequences. */
+void proto_sanitize(char *text);
 
 /* ---------------------------------------------------------------- messages */
 
@@ -48,6 +54,22 @@ typedef enum proto_dtype {
 #define PROTO_MAX_ARRAYS 64
 #define PROTO_MAX_NDIM 3
 #define PROTO_NAME_LEN 48
+
+/* Names that become HDF5 paths, file names, XDMF text or terminal output
+ * (process names, array names, series datasets, snapshot names, message
+ * types, topics) follow one grammar, checked here and nowhere else:
+ * 1 to PROTO_NAME_LEN - 1 characters; a segment is [A-Za-z0-9_-]+; a plain
+ * name is one segment, a dotted name (array names with a prefix such as
+ * "series.wall_forces", bus topics "soil.series") segments joined by single
+ * dots. So no '/', no empty, "." or ".." segment, no space, quote or control
+ * character. `what` names the name in the error ("array name", "process
+ * name"); the offending name is quoted sanitised. */
+typedef enum { PROTO_NAME_PLAIN = 0, PROTO_NAME_DOTTED = 1 } proto_name_kind;
+int proto_name_check(const char *name, proto_name_kind kind, const char *what,
+                     proto_err *err);
+/* The same grammar for a name stored in cap bytes (a scene's name). */
+int proto_name_check_len(const char *name, size_t cap, proto_name_kind kind,
+                         const char *what, proto_err *err);
 
 typedef struct proto_array {
   char name[PROTO_NAME_LEN];
@@ -78,7 +100,8 @@ void proto_msg_reset(proto_msg *m, const char *topic, const char *type,
 void proto_msg_free(proto_msg *m);
 /* Adds an array that points at the caller's buffer (no copy). The buffer must
  * stay valid and unchanged until the peer has answered (lock-step) — for the
- * bus, proto_publish copies. shape has ndim entries. Returns -1 if full. */
+ * bus, proto_publish copies. shape has ndim entries. Returns -1 if full or
+ * if the name breaks proto_name_check (dotted), which the receiver enforces. */
 int proto_msg_add(proto_msg *m, const char *name, proto_dtype dtype, int ndim,
                   const int64_t *shape, const void *data);
 /* Shorthands for the common cases. */
@@ -95,6 +118,8 @@ cJSON *proto_msg_header(proto_msg *m);
 const proto_array *proto_msg_get(const proto_msg *m, const char *name,
                                  proto_dtype dtype, int ndim,
                                  const int64_t *shape, proto_err *err);
+/* "[2,3]" (an entry < 0 is shown as "*"), for messages. */
+void proto_shape_str(char *out, size_t cap, int ndim, const int64_t *shape);
 /* The same for f8 arrays: rows x cols (cols == 0: 1-D; -1: any). */
 const double *proto_msg_get_f8(const proto_msg *m, const char *name,
                                int64_t rows, int64_t cols, proto_err *err);
@@ -120,7 +145,20 @@ int proto_decode(proto_msg *m, int nframes, const void *const *frames,
 
 /* Largest array frame accepted (bytes); larger frames are rejected. */
 #define PROTO_MAX_FRAME_BYTES ((size_t)1 << 30)
+/* Largest header frame accepted (bytes): a welcome carries a config section. */
+#define PROTO_MAX_HEADER_BYTES ((size_t)64 << 20)
+/* Integer header fields (step, iteration) are within +-2^53: exact doubles. */
+#define PROTO_MAX_HEADER_INT 9007199254740992.0
+/* Reads an optional integer header field of a received message into *out
+ * (def when absent): it must be an integer in [lo, hi]. Errors name the
+ * message type and the field. */
+int proto_header_int(const proto_msg *m, const char *key, int64_t lo,
+                     int64_t hi, int64_t def, int64_t *out, proto_err *err);
 
+/* Sets the input limits of a receiving socket: a peer that sends a frame
+ * larger than PROTO_MAX_FRAME_BYTES is disconnected by ZeroMQ before the
+ * frame is allocated (proto_recv would refuse it only after). */
+int proto_socket_limits(void *socket);
 /* Waits up to timeout_ms for the socket to become readable.
  * Returns 1 readable, 0 timeout, -1 interrupted (EINTR). */
 int proto_poll_in(void *socket, int timeout_ms);
@@ -224,19 +262,33 @@ size_t proto_dtype_size(proto_dtype d);       /* bytes per element */
  * "messages", "dims"}. */
 cJSON *proto_role_table_json(void);
 
-/* Sizes the table's symbolic dims refer to, as one side of a conversation
- * knows them. A dim < 0 is unbound: the first array that has it binds it. */
+/* Limits of what a ready message may declare (PROTOCOL.md "Series",
+ * "Snapshots"). */
+#define PROTO_MAX_SERIES 8       /* series datasets per participant */
+#define PROTO_MAX_COLUMNS 64     /* columns per series dataset */
+#define PROTO_MAX_SNAP_ATTRS 16  /* snapshot attributes shown in XDMF */
+
+/* What one side of a conversation has bound so far: the sizes the table's
+ * symbolic dims refer to (a dim < 0 is unbound: the first array that has it
+ * binds it), and the series datasets the participant declared in its ready
+ * message, which every done must then carry. */
 typedef struct proto_dims {
   int64_t nodes, tris; /* -1 until bound */
   int surface;         /* a coupled surface exists (WHEN_SURFACE arrays due) */
+  int n_series;        /* datasets declared in ready.series */
+  char series[PROTO_MAX_SERIES][PROTO_NAME_LEN]; /* their names */
+  int series_cols[PROTO_MAX_SERIES];             /* their column counts */
 } proto_dims;
 void proto_dims_init(proto_dims *d);
 /* Checks message m (kind of role) against the table: every array the table
  * lists for it (and due under d->surface) is present with its dtype and
  * shape. In welcome/ready, the presence of any WHEN_SURFACE array sets
  * d->surface. Errors name the array, the expected shape with its symbols
- * and values, and its meaning. Arrays the table does not list (series,
- * snap., mesh., state.) are not checked here. */
+ * and values, and its meaning. Beyond the table: a ready's "series" and
+ * "snapshot" declarations are checked (names by proto_name_check, column
+ * lists, limits) and the series kept in d; a done must then carry exactly
+ * the declared series arrays (f8 [columns] each), so no row goes missing
+ * from one dataset while the others grow. */
 int proto_role_check(proto_role role, proto_msg_kind kind, const proto_msg *m,
                      proto_dims *d, proto_err *err);
 /* Data of an array already checked by proto_role_check (NULL if absent). */
@@ -347,13 +399,34 @@ int proto_peer_publish(proto_peer *peer, const proto_msg *m);
 
 /* ------------------------------------------------------------------ config */
 
+#define PROTO_PATH_CAP 256 /* key paths in messages ("processes.dem.walls[2].n") */
+/* Largest JSON text read (a scene, a section on stdin). */
+#define PROTO_MAX_JSON_BYTES ((size_t)256 << 20)
+
 /* Parses JSON text; malformed input reports line and column:
- * "scene.json:12:5: malformed JSON near '...'" . Returns NULL on error. */
+ * "scene.json:12:5: malformed JSON near '...'". A key given twice in any
+ * object (cJSON would keep both silently) is an error naming its path:
+ * "scene.json: processes.dem.materials[1].E: duplicate key (given 2
+ * times)". Returns NULL on error. */
 cJSON *proto_json_parse(const char *text, const char *source_name,
                         proto_err *err);
-cJSON *proto_json_load(const char *path, proto_err *err);
-/* Applies "a.b[2].c=value" (value parsed as JSON if it parses, else as a
- * string). Creates missing object keys. */
+cJSON *proto_json_load(const char *path, proto_err *err); /* "-": stdin */
+/* The duplicate-key check alone, on a parsed tree (path: its key path, may
+ * be "" for the root). Received headers get it too (proto_decode). */
+int proto_json_check_unique(const cJSON *node, const char *path,
+                            proto_err *err);
+/* Applies one --set override (README "--set"). Two forms:
+ *   KEY.PATH=VALUE   VALUE is text. It stays a string when it is not as a
+ *                    whole one JSON value ("output.dir=2024/run1" is the
+ *                    string "2024/run1"), and when the scene has a string at
+ *                    KEY.PATH (then "output.dir=2024" is the string "2024";
+ *                    only a "quoted" VALUE is read as a JSON string there).
+ *                    Otherwise a number, true, false, null, a "quoted
+ *                    string", {...} or [...] is that JSON value.
+ *   KEY.PATH:=JSON   VALUE must be one JSON value, of any type.
+ * Missing object keys on the path are created; an index [i] must exist.
+ * A value that the key's reader does not accept is reported by the reader
+ * (e.g. "output.dir: expected a string, got a number"). */
 int proto_json_set(cJSON *root, const char *assignment, proto_err *err);
 
 /* Key reader: wraps an object and its path; every getter marks the key as
@@ -363,7 +436,7 @@ int proto_json_set(cJSON *root, const char *assignment, proto_err *err);
  * default given. */
 typedef struct proto_cfg {
   const cJSON *obj;
-  char path[256];
+  char path[PROTO_PATH_CAP];
   uint64_t used; /* bitmask over the object's first 64 keys */
   proto_err *err;
 } proto_cfg;
@@ -430,6 +503,41 @@ int64_t proto_series_rows(const proto_series *s);
  * "<group>/<a->name>"; groups made as needed. */
 int proto_h5_write_array(proto_h5 *f, const char *group, const proto_array *a,
                          proto_err *err);
+
+/* ------------------------------------------------------------- HDF5 input
+ *
+ * Reading HDF5 files made elsewhere (roads, springs, Green's functions,
+ * saved beds), which may be damaged or hostile. Objects are looked up level
+ * by level; a dataset's class must be numeric and its rank and dims are
+ * checked against what the reader expects, its element count
+ * (overflow-checked) against max_elems, before anything is allocated; its
+ * values must be finite; an attribute must hold exactly one value. Errors
+ * name "<file>:<object>: <what>". */
+typedef struct proto_h5in proto_h5in;
+#define PROTO_H5IN_MAX_RANK 4
+
+proto_h5in *proto_h5in_open(const char *path, proto_err *err);
+void proto_h5in_close(proto_h5in *f); /* NULL is fine */
+const char *proto_h5in_path(const proto_h5in *f);
+/* 1 if the object (group or dataset, "/a/b") exists, else 0. */
+int proto_h5in_exists(proto_h5in *f, const char *obj);
+/* The rank of dataset obj, or -1. */
+int proto_h5in_rank(proto_h5in *f, const char *obj, proto_err *err);
+/* Reads dataset obj of the given rank as doubles (any integer or float
+ * type). dims[i] in: the size expected, or -1 for any; out: the size found.
+ * *out is malloc'ed (caller frees). */
+int proto_h5in_read_f8(proto_h5in *f, const char *obj, int rank, int64_t *dims,
+                       int64_t max_elems, double **out, proto_err *err);
+/* The same as int32 (integer types only; values beyond int32 saturate: the
+ * caller checks the range it needs). */
+int proto_h5in_read_i4(proto_h5in *f, const char *obj, int rank, int64_t *dims,
+                       int64_t max_elems, int32_t **out, proto_err *err);
+/* Attribute `name` of object obj: 0 read, 1 absent (out untouched), -1 bad
+ * (not one value, wrong type, not finite). Strings are truncated to cap. */
+int proto_h5in_attr_f8(proto_h5in *f, const char *obj, const char *name,
+                       double *v, proto_err *err);
+int proto_h5in_attr_str(proto_h5in *f, const char *obj, const char *name,
+                        char *out, size_t cap, proto_err *err);
 
 /* XDMF companion: describes snapshot groups of the HDF5 file so ParaView can
  * open them as a time series. Points (grains) or tetrahedra (a mesh). */

@@ -102,8 +102,8 @@ const char *proto_msg_type(proto_msg_kind k) {
 int proto_msg_kind_parse(const char *type) { return index_of(type, msg_types, PROTO_N_MSGS); }
 
 void proto_dims_init(proto_dims *d) {
+  memset(d, 0, sizeof *d);
   d->nodes = d->tris = -1;
-  d->surface = 0;
 }
 
 static int64_t *dim_slot(proto_dims *d, int64_t sym) {
@@ -175,8 +175,126 @@ static int check_one(const proto_array_spec *s, const proto_array *a,
   return 0;
 }
 
+/* ------------------------------------------- participant-defined arrays */
+
+/* A column name is free text for people (HDF5 attribute, the run summary):
+ * 1..PROTO_NAME_LEN-1 bytes of printable UTF-8. */
+static int column_ok(const char *c) {
+  char copy[PROTO_NAME_LEN];
+  size_t n = strlen(c);
+  if (n == 0 || n >= sizeof copy) return 0;
+  memcpy(copy, c, n + 1);
+  proto_sanitize(copy);
+  return strcmp(copy, c) == 0 && strcspn(c, "\n\t") == n;
+}
+
+/* The name of the array that carries dataset ds's row in a done. */
+static void series_array(const char *ds, char *out, size_t cap) {
+  if (strcmp(ds, PROTO_A_SERIES) == 0) snprintf(out, cap, "%s", PROTO_A_SERIES);
+  else snprintf(out, cap, "%s%s", PROTO_P_SERIES, ds);
+}
+
+/* ready.series: {dataset: [column names]}; kept in d for the dones. */
+static int check_series_decl(const cJSON *series, proto_dims *d, proto_err *err) {
+  d->n_series = 0;
+  if (!series) return 0;
+  if (!cJSON_IsObject(series))
+    return proto_fail(err, "ready.series: expected an object {dataset: [column "
+                      "names]}");
+  for (const cJSON *ds = series->child; ds; ds = ds->next) {
+    if (d->n_series == PROTO_MAX_SERIES)
+      return proto_fail(err, "ready.series: more than %d datasets", PROTO_MAX_SERIES);
+    if (proto_name_check(ds->string, PROTO_NAME_PLAIN, "ready.series: dataset",
+                         err) < 0)
+      return -1;
+    int ncols = cJSON_IsArray(ds) ? cJSON_GetArraySize(ds) : 0;
+    if (ncols < 1 || ncols > PROTO_MAX_COLUMNS)
+      return proto_fail(err, "ready.series.%s: expected a list of 1 to %d column "
+                        "names", ds->string, PROTO_MAX_COLUMNS);
+    int i = 0;
+    for (const cJSON *c = ds->child; c; c = c->next, i++)
+      if (!cJSON_IsString(c) || !column_ok(c->valuestring))
+        return proto_fail(err, "ready.series.%s[%d]: expected a column name of 1 "
+                          "to %d printable characters", ds->string, i,
+                          PROTO_NAME_LEN - 1);
+    snprintf(d->series[d->n_series], PROTO_NAME_LEN, "%s", ds->string);
+    d->series_cols[d->n_series++] = ncols;
+  }
+  return 0;
+}
+
+/* ready.snapshot: the names it gives become HDF5 paths and XDMF text. */
+static int check_snapshot_decl(const cJSON *snap, proto_err *err) {
+  if (!snap || cJSON_IsNull(snap)) return 0;
+  if (!cJSON_IsObject(snap))
+    return proto_fail(err, "ready.snapshot: expected an object {kind, geometry, "
+                      "cells, attributes}");
+  static const char *const names[] = {"kind", "geometry", "cells"};
+  for (int k = 0; k < 3; k++) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(snap, names[k]);
+    char what[32];
+    snprintf(what, sizeof what, "ready.snapshot.%s", names[k]);
+    if (!v || cJSON_IsNull(v)) continue;
+    if (!cJSON_IsString(v)) return proto_fail(err, "%s: expected a name", what);
+    if (proto_name_check(v->valuestring, PROTO_NAME_PLAIN, what, err) < 0) return -1;
+  }
+  const cJSON *attrs = cJSON_GetObjectItemCaseSensitive(snap, "attributes");
+  if (!attrs || cJSON_IsNull(attrs)) return 0;
+  int n = cJSON_IsArray(attrs) ? cJSON_GetArraySize(attrs) : -1;
+  if (n < 0 || n > PROTO_MAX_SNAP_ATTRS)
+    return proto_fail(err, "ready.snapshot.attributes: expected a list of at most "
+                      "%d names", PROTO_MAX_SNAP_ATTRS);
+  int i = 0;
+  for (const cJSON *a = attrs->child; a; a = a->next, i++) {
+    char what[48];
+    snprintf(what, sizeof what, "ready.snapshot.attributes[%d]", i);
+    if (!cJSON_IsString(a)) return proto_fail(err, "%s: expected a name", what);
+    if (proto_name_check(a->valuestring, PROTO_NAME_PLAIN, what, err) < 0) return -1;
+  }
+  return 0;
+}
+
+/* A done carries exactly the declared series: one f8 row each. */
+static int check_done_series(const proto_msg *m, const proto_dims *d,
+                             proto_err *err) {
+  for (int i = 0; i < d->n_series; i++) {
+    char name[PROTO_NAME_LEN + 8];
+    series_array(d->series[i], name, sizeof name);
+    const proto_array *a = proto_msg_find(m, name);
+    if (!a || a->dtype != PROTO_F8 || a->ndim != 1 || a->shape[0] != d->series_cols[i])
+      return proto_fail(err, "done: %s array '%s' (f8 [%d]): ready declared the "
+                        "series dataset '%s' with %d columns, so every done "
+                        "carries its row", a ? "wrong shape or dtype of" : "missing",
+                        name, d->series_cols[i], d->series[i], d->series_cols[i]);
+  }
+  const size_t plen = strlen(PROTO_P_SERIES);
+  for (int i = 0; i < m->narrays; i++) {
+    const char *name = m->arrays[i].name;
+    const char *ds = strcmp(name, PROTO_A_SERIES) == 0 ? name
+                     : strncmp(name, PROTO_P_SERIES, plen) == 0 ? name + plen
+                                                                : NULL;
+    int declared = 0;
+    for (int k = 0; ds && k < d->n_series; k++) {
+      char want[PROTO_NAME_LEN + 8];
+      series_array(d->series[k], want, sizeof want);
+      declared |= strcmp(want, name) == 0;
+    }
+    if (ds && !declared)
+      return proto_fail(err, "done: array '%s' belongs to no series dataset "
+                        "declared in ready.series", name);
+  }
+  return 0;
+}
+
 int proto_role_check(proto_role role, proto_msg_kind kind, const proto_msg *m,
                      proto_dims *d, proto_err *err) {
+  if (kind == PROTO_MSG_READY &&
+      (check_series_decl(cJSON_GetObjectItemCaseSensitive(m->header, PROTO_H_SERIES),
+                         d, err) < 0 ||
+       check_snapshot_decl(cJSON_GetObjectItemCaseSensitive(m->header, PROTO_H_SNAPSHOT),
+                           err) < 0))
+    return -1;
+  if (kind == PROTO_MSG_DONE && check_done_series(m, d, err) < 0) return -1;
   int n;
   const proto_array_spec *t = proto_role_table(&n);
   int declaring = kind == PROTO_MSG_WELCOME || kind == PROTO_MSG_READY;

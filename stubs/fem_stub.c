@@ -7,6 +7,7 @@
  *          "triangles": [[i,j,k]...]}}. Without "surface" (standing in for
  * fem_server, whose other keys are named in the log and ignored) it is the
  * default plane: a tread-sized patch at the bottom of the 165/65 R13 tyre. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -81,25 +82,26 @@ static int explicit_mesh(fem_stub *s, proto_cfg *c) {
   s->x0 = malloc(sizeof(double) * 3 * (size_t)s->n_nodes);
   s->tri = malloc(sizeof(int32_t) * 3 * (size_t)s->n_tris);
   if (!s->x0 || !s->tri) return proto_fail(c->err, "out of memory");
-  for (int64_t i = 0; i < s->n_nodes; i++) {
-    const cJSON *p = cJSON_GetArrayItem(nodes, (int)i);
+  /* walk the lists (cJSON_GetArrayItem(list, i) would be quadratic) */
+  const cJSON *p = nodes->child;
+  for (int64_t i = 0; i < s->n_nodes; i++, p = p->next) {
     for (int a = 0; a < 3; a++) {
       const cJSON *v = cJSON_IsArray(p) && cJSON_GetArraySize(p) == 3
                            ? cJSON_GetArrayItem(p, a) : NULL;
-      if (!cJSON_IsNumber(v)) {
+      if (!cJSON_IsNumber(v) || !isfinite(v->valuedouble)) {
         proto_cfg_subpath(c, "nodes", (int)i, path, sizeof path);
         return proto_fail(c->err, "%s: expected [x, y, z]", path);
       }
       s->x0[3 * i + a] = v->valuedouble;
     }
   }
-  for (int64_t i = 0; i < s->n_tris; i++) {
-    const cJSON *p = cJSON_GetArrayItem(tris, (int)i);
+  p = tris->child;
+  for (int64_t i = 0; i < s->n_tris; i++, p = p->next) {
     for (int a = 0; a < 3; a++) {
       const cJSON *v = cJSON_IsArray(p) && cJSON_GetArraySize(p) == 3
                            ? cJSON_GetArrayItem(p, a) : NULL;
-      if (!cJSON_IsNumber(v) || v->valuedouble < 0 ||
-          v->valuedouble >= (double)s->n_nodes) {
+      if (!cJSON_IsNumber(v) || !(v->valuedouble >= 0) ||
+          v->valuedouble >= (double)s->n_nodes || v->valuedouble != floor(v->valuedouble)) {
         proto_cfg_subpath(c, "triangles", (int)i, path, sizeof path);
         return proto_fail(c->err, "%s: expected three node indices in [0, %lld)",
                           path, (long long)s->n_nodes);

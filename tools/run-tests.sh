@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # Builds cosim (installing what is missing) and runs the whole test suite:
 # once in a Release build, then once more built with AddressSanitizer and
-# UndefinedBehaviorSanitizer (skip that pass with COSIM_NO_SANITIZE=1).
+# UndefinedBehaviorSanitizer (skip that pass with COSIM_NO_SANITIZE=1), then
+# a short run of each fuzz harness (tests/fuzz, clang's libFuzzer under ASan +
+# UBSan with LeakSanitizer; COSIM_FUZZ_SECONDS each, default 20; skip with
+# COSIM_NO_FUZZ=1).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs=$(nproc)
@@ -14,4 +17,10 @@ if [ "${COSIM_NO_SANITIZE:-0}" != 1 ]; then
   # slow-labelled tests are left to the Release pass
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     ctest --test-dir build-asan --output-on-failure -j"$jobs" --timeout 900 -LE slow
+fi
+if [ "${COSIM_NO_FUZZ:-0}" != 1 ]; then
+  echo "== fuzz (libFuzzer, ASan + UBSan, ${COSIM_FUZZ_SECONDS:-20} s per harness)"
+  COSIM_BUILD_DIR=build-fuzz COSIM_BUILD_TARGET=fuzz_all bash tools/setup.sh \
+    -DCMAKE_C_COMPILER=clang -DCOSIM_FUZZ=ON -DFUZZ_SECONDS="${COSIM_FUZZ_SECONDS:-20}"
+  ctest --test-dir build-fuzz --output-on-failure -j"$jobs" -L fuzz
 fi

@@ -7,6 +7,8 @@ cd "$(dirname "$0")/.."
 PACKAGES="build-essential cmake pkg-config libzmq3-dev libhdf5-dev \
 libsuitesparse-dev libopenblas-dev libcjson-dev libfftw3-dev \
 python3 python3-numpy python3-h5py python3-matplotlib python3-zmq"
+# the fuzz build (tests/fuzz) needs clang, its libFuzzer runtime and its OpenMP
+case " $* " in *COSIM_FUZZ=ON*) PACKAGES="$PACKAGES clang libclang-rt-14-dev libomp-dev" ;; esac
 missing=""
 for p in $PACKAGES; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
@@ -18,8 +20,9 @@ if [ -n "$missing" ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq $missing >/dev/null
 fi
 BUILD=${COSIM_BUILD_DIR:-build}
+TARGET=${COSIM_BUILD_TARGET:-all} # e.g. fuzz_all: only the fuzz harnesses
 cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release "$@" >/dev/null
-cmake --build "$BUILD" -j"$(nproc)" 2>&1 | grep -Ev '^\[|^-- |Consolidate|^$' || true
+cmake --build "$BUILD" -j"$(nproc)" --target "$TARGET" 2>&1 | grep -Ev '^\[|^-- |Consolidate|^$' || true
 # the build must have succeeded: fail loudly if not
-cmake --build "$BUILD" -j"$(nproc)" >/dev/null
+cmake --build "$BUILD" -j"$(nproc)" --target "$TARGET" >/dev/null
 echo "setup: built into $BUILD/bin"

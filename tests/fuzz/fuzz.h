@@ -1,0 +1,61 @@
+/* fuzz.h — shared helpers of the libFuzzer harnesses (tests/fuzz/README.md).
+ * Each harness defines LLVMFuzzerTestOneInput; built with -DCOSIM_FUZZ=ON
+ * (clang) it is a libFuzzer binary, otherwise replay.c gives it a main()
+ * that runs the corpus files through it (the regression test). */
+#ifndef COSIM_FUZZ_H
+#define COSIM_FUZZ_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+/* A copy of data with a NUL appended (text parsers). */
+static inline char *fuzz_text(const uint8_t *data, size_t size) {
+  char *t = malloc(size + 1);
+  if (!t) return NULL;
+  if (size) memcpy(t, data, size);
+  t[size] = 0;
+  return t;
+}
+
+/* A per-process scratch file (in /dev/shm when there is one) holding data;
+ * returns its path (static storage). The file readers under test take paths. */
+static inline const char *fuzz_file(const uint8_t *data, size_t size,
+                                    const char *suffix) {
+  static char path[256];
+  const char *dir = access("/dev/shm", W_OK) == 0 ? "/dev/shm" : "/tmp";
+  snprintf(path, sizeof path, "%s/cosim-fuzz-%d%s", dir, (int)getpid(), suffix);
+  FILE *f = fopen(path, "wb");
+  if (!f) return NULL;
+  size_t w = size ? fwrite(data, 1, size, f) : 0;
+  if (fclose(f) != 0 || w != size) return NULL;
+  return path;
+}
+
+/* Splits data at every occurrence of sep into at most max pieces (the last
+ * piece takes the rest); returns the count. Pieces point into data. */
+static inline int fuzz_split(const uint8_t *data, size_t size, const char *sep,
+                             int max, const uint8_t **piece, size_t *len) {
+  size_t n = strlen(sep), start = 0;
+  int k = 0;
+  for (size_t i = 0; k < max - 1 && i + n <= size;) {
+    if (memcmp(data + i, sep, n) == 0) {
+      piece[k] = data + start;
+      len[k++] = i - start;
+      i += n;
+      start = i;
+    } else {
+      i++;
+    }
+  }
+  piece[k] = data + start;
+  len[k++] = size - start;
+  return k;
+}
+
+#endif

@@ -1,0 +1,73 @@
+/* fuzz_conversation — a participant's side of a conversation as the coupler
+ * sees it: messages (separated by "|##|", frames within by "|#|") decoded and
+ * checked against the role table with one proto_dims that carries what
+ * earlier messages bound (n, m, the surface, the declared series). After a
+ * message passes, every array the table lists is read in full at the size
+ * the dims say, and every declared series row too: a message the check
+ * accepts must really hold what it promises. The first byte picks the role. */
+#include "fuzz.h"
+#include "proto/proto.h"
+
+#define MSG_SEP "|##|"
+#define SEP "|#|"
+#define MAX_MSGS 16
+#define MAX_FRAMES (PROTO_MAX_ARRAYS + 4)
+
+static double read_checked(proto_role role, proto_msg_kind kind, const proto_msg *m,
+                           const proto_dims *d) {
+  int n;
+  const proto_array_spec *t = proto_role_table(&n);
+  double sum = 0;
+  for (int i = 0; i < n; i++) {
+    if (t[i].role != role || t[i].msg != kind) continue;
+    const unsigned char *p = proto_msg_data(m, t[i].name);
+    if (!p) continue; /* a WHEN_SURFACE array without a surface */
+    int64_t count = 1;
+    for (int k = 0; k < t[i].ndim; k++)
+      count *= t[i].dims[k] > 0 ? t[i].dims[k]
+               : t[i].dims[k] == PROTO_DIM_NODES ? d->nodes : d->tris;
+    for (int64_t b = 0; b < count * (int64_t)proto_dtype_size(t[i].dtype); b++) sum += p[b];
+  }
+  if (kind == PROTO_MSG_DONE)
+    for (int s = 0; s < d->n_series; s++) {
+      char name[PROTO_NAME_LEN + 8];
+      snprintf(name, sizeof name, "%s%s", strcmp(d->series[s], PROTO_A_SERIES) ? PROTO_P_SERIES : "",
+               d->series[s]);
+      const double *row = proto_msg_data(m, name);
+      if (!row) __builtin_trap(); /* checked, so it must be there */
+      for (int c = 0; c < d->series_cols[s]; c++) sum += row[c];
+    }
+  return sum;
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+  if (size < 1) return 0;
+  proto_role role = (proto_role)(data[0] % PROTO_N_ROLES);
+  const uint8_t *msg[MAX_MSGS];
+  size_t mlen[MAX_MSGS];
+  int nm = fuzz_split(data + 1, size - 1, MSG_SEP, MAX_MSGS, msg, mlen);
+  proto_dims d;
+  proto_dims_init(&d);
+  proto_err err = {{0}};
+  proto_msg m = {0};
+  for (int k = 0; k < nm; k++) {
+    const uint8_t *piece[MAX_FRAMES];
+    size_t len[MAX_FRAMES];
+    int n = fuzz_split(msg[k], mlen[k], SEP, MAX_FRAMES, piece, len);
+    void *frame[MAX_FRAMES];
+    for (int i = 0; i < n; i++) {
+      frame[i] = malloc(len[i] ? len[i] : 1);
+      if (len[i]) memcpy(frame[i], piece[i], len[i]);
+    }
+    if (proto_decode(&m, n, (const void *const *)frame, len, &err) == 0) {
+      int kind = proto_msg_kind_parse(m.type);
+      if (kind >= 0 && proto_role_check(role, (proto_msg_kind)kind, &m, &d, &err) == 0) {
+        volatile double s = read_checked(role, (proto_msg_kind)kind, &m, &d);
+        (void)s;
+      }
+    }
+    proto_msg_free(&m);
+    for (int i = 0; i < n; i++) free(frame[i]);
+  }
+  return 0;
+}
