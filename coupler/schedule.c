@@ -288,7 +288,7 @@ static int run_stage(cpl_runner *r, int stage, int64_t k, int iteration, int out
   while (waiting > 0) {
     int from = -1;
     double t0 = proto_now();
-    if (cpl_receive(r, -1, r->scene->step_timeout, NULL, &from) < 0) return -1;
+    if (cpl_receive(r, -1, r->scene->step_timeout, "step_timeout", NULL, &from) < 0) return -1;
     double now = proto_now();
     r->t_blocked += now - t0;
     if (!in_stage(r, stage, from) || replied[from]) {
