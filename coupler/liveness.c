@@ -15,8 +15,10 @@
 #include <stdio.h>
 #include <string.h>
 
-#define WATCH_MAX_GAP_S 1.0 /* the most one look credits: more is the coupler's pause */
 #define POLL_MS 100
+/* The most one look credits (a little more than a poll): a longer gap is
+ * the coupler's own pause, or its own work between two waits. */
+#define WATCH_MAX_GAP_S 0.25
 #define STRANGERS_SHOWN 5   /* unknown identities logged; then only counted */
 
 double cpl_watch(cpl_runner *r) {
@@ -81,6 +83,11 @@ int cpl_send(cpl_runner *r, int peer, const proto_msg *m) {
   if (proto_send_to(r->router, r->peers[peer].proc->name, m, &r->err) == 0)
     return 0;
   r->failed_peer = peer;
+  /* its connection is gone: if it died, say how (waitpid may need a moment) */
+  for (int tries = 0; tries < 10; tries++) {
+    if (check_children(r) < 0) return -1;
+    proto_poll_in(r->router, 10);
+  }
   return -1;
 }
 
