@@ -289,7 +289,8 @@ static int run_stage(cpl_runner *r, int stage, int64_t k, int iteration, int out
     int from = -1;
     double t0 = proto_now();
     if (cpl_receive(r, -1, r->scene->step_timeout, "step_timeout", NULL, &from) < 0) {
-      for (int e = 0; e < r->nex && r->failed_peer < 0; e++) /* name who is late */
+      const int late = r->failed_peer < 0 && strstr(r->err.msg, "did not answer");
+      for (int e = 0; e < r->nex && late && r->failed_peer < 0; e++) /* name who is late */
         if (r->ex[e].stage == stage && r->ex[e].peer >= 0 && !replied[r->ex[e].peer]) {
           r->failed_peer = r->ex[e].peer;
           proto_fail(&r->err, "participant '%s' did not answer within %g s "

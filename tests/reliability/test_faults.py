@@ -5,11 +5,8 @@
 - SIGSTOP of the coupler for longer than step_timeout and heartbeat_timeout,
   then SIGCONT (Ctrl-Z, fg): the run finishes, complete;
 - SIGSTOP of a participant: named within heartbeat_timeout (exit 3), long
-  before step_timeout;
-- the DEM settling its bed (a long init) reports progress, which `cosim run`
-  shows and which keeps a short handshake_timeout from firing; stopped in
-  the middle of it, it is named within heartbeat_timeout although
-  handshake_timeout is long."""
+  before step_timeout.
+(A long init: test_settle_liveness.py.)"""
 import os
 import random
 import signal
@@ -22,7 +19,6 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "e2e"))
 from common import BIN, COSIM, check, done, h5, no_orphans, processes_with, scene, write  # noqa: E402
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def tyre_scene(name, end):
@@ -69,7 +65,7 @@ for seed in (1, 2, 3):
         s = tyre_scene(f"kill{seed}{victim}", 1000.0)
         p = start(s)
         pid = pid_of(s, victim)
-        time.sleep(rng.uniform(0.3, 1.5))  # a random step (the run does ~10^4 steps/s)
+        time.sleep(rng.uniform(0.2, 0.8))  # a random step (the run does ~10^4 steps/s)
         os.kill(pid, signal.SIGKILL)
         out, err = p.communicate(timeout=60)
         what = f"seed {seed}, SIGKILL {victim}"
@@ -112,34 +108,4 @@ check(p.returncode == 3 and "participant 'dem'" in err and "silent" in err and
 check(took < 10, f"within seconds ({took:.1f} s; heartbeat_timeout 2 s, step_timeout 60 s)")
 no_orphans(s, "stopped participant")
 
-# --- a long init: progress shown, a short handshake_timeout does not fire;
-# stopped while settling, the DEM is named within heartbeat_timeout
-default = os.path.join(ROOT, "configs", "default.json")
-out_dir = os.path.join(os.path.dirname(s["output"]["dir"]), "settle")
-marker = f"settle_{os.getpid()}"
-common = ["--set", f"name={marker}", "--set", f"output.dir={out_dir}", "--overwrite"]
-t0 = time.time()
-p = subprocess.run([COSIM, "run", default, *common, "--set", "time.end=1e-4",
-                    "--set", "coupling.handshake_timeout=2"],
-                   capture_output=True, text=True, timeout=600)
-took = time.time() - t0
-check(p.returncode == 0 and "dem: settling the bed" in p.stdout,
-      f"settling reports progress and outlives handshake_timeout 2 s ({took:.1f} s run: "
-      f"{p.returncode}: {p.stdout[-300:]} {p.stderr[-300:]})")
-p = subprocess.Popen([COSIM, "run", default, *common, "--set", "coupling.handshake_timeout=300",
-                      "--set", "coupling.heartbeat_timeout=2"], stdout=subprocess.PIPE,
-                     stderr=subprocess.PIPE, text=True)
-line = ""
-while "settling" not in line and p.poll() is None:  # the first progress line: it settles
-    line = p.stdout.readline()
-pid = pid_of({"name": marker}, "dem")
-os.kill(pid, signal.SIGSTOP)
-t0 = time.time()
-out, err = p.communicate(timeout=120)
-took = time.time() - t0
-check("settling the bed" in line, f"progress while settling ({line.strip()})")
-check(p.returncode == 3 and "participant 'dem'" in err and "silent" in err,
-      f"stopped while settling: named ({p.returncode}: {err[-300:]})")
-check(took < 15, f"within seconds ({took:.1f} s; heartbeat_timeout 2 s, handshake_timeout 300 s)")
-no_orphans({"name": marker}, "stopped while settling")
 done()
