@@ -157,7 +157,10 @@ static int wait_groups(cpl_child *cs, int n, double seconds) {
 void cpl_stop_all(cpl_child *cs, int n, double grace_s) {
   if (wait_groups(cs, n, grace_s) == 0) return;
   for (int i = 0; i < n; i++)
-    if (cs[i].running || group_alive(&cs[i])) signal_group(&cs[i], SIGTERM);
+    if (cs[i].running || group_alive(&cs[i])) {
+      signal_group(&cs[i], SIGTERM);
+      signal_group(&cs[i], SIGCONT); /* a stopped process acts on it only when continued */
+    }
   if (wait_groups(cs, n, 2.0) == 0) return;
   for (int i = 0; i < n; i++)
     if (cs[i].running || group_alive(&cs[i])) signal_group(&cs[i], SIGKILL);

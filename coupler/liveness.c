@@ -208,6 +208,7 @@ int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
       r->failed_peer = sender;
       return proto_wrap(&r->err, "from participant '%s'", identity);
     }
+    cpl_printable(dst->type, sizeof dst->type, dst->type); /* it may reach the terminal */
     if (strcmp(dst->type, proto_msg_type(PROTO_MSG_HEARTBEAT)) == 0) {
       take_heartbeat(r, sender, dst);
       continue;

@@ -486,8 +486,10 @@ int cpl_run(cpl_scene *s, const cpl_run_opts *opts) {
                 : r->exit_code         ? r->exit_code
                 : r->failed_peer >= 0  ? CPL_EXIT_PARTICIPANT
                                        : CPL_EXIT_USAGE;
+    char msg[sizeof r->err.msg]; /* parts of it may come from the wire or a log */
+    cpl_printable(msg, sizeof msg, r->err.msg);
     fprintf(stderr, "\ncosim: run '%s' failed: %s%s\n", s->name,
-            exit_code == CPL_EXIT_OUTPUT ? "output error: " : "", r->err.msg);
+            exit_code == CPL_EXIT_OUTPUT ? "output error: " : "", msg);
     if (r->failed_peer >= 0 && exit_code == CPL_EXIT_PARTICIPANT)
       fprintf(stderr, "cosim: failed participant: %s\n",
                 r->peers[r->failed_peer].proc->name);
