@@ -22,6 +22,9 @@
 #define H5_PATH_CAP 256   /* object paths inside the file */
 #define FILE_PATH_CAP 512 /* the file's own path, for messages */
 
+/* bytes: HDF5's metadata cache of a file (its default maximum is 32 MiB) */
+#define METADATA_CACHE_MAX ((size_t)2 << 20)
+
 enum {
   SERIES_CHUNK_ROWS = 256,
   SERIES_CHUNK_BYTES = 1 << 20, /* fewer rows per chunk for very wide series */
@@ -225,6 +228,15 @@ static proto_h5 *h5_file(const char *path, int create, int writable,
   /* Keep locking, but do not fail on file systems without it (NFS...). */
   if (fapl >= 0) H5Pset_file_locking(fapl, 1, 1);
 #endif
+  /* A long run adds chunk-index nodes to the metadata cache, which HDF5
+   * would let grow to 32 MiB: cap it, so that memory stays flat. */
+  H5AC_cache_config_t mdc = {.version = H5AC__CURR_CACHE_CONFIG_VERSION};
+  if (fapl >= 0 && H5Pget_mdc_config(fapl, &mdc) >= 0) {
+    mdc.max_size = METADATA_CACHE_MAX;
+    if (mdc.initial_size > mdc.max_size) mdc.initial_size = mdc.max_size;
+    if (mdc.min_size > mdc.max_size) mdc.min_size = mdc.max_size;
+    H5Pset_mdc_config(fapl, &mdc);
+  }
   hid_t use = fapl >= 0 ? fapl : H5P_DEFAULT;
   f->file = create ? H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, use)
                    : H5Fopen(path, writable ? H5F_ACC_RDWR : H5F_ACC_RDONLY, use);
@@ -358,6 +370,22 @@ static int series_args(proto_h5 *f, const char *path, int ncols,
   return 0;
 }
 
+/* A series is written a whole chunk at a time from its own buffer and never
+ * read back: HDF5's chunk cache (1 MiB per dataset) would only hold copies
+ * of written chunks. Off. */
+static hid_t series_access(void) {
+  static hid_t dapl = H5I_INVALID_HID;
+  if (dapl < 0) {
+    dapl = H5Pcreate(H5P_DATASET_ACCESS);
+    if (dapl >= 0 && H5Pset_chunk_cache(dapl, H5D_CHUNK_CACHE_NSLOTS_DEFAULT, 0,
+                                        H5D_CHUNK_CACHE_W0_DEFAULT) < 0) {
+      H5Pclose(dapl);
+      dapl = H5I_INVALID_HID;
+    }
+  }
+  return dapl >= 0 ? dapl : H5P_DEFAULT;
+}
+
 /* A series handle with its one-chunk row buffer (dataset not yet opened). */
 static proto_series *series_alloc(proto_h5 *f, const char *full, int ncols,
                                   proto_err *err) {
@@ -411,7 +439,7 @@ proto_series *proto_h5_series(proto_h5 *f, const char *path, int ncols,
   hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
   if (space >= 0 && dcpl >= 0 && H5Pset_chunk(dcpl, 2, chunk) >= 0)
     s->dset = H5Dcreate2(f->file, full, H5T_IEEE_F64LE, space, H5P_DEFAULT,
-                         dcpl, H5P_DEFAULT);
+                         dcpl, series_access());
   h5_close_id(dcpl);
   h5_close_id(space);
   if (s->dset < 0) {
@@ -482,7 +510,7 @@ proto_series *proto_h5_series_resume(proto_h5 *f, const char *path, int ncols,
   }
   proto_series *s = series_alloc(f, full, ncols, err);
   if (!s) return NULL;
-  s->dset = H5Dopen2(f->file, full, H5P_DEFAULT);
+  s->dset = H5Dopen2(f->file, full, series_access());
   hid_t space = s->dset >= 0 ? H5Dget_space(s->dset) : H5I_INVALID_HID;
   hsize_t dims[2] = {0, 0};
   int rank = space >= 0 ? H5Sget_simple_extent_dims(space, dims, NULL) : -1;
