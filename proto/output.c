@@ -24,6 +24,9 @@
 
 /* bytes: HDF5's metadata cache of a file (its default maximum is 32 MiB) */
 #define METADATA_CACHE_MAX ((size_t)2 << 20)
+/* bytes: HDF5's free lists, all of one kind and each (H5set_free_list_limits) */
+#define FREE_LIST_GLOBAL (1 << 20)
+#define FREE_LIST_EACH (256 << 10)
 
 enum {
   SERIES_CHUNK_ROWS = 256,
@@ -208,6 +211,10 @@ done:
 static void h5_setup(void) {
   H5dont_atexit(); /* fails harmlessly once the library is initialised */
   H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+  /* HDF5 keeps freed blocks (evicted chunk-index nodes ...) on free lists of
+   * up to 16 MiB each kind, which a long run fills: bound them */
+  H5set_free_list_limits(FREE_LIST_GLOBAL, FREE_LIST_EACH, FREE_LIST_GLOBAL, FREE_LIST_EACH,
+                         FREE_LIST_GLOBAL, FREE_LIST_EACH);
 }
 
 static proto_h5 *h5_file(const char *path, int create, int writable,
