@@ -287,3 +287,26 @@ void cpl_accel_end(cpl_accel *a) {
   if (a->opt.acceleration == CPL_ACCEL_AITKEN) a->omega_last = a->omega;
   a->window++;
 }
+
+int cpl_accel_state(cpl_accel *a, cpl_stateval *v, int cap) {
+  if (!a) return 0;
+  const int64_t mc = a->maxc, cols = mc * a->N;
+  /* the columns and their Gram entries by slot, which slots are in use and
+   * in what order, the steps begun; Aitken's last factor. The rest is
+   * rebuilt within each step. */
+  const cpl_stateval all[] = {
+      {"accel.window", PROTO_I8, &a->window, 1},
+      {"accel.ncols", PROTO_I4, &a->ncols, 1},
+      {"accel.omega_last", PROTO_F8, &a->omega_last, 1},
+      {"accel.order", PROTO_I4, a->order, mc},
+      {"accel.free_slot", PROTO_I4, a->free_slot, mc},
+      {"accel.slot_window", PROTO_I8, a->slot_window, mc},
+      {"accel.V", PROTO_F8, a->V, cols},
+      {"accel.W", PROTO_F8, a->W, cols},
+      {"accel.G", PROTO_F8, a->G, (int64_t)a->nf * mc * mc},
+  };
+  int n = (int)(sizeof all / sizeof all[0]);
+  if (n > cap) n = cap;
+  memcpy(v, all, sizeof(cpl_stateval) * (size_t)n);
+  return n;
+}

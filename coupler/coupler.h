@@ -81,8 +81,17 @@ typedef struct cpl_scene {
   char output_dir[CPL_PATH_LEN];
   int64_t output_every;
   char bus_monitor[CPL_PATH_LEN]; /* public SUB endpoint, "" = no bus */
-  int64_t bus_hwm;
-  double handshake_timeout, step_timeout; /* s */
+  char bus_snapshots[CPL_PATH_LEN]; /* the snapshot stream's endpoint */
+  int64_t bus_hwm;          /* messages a slow monitor may have queued */
+  int64_t bus_snapshot_hwm; /* snapshots a slow monitor may have queued */
+  /* deadlines, s, on the coupler's pause-free clock (PROTOCOL.md "Liveness") */
+  double hello_timeout;     /* started -> hello */
+  double heartbeat_timeout; /* silence of a participant that sends heartbeats */
+  double handshake_timeout; /* welcome -> ready without new progress */
+  double step_timeout;      /* request -> reply without new progress */
+  int64_t checkpoint_every; /* steps; 0: no checkpoints */
+  int64_t checkpoint_keep;  /* the newest this many are kept */
+  int curve;                /* security.curve */
   char attach_endpoint[CPL_PATH_LEN]; /* port 0: any free port */
   cpl_scheme scheme;
   cpl_implicit implicit;

@@ -18,7 +18,8 @@
 #include <unistd.h>
 
 int cpl_spawn(cpl_child *c, const char *name, int argc, const char *const *argv,
-              const char *endpoint, const char *log_path, proto_err *err) {
+              const char *endpoint, const char *log_path, const char *curve_file,
+              proto_err *err) {
   memset(c, 0, sizeof *c);
   snprintf(c->name, sizeof c->name, "%s", name);
   snprintf(c->exec, sizeof c->exec, "%s", argv[argc - 1]);
@@ -52,6 +53,8 @@ int cpl_spawn(cpl_child *c, const char *name, int argc, const char *const *argv,
     int devnull = open("/dev/null", O_RDONLY);
     if (devnull >= 0) dup2(devnull, 0);
     setenv("COSIM_LAUNCHED", "1", 1);
+    if (curve_file) setenv(PROTO_ENV_CURVE, curve_file, 1);
+    else unsetenv(PROTO_ENV_CURVE);
     /* Participants take turns on shared cores (serial scheme): OpenMP
      * threads that spin after each parallel region steal the cores of the
      * process computing next (paper-scale tyre, 2 cores, 2 threads each:
@@ -154,7 +157,10 @@ static int wait_groups(cpl_child *cs, int n, double seconds) {
 void cpl_stop_all(cpl_child *cs, int n, double grace_s) {
   if (wait_groups(cs, n, grace_s) == 0) return;
   for (int i = 0; i < n; i++)
-    if (cs[i].running || group_alive(&cs[i])) signal_group(&cs[i], SIGTERM);
+    if (cs[i].running || group_alive(&cs[i])) {
+      signal_group(&cs[i], SIGTERM);
+      signal_group(&cs[i], SIGCONT); /* a stopped process acts on it only when continued */
+    }
   if (wait_groups(cs, n, 2.0) == 0) return;
   for (int i = 0; i < n; i++)
     if (cs[i].running || group_alive(&cs[i])) signal_group(&cs[i], SIGKILL);

@@ -230,7 +230,8 @@ static int record(cpl_runner *r, int64_t k, int output) {
   for (int i = 0; i < r->n; i++) {
     if (cpl_output_done(r->out, r->peers[i].proc->name, &r->peers[i].reply,
                         output, &r->err) < 0) {
-      r->failed_peer = i;
+      /* a write error is the disk's, not the participant's */
+      if (!cpl_output_io_failed(r->out)) r->failed_peer = i;
       return proto_wrap(&r->err, "output of '%s'", r->peers[i].proc->name);
     }
     publish_reply(r, i, output);
@@ -247,8 +248,9 @@ static int record(cpl_runner *r, int64_t k, int output) {
     if (cpl_output_coupler_row(r->out, "traction", N_TR, traction_cols, row, &r->err) < 0)
       return -1;
   }
-  if (output) cpl_output_flush(r->out);
-  return 0;
+  /* at output steps everything so far goes to the disk: a run that fails
+   * later keeps it */
+  return output ? cpl_output_flush(r->out, &r->err) : 0;
 }
 
 /* ---------------------------------------------------------- the loop */
@@ -268,9 +270,10 @@ static int one_step(cpl_runner *r, int64_t k, int output) {
 int cpl_step_loop(cpl_runner *r) {
   const cpl_scene *s = r->scene;
   if (s->scheme == CPL_SCHEME_IMPLICIT && implicit_init(r) < 0) return -1;
+  if (r->ckpt && cpl_checkpoint_restore(r) < 0) return -1;
   cpl_inputs_current(r);
   double last_shown = proto_now(), start = proto_now();
-  for (int64_t k = 1; k <= s->n_steps; k++) {
+  for (int64_t k = r->k0 + 1; k <= s->n_steps; k++) {
     int output = (k % s->output_every == 0) || k == s->n_steps;
     double t_step = proto_now();
     r->t_blocked = 0;
@@ -280,13 +283,16 @@ int cpl_step_loop(cpl_runner *r) {
     if (rc == 0) rc = record(r, k, output);
     double now = proto_now();
     if (rc == 0) rc = cpl_timing_step(r, k, now - t_step, now - t_rec);
+    if (rc == 0 && s->checkpoint_every && k % s->checkpoint_every == 0)
+      rc = cpl_checkpoint_write(r, k);
     if (rc < 0) {
-      cpl_output_flush(r->out);
+      proto_err ignore;
+      if (!cpl_output_io_failed(r->out)) cpl_output_flush(r->out, &ignore);
       return proto_wrap(&r->err, "step %lld (t = %g s)", (long long)k,
                         (double)(k - 1) * s->dt);
     }
     if (now - last_shown > 0.5 || k == s->n_steps) {
-      double rate = (double)k / fmax(now - start, 1e-9);
+      double rate = (double)(k - r->k0) / fmax(now - start, 1e-9);
       show_progress(r, k, rate, k == s->n_steps);
       publish_progress(r, k, rate);
       last_shown = now;

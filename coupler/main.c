@@ -9,6 +9,7 @@
 static void usage(FILE *f) {
   fprintf(f,
           "usage: cosim run CONFIG [--set KEY.PATH=VALUE]... [--attach] [--quiet]\n"
+          "                        [--overwrite] [--restart CHECKPOINT|latest]\n"
           "       cosim check CONFIG [--set KEY.PATH=VALUE]...\n"
           "       cosim monitor ENDPOINT|OUTPUT_DIR [--topic PREFIX]... [--count N] [--timeout S]\n"
           "       cosim roles [--json]\n"
@@ -17,6 +18,9 @@ static void usage(FILE *f) {
           "run      starts the participants the scene names, couples them step by\n"
           "         step and writes results.h5 in output.dir. --attach waits for\n"
           "         participants started by hand on coupling.attach_endpoint.\n"
+          "         An earlier run's results.h5 is kept: --overwrite replaces it.\n"
+          "         --restart continues a run from a checkpoint (scene key\n"
+          "         checkpoint.every); latest: the newest one in output.dir.\n"
           "check    validates the scene (core keys here, each process section by\n"
           "         its own executable) without running it.\n"
           "monitor  prints what is published on a run's monitor bus (the endpoint,\n"
@@ -31,7 +35,8 @@ typedef struct cli {
   const char *config;
   int nset;
   char **sets;
-  int attach, quiet;
+  int attach, quiet, overwrite;
+  const char *restart;
 } cli;
 
 static int parse(int argc, char **argv, cli *c) {
@@ -46,6 +51,10 @@ static int parse(int argc, char **argv, cli *c) {
       c->attach = 1;
     } else if (strcmp(argv[i], "--quiet") == 0) {
       c->quiet = 1;
+    } else if (strcmp(argv[i], "--overwrite") == 0) {
+      c->overwrite = 1;
+    } else if (strcmp(argv[i], "--restart") == 0 && i + 1 < argc) {
+      c->restart = argv[++i];
     } else if (argv[i][0] != '-' && !c->config) {
       c->config = argv[i];
     } else {
@@ -87,7 +96,8 @@ static int cmd_run(const cli *c) {
     return 1;
   }
   cpl_run_opts opts = {.attach = c->attach, .quiet = c->quiet,
-                       .progress = !c->quiet && isatty(2)};
+                       .progress = !c->quiet && isatty(2), .overwrite = c->overwrite,
+                       .restart = c->restart};
   int rc = cpl_run(&s, &opts);
   cpl_scene_free(&s);
   return rc;

@@ -26,22 +26,54 @@ static void print_array(const proto_array *a) {
   if (n > 8) printf(",...");
 }
 
-/* The monitor endpoint a run bound, from OUTPUT_DIR/endpoints.json. */
-static int endpoint_from_dir(const char *dir, char *out, size_t cap) {
+/* What a monitor needs to know of a run, from OUTPUT_DIR/endpoints.json:
+ * the monitor stream, the snapshot stream, and with CURVE the key file. */
+typedef struct run_eps {
+  char monitor[CPL_PATH_LEN], snapshots[CPL_PATH_LEN], key_file[CPL_PATH_LEN];
+} run_eps;
+
+static void copy_str(const cJSON *o, const char *key, char *out, size_t cap) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+  snprintf(out, cap, "%s", cJSON_IsString(v) ? v->valuestring : "");
+}
+
+static int endpoints_from_dir(const char *dir, run_eps *e) {
   char path[CPL_PATH_LEN + 32];
   snprintf(path, sizeof path, "%s/%s", dir, CPL_ENDPOINTS_FILE);
   proto_err err = {{0}};
   cJSON *o = proto_json_load(path, &err);
-  const cJSON *bus = o ? cJSON_GetObjectItemCaseSensitive(o, "bus_monitor") : NULL;
-  int rc = cJSON_IsString(bus) && bus->valuestring[0] ? 0 : -1;
-  if (rc == 0) snprintf(out, cap, "%s", bus->valuestring);
-  else if (o)
+  if (o) {
+    copy_str(o, "bus_monitor", e->monitor, sizeof e->monitor);
+    copy_str(o, "bus_snapshots", e->snapshots, sizeof e->snapshots);
+    copy_str(o, "monitor_key_file", e->key_file, sizeof e->key_file);
+  }
+  int rc = e->monitor[0] ? 0 : -1;
+  if (o && rc < 0)
     fprintf(stderr, "cosim monitor: %s: the run has no monitor bus (bus.monitor)\n", path);
-  else
+  else if (!o)
     fprintf(stderr, "cosim monitor: '%s' is neither an endpoint (tcp://, ipc://) "
             "nor a run's output directory: %s\n", dir, err.msg);
   cJSON_Delete(o);
   return rc;
+}
+
+/* Connects sub to the run's streams, as a CURVE client if keys are given. */
+static int connect_sub(void *sub, const run_eps *e) {
+  proto_err err = {{0}};
+  proto_curve keys;
+  if (e->key_file[0] && (proto_curve_read(e->key_file, &keys, &err) < 0 ||
+                         proto_curve_client(sub, &keys, &err) < 0)) {
+    fprintf(stderr, "cosim monitor: %s\n", err.msg);
+    return -1;
+  }
+  const char *eps[] = {e->monitor, e->snapshots};
+  for (int i = 0; i < 2; i++)
+    if (eps[i][0] && zmq_connect(sub, eps[i]) != 0) {
+      fprintf(stderr, "cosim monitor: cannot connect to %s: %s\n", eps[i],
+              zmq_strerror(zmq_errno()));
+      return -1;
+    }
+  return 0;
 }
 
 int cpl_monitor_main(int argc, char **argv) {
@@ -50,6 +82,7 @@ int cpl_monitor_main(int argc, char **argv) {
   int ntopics = 0;
   long count = -1;
   double timeout = -1;
+  const char *curve = NULL;
   for (int i = 1; i < argc; i++) {
     if (strcmp(argv[i], "--topic") == 0 && i + 1 < argc && ntopics < 16)
       topics[ntopics++] = argv[++i];
@@ -57,11 +90,13 @@ int cpl_monitor_main(int argc, char **argv) {
       count = atol(argv[++i]);
     else if (strcmp(argv[i], "--timeout") == 0 && i + 1 < argc)
       timeout = atof(argv[++i]);
+    else if (strcmp(argv[i], "--curve") == 0 && i + 1 < argc)
+      curve = argv[++i];
     else if (argv[i][0] != '-' && !endpoint)
       endpoint = argv[i];
     else {
-      fprintf(stderr, "usage: cosim monitor ENDPOINT [--topic PREFIX]... "
-              "[--count N] [--timeout S]\n");
+      fprintf(stderr, "usage: cosim monitor ENDPOINT|OUTPUT_DIR [--topic PREFIX]... "
+              "[--count N] [--timeout S] [--curve KEYFILE]\n");
       return 1;
     }
   }
@@ -70,11 +105,13 @@ int cpl_monitor_main(int argc, char **argv) {
             "output directory is required\n");
     return 1;
   }
-  char found[CPL_PATH_LEN];
-  if (!strstr(endpoint, "://")) { /* a run's output.dir: its endpoints.json */
-    if (endpoint_from_dir(endpoint, found, sizeof found) < 0) return 1;
-    endpoint = found;
+  run_eps eps = {{0}, {0}, {0}};
+  if (!strstr(endpoint, "://")) { /* a run's output.dir: both streams, its keys */
+    if (endpoints_from_dir(endpoint, &eps) < 0) return 1;
+  } else {
+    snprintf(eps.monitor, sizeof eps.monitor, "%s", endpoint);
   }
+  if (curve) snprintf(eps.key_file, sizeof eps.key_file, "%s", curve);
   signal(SIGINT, on_int);
   signal(SIGTERM, on_int);
   void *ctx = zmq_ctx_new(), *sub = zmq_socket(ctx, ZMQ_SUB);
@@ -84,9 +121,7 @@ int cpl_monitor_main(int argc, char **argv) {
   if (ntopics == 0) zmq_setsockopt(sub, ZMQ_SUBSCRIBE, "", 0);
   for (int i = 0; i < ntopics; i++)
     zmq_setsockopt(sub, ZMQ_SUBSCRIBE, topics[i], strlen(topics[i]));
-  if (zmq_connect(sub, endpoint) != 0) {
-    fprintf(stderr, "cosim monitor: cannot connect to %s: %s\n", endpoint,
-            zmq_strerror(zmq_errno()));
+  if (connect_sub(sub, &eps) < 0) {
     zmq_close(sub);
     zmq_ctx_term(ctx);
     return 1;

@@ -45,42 +45,40 @@ struct cpl_output {
   proto_h5 *h5;
   char path[CPL_PATH_LEN];
   char dir[CPL_PATH_LEN];
+  int64_t keep_rows; /* continuing a file: its rows of steps 1..keep_rows; -1: new */
+  double dt;         /* coupling step (which XDMF grids a restart keeps) */
+  int io_failed;     /* a write or flush failed */
   int nparts;
   out_part parts[CPL_MAX_PROCS + 1]; /* + the coupler itself */
 };
 
-static int mkdirs(const char *path, proto_err *err) {
-  char tmp[CPL_PATH_LEN];
-  snprintf(tmp, sizeof tmp, "%s", path);
-  for (char *p = tmp + 1; *p; p++) {
-    if (*p != '/') continue;
-    *p = 0;
-    if (mkdir(tmp, 0755) < 0 && errno != EEXIST)
-      return proto_fail(err, "cannot create %s: %s", tmp, strerror(errno));
-    *p = '/';
-  }
-  if (mkdir(tmp, 0755) < 0 && errno != EEXIST)
-    return proto_fail(err, "cannot create %s: %s", tmp, strerror(errno));
-  return 0;
+/* An I/O call's result: a failure marks the output as failed (exit 4). */
+static int io(cpl_output *o, int rc) {
+  if (rc < 0) o->io_failed = 1;
+  return rc;
 }
 
-cpl_output *cpl_output_open(const cpl_scene *s, proto_err *err) {
-  if (mkdirs(s->output_dir, err) < 0) return NULL;
+cpl_output *cpl_output_open(const cpl_scene *s, int64_t continue_step, proto_err *err) {
+  if (cpl_mkdirs(s->output_dir, err) < 0) return NULL;
   cpl_output *o = calloc(1, sizeof *o);
   if (!o) return NULL;
   snprintf(o->dir, sizeof o->dir, "%s", s->output_dir);
-  snprintf(o->path, sizeof o->path, "%s/results.h5", s->output_dir);
-  o->h5 = proto_h5_create(o->path, err);
+  snprintf(o->path, sizeof o->path, "%s/%s", s->output_dir, CPL_RESULTS_FILE);
+  o->dt = s->dt;
+  o->keep_rows = continue_step >= 0 && proto_h5_probe(o->path) == 1 ? continue_step : -1;
+  o->h5 = o->keep_rows >= 0 ? proto_h5_open(o->path, 1, err) : proto_h5_create(o->path, err);
   char *config = cJSON_Print(s->root);
   int rc = o->h5 && config ? proto_h5_attr_str(o->h5, "/", "config", config, err)
                            : -1;
   free(config);
   if (rc < 0) {
-    cpl_output_close(o);
+    cpl_output_close(o, NULL);
     return NULL;
   }
   return o;
 }
+
+int cpl_output_io_failed(const cpl_output *o) { return o && o->io_failed; }
 
 const char *cpl_output_path(const cpl_output *o) { return o->path; }
 
@@ -113,7 +111,9 @@ static int add_set(cpl_output *o, out_part *p, const char *ds, int ncols,
   char path[CPL_PATH_LEN];
   snprintf(path, sizeof path, "/%s/%s", p->name, ds);
   out_set *set = &p->sets[p->nsets];
-  set->series = proto_h5_series(o->h5, path, ncols, cols, err);
+  set->series = o->keep_rows >= 0
+                    ? proto_h5_series_resume(o->h5, path, ncols, cols, o->keep_rows, err)
+                    : proto_h5_series(o->h5, path, ncols, cols, err);
   if (!set->series) return -1;
   snprintf(set->name, sizeof set->name, "%s", ds);
   set->ncols = ncols;
@@ -178,14 +178,41 @@ static int declare_snapshot(cpl_output *o, out_part *p, const cJSON *snap,
       snprintf(p->attrs[p->nattrs++], PROTO_NAME_LEN, "%s", a->valuestring);
   char path[CPL_PATH_LEN + 64];
   snprintf(path, sizeof path, "%s/%s.xdmf", o->dir, p->name);
-  p->xdmf = proto_xdmf_open(path, "results.h5", err);
-  return p->xdmf ? 0 : -1;
+  p->xdmf = o->keep_rows >= 0 ? proto_xdmf_resume(path, CPL_RESULTS_FILE,
+                                                  ((double)o->keep_rows + 0.5) * o->dt, err)
+                              : proto_xdmf_open(path, CPL_RESULTS_FILE, err);
+  return p->xdmf ? 0 : io(o, -1);
+}
+
+/* Continuing a file: the snapshots of steps after keep_rows go. */
+typedef struct prune_ctx {
+  cpl_output *o;
+  const char *group;
+  proto_err *err;
+} prune_ctx;
+
+static int prune_one(const char *name, void *ctx) {
+  prune_ctx *c = ctx;
+  char *end;
+  long long k = strtoll(name, &end, 10);
+  if (*end || k <= c->o->keep_rows) return 0;
+  char path[CPL_PATH_LEN + PROTO_NAME_LEN];
+  snprintf(path, sizeof path, "%s/%s", c->group, name);
+  return proto_h5_unlink(c->o->h5, path, c->err) < 0 ? -1 : 0;
+}
+
+static int prune_steps(cpl_output *o, const char *name, proto_err *err) {
+  char group[CPL_PATH_LEN];
+  snprintf(group, sizeof group, "/%s/steps", name);
+  prune_ctx c = {o, group, err};
+  return io(o, proto_h5_list(o->h5, group, prune_one, &c, err));
 }
 
 int cpl_output_participant(cpl_output *o, const char *name,
                            const proto_msg *ready, proto_err *err) {
   out_part *p = part(o, name);
   if (!p) return proto_fail(err, "too many participants");
+  if (o->keep_rows >= 0 && prune_steps(o, name, err) < 0) return -1;
   if (declare_series(o, p, cJSON_GetObjectItemCaseSensitive(ready->header,
                                                             PROTO_H_SERIES),
                      err) < 0)
@@ -198,7 +225,7 @@ int cpl_output_participant(cpl_output *o, const char *name,
     if (strncmp(a->name, PROTO_P_MESH, plen) != 0) continue;
     proto_array copy = *a;
     snprintf(copy.name, sizeof copy.name, "%s", a->name + plen);
-    if (proto_h5_write_array(o->h5, group, &copy, err) < 0) return -1;
+    if (io(o, proto_h5_write_array(o->h5, group, &copy, err)) < 0) return -1;
   }
   const cJSON *snap = cJSON_GetObjectItemCaseSensitive(ready->header, PROTO_H_SNAPSHOT);
   if (cJSON_IsObject(snap) && declare_snapshot(o, p, snap, ready, err) < 0)
@@ -212,7 +239,8 @@ static out_set *find_set(out_part *p, const char *name) {
   return NULL;
 }
 
-static int append_series(out_part *p, const proto_msg *done, proto_err *err) {
+static int append_series(cpl_output *o, out_part *p, const proto_msg *done,
+                         proto_err *err) {
   for (int i = 0; i < done->narrays; i++) {
     const proto_array *a = &done->arrays[i];
     const size_t plen = strlen(PROTO_P_SERIES);
@@ -226,7 +254,7 @@ static int append_series(out_part *p, const proto_msg *done, proto_err *err) {
                         "its ready message", p->name, a->name);
     int64_t shape[1] = {set->ncols};
     if (!proto_msg_get(done, a->name, PROTO_F8, 1, shape, err)) return -1;
-    if (proto_series_append(set->series, a->data, err) < 0) return -1;
+    if (io(o, proto_series_append(set->series, a->data, err)) < 0) return -1;
     /* written first, so the file shows the bad row; then the run stops */
     const double *row = a->data;
     for (int c = 0; c < set->ncols; c++)
@@ -253,7 +281,7 @@ static int write_snapshot(cpl_output *o, out_part *p, const proto_msg *done,
     if (strncmp(a->name, PROTO_P_SNAP, plen) != 0) continue;
     proto_array copy = *a;
     snprintf(copy.name, sizeof copy.name, "%s", a->name + plen);
-    if (proto_h5_write_array(o->h5, group, &copy, err) < 0) return -1;
+    if (io(o, proto_h5_write_array(o->h5, group, &copy, err)) < 0) return -1;
     if (strcmp(a->name, gname) == 0) geometry = a;
   }
   if (!p->xdmf || !geometry) return 0;
@@ -278,7 +306,8 @@ static int write_snapshot(cpl_output *o, out_part *p, const proto_msg *done,
   return proto_xdmf_step(p->xdmf, grid, done->t, p->topo, geometry->shape[0],
                          geo, p->ncells, p->cells[0] ? p->cells : NULL, n,
                          attr_paths, cols, rows) < 0
-             ? proto_fail(err, "%s: cannot write the XDMF step", p->name)
+             ? io(o, proto_fail(err, "%s/%s.xdmf: cannot write the step: %s (errno %d)",
+                                o->dir, p->name, strerror(errno), errno))
              : 0;
 }
 
@@ -286,7 +315,7 @@ int cpl_output_done(cpl_output *o, const char *name, const proto_msg *done,
                     int output_step, proto_err *err) {
   out_part *p = part(o, name);
   if (!p) return proto_fail(err, "unknown participant %s", name);
-  if (append_series(p, done, err) < 0) return -1;
+  if (append_series(o, p, done, err) < 0) return -1;
   if (output_step && write_snapshot(o, p, done, err) < 0) return -1;
   return 0;
 }
@@ -302,17 +331,27 @@ int cpl_output_coupler_row(cpl_output *o, const char *dataset, int ncols,
     set = &p->sets[p->nsets - 1];
   }
   keep_last(p, dataset, ncols, row);
-  return proto_series_append(set->series, row, err);
+  return io(o, proto_series_append(set->series, row, err));
 }
 
-int cpl_output_flush(cpl_output *o) { return o ? proto_h5_flush(o->h5) : 0; }
+int cpl_output_flush(cpl_output *o, proto_err *err) {
+  return o ? io(o, proto_h5_flush(o->h5, err)) : 0;
+}
+
+int64_t cpl_output_pending_bytes(const cpl_output *o) {
+  /* the series' row buffers (the coupler's own, made at the first step, are
+   * in the margin) and HDF5's metadata of what a step adds: a few object
+   * headers, chunk-index nodes; generous */
+  const int64_t margin = 1 << 20;
+  return margin + (int64_t)(o ? proto_h5_buffer_bytes(o->h5) : 0);
+}
 
 int cpl_output_endpoints(cpl_output *o, const char *control, const char *bus,
                          proto_err *err) {
-  return proto_h5_attr_str(o->h5, "/", "control_endpoint", control, err) < 0 ||
-                 proto_h5_attr_str(o->h5, "/", "bus_monitor", bus, err) < 0
-             ? -1
-             : 0;
+  return io(o, proto_h5_attr_str(o->h5, "/", "control_endpoint", control, err) < 0 ||
+                       proto_h5_attr_str(o->h5, "/", "bus_monitor", bus, err) < 0
+                   ? -1
+                   : 0);
 }
 
 int cpl_output_summary(const cpl_output *o, char *out, size_t cap) {
@@ -330,12 +369,14 @@ int cpl_output_summary(const cpl_output *o, char *out, size_t cap) {
   return 0;
 }
 
-int cpl_output_close(cpl_output *o) {
+int cpl_output_close(cpl_output *o, proto_err *err) {
   if (!o) return 0;
   int rc = 0;
   for (int i = 0; i < o->nparts; i++)
-    if (o->parts[i].xdmf && proto_xdmf_close(o->parts[i].xdmf) < 0) rc = -1;
-  if (o->h5 && proto_h5_close(o->h5) < 0) rc = -1;
+    if (o->parts[i].xdmf && proto_xdmf_close(o->parts[i].xdmf) < 0 && rc == 0)
+      rc = proto_fail(err, "%s/%s.xdmf: cannot write: %s (errno %d)", o->dir,
+                      o->parts[i].name, strerror(errno), errno);
+  if (o->h5 && proto_h5_close(o->h5, rc < 0 ? NULL : err) < 0) rc = -1;
   free(o);
   return rc;
 }

@@ -1,7 +1,9 @@
-/* run.c — one coupled run: private run directory, sockets (free ports where
- * asked: port 0), bus, starting the participants, handshake (each process
- * says its role), the schedule, the loop (loop.c), and a teardown that
- * leaves no process behind whatever happened. */
+/* run.c — one coupled run: the lock on output.dir, a private run directory,
+ * keys and sockets (free ports where asked: port 0; CURVE with
+ * security.curve), bus, starting the participants, handshake (each process
+ * says its role), results.h5 (only once every participant has passed its
+ * handshake), a restart's checkpoint, the schedule, the loop (loop.c), and
+ * a teardown that leaves no process behind whatever happened. */
 #include "run.h"
 
 #include <errno.h>
@@ -17,99 +19,6 @@ volatile int cpl_interrupted = 0;
 
 static void on_signal(int sig) { cpl_interrupted = sig; }
 
-static int peer_of(const cpl_runner *r, const char *identity) {
-  for (int i = 0; i < r->n; i++)
-    if (strcmp(r->peers[i].proc->name, identity) == 0) return i;
-  return -1;
-}
-
-/* A child exited unexpectedly: say who, how, and what its log says. */
-static int report_exit(cpl_runner *r, int c) {
-  char tail[700];
-  cpl_child_tail(&r->children[c], tail, sizeof tail, 8);
-  for (int i = 0; i < r->n; i++)
-    if (strcmp(r->peers[i].proc->name, r->children[c].name) == 0) {
-      r->failed_peer = i;
-      r->peers[i].stopped = 1;
-    }
-  return proto_fail(&r->err, "participant '%s' (%s, pid %d) %s; its log %s "
-                    "ends with:\n%s", r->children[c].name, r->children[c].exec,
-                    (int)r->children[c].pid, r->children[c].how,
-                    r->children[c].log_path, tail[0] ? tail : "(empty)");
-}
-
-static int check_children(cpl_runner *r) {
-  for (int c = 0; c < r->nchildren; c++)
-    if (cpl_child_poll(&r->children[c])) return report_exit(r, c);
-  return 0;
-}
-
-int cpl_send(cpl_runner *r, int peer, const proto_msg *m) {
-  if (proto_send_to(r->router, r->peers[peer].proc->name, m, &r->err) == 0)
-    return 0;
-  r->failed_peer = peer;
-  return -1;
-}
-
-static int handle_error_reply(cpl_runner *r, int from, const proto_msg *m) {
-  const cJSON *msg = cJSON_GetObjectItemCaseSensitive(m->header, PROTO_H_MESSAGE);
-  r->failed_peer = from;
-  r->peers[from].stopped = 1;
-  return proto_fail(&r->err, "participant '%s' (%s) reported an error: %s",
-                    r->peers[from].proc->name, r->peers[from].proc->exec,
-                    cJSON_IsString(msg) ? msg->valuestring : "(no message)");
-}
-
-/* m == NULL: the message lands in the sender's reply slot. */
-int cpl_receive(cpl_runner *r, int expect, double timeout_s, proto_msg *m,
-                int *from) {
-  double until = proto_now() + timeout_s;
-  while (1) {
-    if (cpl_interrupted)
-      return proto_fail(&r->err, "interrupted by signal %d", cpl_interrupted);
-    if (check_children(r) < 0) return -1;
-    double left = until - proto_now();
-    if (left <= 0) {
-      if (expect >= 0) r->failed_peer = expect;
-      return proto_fail(&r->err, "%s%s%s did not answer within %g s "
-                        "(coupling.%s)", expect >= 0 ? "participant '" : "",
-                        expect >= 0 ? r->peers[expect].proc->name : "a participant",
-                        expect >= 0 ? "'" : "", timeout_s,
-                        r->opts->attach ? "handshake_timeout" : "step_timeout");
-    }
-    int p = proto_poll_in(r->router, left > 0.1 ? 100 : (int)(left * 1e3) + 1);
-    if (p <= 0) continue;
-    char identity[PROTO_NAME_LEN] = {0};
-    proto_msg *dst = m ? m : &r->inbox;
-    int rc = proto_recv(r->router, dst, identity, &r->err);
-    int sender = peer_of(r, identity);
-    if (sender < 0) {
-      /* Not one of ours (a stray or misnamed process): refuse it loudly. */
-      return proto_fail(&r->err, "a process calling itself '%s' connected, "
-                        "but the scene has no such participant", identity);
-    }
-    if (rc < 0) {
-      r->failed_peer = sender;
-      return proto_wrap(&r->err, "from participant '%s'", identity);
-    }
-    if (!m) { /* swap into the sender's slot; its old buffers are reused */
-      proto_msg t = r->peers[sender].reply;
-      r->peers[sender].reply = r->inbox;
-      r->inbox = t;
-      dst = &r->peers[sender].reply;
-    }
-    if (strcmp(dst->type, proto_msg_type(PROTO_MSG_ERROR)) == 0)
-      return handle_error_reply(r, sender, dst);
-    if (expect >= 0 && sender != expect) {
-      r->failed_peer = sender;
-      return proto_fail(&r->err, "participant '%s' sent '%s' out of turn",
-                        identity, dst->type);
-    }
-    *from = sender;
-    return 0;
-  }
-}
-
 /* ---------------------------------------------------------------- setup */
 
 static int last_endpoint(void *socket, char *out, size_t cap) {
@@ -123,49 +32,72 @@ static void host_any_port(const char *ep, char *out, size_t cap) {
   snprintf(out, cap, "%.*s:0", (int)(colon - ep), ep);
 }
 
+/* The private run directory (mode 0700): ipc endpoints, key files. */
+static int make_run_dir(cpl_runner *r) {
+  snprintf(r->run_dir, sizeof r->run_dir, "/tmp/cosim-%s-XXXXXX", r->scene->name);
+  if (mkdtemp(r->run_dir)) return 0;
+  r->run_dir[0] = 0;
+  return proto_fail(&r->err, "cannot create a run directory: %s", strerror(errno));
+}
+
 static int setup_sockets(cpl_runner *r) {
   cpl_scene *s = r->scene;
+  cpl_bus_eps *eps = &r->bus_eps;
+  if (make_run_dir(r) < 0) return -1;
   r->ctx = zmq_ctx_new();
+  if (s->curve) { /* the ZAP handler first: it must answer the first handshake */
+    r->zap = cpl_zap_start(r->ctx, r->run_dir, s, &r->err);
+    if (!r->zap) return -1;
+  }
   r->router = zmq_socket(r->ctx, ZMQ_ROUTER);
   proto_socket_limits(r->router);
   int on = 1, linger = 0;
   zmq_setsockopt(r->router, ZMQ_ROUTER_MANDATORY, &on, sizeof on);
   zmq_setsockopt(r->router, ZMQ_LINGER, &linger, sizeof linger);
+  if (r->zap &&
+      proto_curve_server(r->router, cpl_zap_secret(r->zap), CPL_ZAP_CONTROL, &r->err) < 0)
+    return -1;
+  /* the bus's publishing side takes no outside publisher: ipc in the
+   * private directory, or (other hosts) tcp with CURVE */
   if (r->opts->attach) {
     snprintf(r->ctl_endpoint, sizeof r->ctl_endpoint, "%s", s->attach_endpoint);
-    host_any_port(s->attach_endpoint, r->bus_inner, sizeof r->bus_inner);
+    if (r->zap) host_any_port(s->attach_endpoint, eps->inner, sizeof eps->inner);
   } else {
-    snprintf(r->run_dir, sizeof r->run_dir, "/tmp/cosim-%s-XXXXXX", s->name);
-    if (!mkdtemp(r->run_dir)) /* mode 0700: a private run directory */
-      return proto_fail(&r->err, "cannot create a run directory: %s",
-                        strerror(errno));
-    snprintf(r->ctl_endpoint, sizeof r->ctl_endpoint, "ipc://%s/control",
-             r->run_dir);
-    snprintf(r->bus_inner, sizeof r->bus_inner, "ipc://%s/bus", r->run_dir);
+    snprintf(r->ctl_endpoint, sizeof r->ctl_endpoint, "ipc://%s/control", r->run_dir);
   }
+  if (!eps->inner[0]) snprintf(eps->inner, sizeof eps->inner, "ipc://%s/bus", r->run_dir);
   if (zmq_bind(r->router, r->ctl_endpoint) != 0)
     return proto_fail(&r->err, "cannot bind %s%s: %s", r->ctl_endpoint,
                       r->opts->attach ? " (coupling.attach_endpoint)" : "",
                       zmq_strerror(errno));
   last_endpoint(r->router, r->ctl_endpoint, sizeof r->ctl_endpoint);
   if (s->bus_monitor[0]) {
-    r->bus = cpl_bus_start(r->ctx, r->bus_inner, s->bus_monitor, (int)s->bus_hwm,
-                           r->bus_inner, r->bus_public, sizeof r->bus_public, &r->err);
+    snprintf(eps->monitor, sizeof eps->monitor, "%s", s->bus_monitor);
+    snprintf(eps->snapshots, sizeof eps->snapshots, "%s", s->bus_snapshots);
+    r->bus = cpl_bus_start(r->ctx, eps, (int)s->bus_hwm, (int)s->bus_snapshot_hwm,
+                           cpl_zap_secret(r->zap), &r->err);
     if (!r->bus) return -1;
   } else {
-    r->bus_inner[0] = 0;
+    eps->inner[0] = 0;
   }
   return 0;
 }
 
-/* output.dir/endpoints.json and root attributes of results.h5: where the
- * control socket and the monitor bus actually are (ports chosen at bind). */
+/* output.dir/endpoints.json: where the control socket and the monitor bus
+ * actually are (ports chosen at bind); with CURVE, the coupler's public key
+ * and the monitors' key file. */
 static int write_endpoints(cpl_runner *r) {
+  const cpl_bus_eps *eps = &r->bus_eps;
   cJSON *o = cJSON_CreateObject();
   cJSON_AddStringToObject(o, "control", r->ctl_endpoint);
-  cJSON_AddStringToObject(o, "bus_monitor", r->bus_public);
-  cJSON_AddStringToObject(o, "bus_inner", r->bus_inner);
+  cJSON_AddStringToObject(o, "bus_monitor", eps->monitor);
+  cJSON_AddStringToObject(o, "bus_snapshots", eps->snapshots);
+  cJSON_AddStringToObject(o, "bus_inner", eps->inner);
   cJSON_AddNumberToObject(o, "pid", (double)getpid());
+  if (r->zap) {
+    cJSON_AddStringToObject(o, "curve_server_public", cpl_zap_public(r->zap));
+    cJSON_AddStringToObject(o, "monitor_key_file", cpl_zap_monitor_file(r->zap));
+  }
   char *text = cJSON_Print(o);
   cJSON_Delete(o);
   char path[CPL_PATH_LEN + 32];
@@ -174,11 +106,13 @@ static int write_endpoints(cpl_runner *r) {
   int rc = f && fprintf(f, "%s\n", text) > 0 ? 0 : -1;
   if (f && fclose(f) != 0) rc = -1;
   free(text);
-  if (rc < 0) return proto_fail(&r->err, "cannot write %s", path);
-  if (cpl_output_endpoints(r->out, r->ctl_endpoint, r->bus_public, &r->err) < 0)
-    return -1;
-  if (r->bus_public[0] && !r->opts->quiet)
-    printf("cosim: monitor bus at %s (also in %s)\n", r->bus_public, path);
+  if (rc < 0) {
+    r->exit_code = CPL_EXIT_OUTPUT;
+    return proto_fail(&r->err, "cannot write %s: %s (errno %d)", path, strerror(errno), errno);
+  }
+  if (eps->monitor[0] && !r->opts->quiet)
+    printf("cosim: monitor bus at %s, snapshots at %s (also in %s)\n", eps->monitor,
+           eps->snapshots, path);
   fflush(stdout);
   return 0;
 }
@@ -197,49 +131,39 @@ static int start_children(cpl_runner *r) {
     char log[2 * CPL_PATH_LEN];
     snprintf(log, sizeof log, "%s/%s.log", logs, p->name);
     if (cpl_spawn(&r->children[r->nchildren], p->name, p->argc, argv,
-                  r->ctl_endpoint, log, &r->err) < 0)
+                  r->ctl_endpoint, log, cpl_zap_key_file(r->zap, i), &r->err) < 0)
       return -1;
     r->nchildren++;
   }
   return 0;
 }
 
-static int hello_ok(cpl_runner *r, int from, const proto_msg *m) {
-  cpl_peer *p = &r->peers[from];
-  const cJSON *role = cJSON_GetObjectItemCaseSensitive(m->header, PROTO_H_ROLE);
-  int rl = cJSON_IsString(role) ? proto_role_parse(role->valuestring) : -1;
-  if (strcmp(m->type, proto_msg_type(PROTO_MSG_HELLO)) == 0 && !p->connected && rl >= 0) {
-    p->role = (proto_role)rl;
-    proto_dims_init(&p->dims);
-    p->connected = 1;
-    return 0;
+/* How to start each participant by hand (--attach), with its key file. */
+static void print_attach(const cpl_runner *r) {
+  fprintf(stderr, "cosim: waiting %g s (coupling.hello_timeout) for participants; "
+          "start each with\n", r->scene->hello_timeout);
+  for (int i = 0; i < r->n; i++) {
+    const char *key = cpl_zap_key_file(r->zap, i);
+    fprintf(stderr, "  %s%s%s%s --endpoint %s --name %s\n", key ? PROTO_ENV_CURVE "=" : "",
+            key ? key : "", key ? " " : "", r->peers[i].proc->exec, r->ctl_endpoint,
+            r->peers[i].proc->name);
   }
-  r->failed_peer = from;
-  if (strcmp(m->type, proto_msg_type(PROTO_MSG_HELLO)) != 0 || p->connected)
-    return proto_fail(&r->err, "participant '%s': expected one hello, got '%s'",
-                      p->proc->name, m->type);
-  return proto_fail(&r->err, "participant '%s': hello with %s role%s%s (roles: "
-                    "dem, fem, block)", p->proc->name,
-                    cJSON_IsString(role) ? "unknown" : "no",
-                    cJSON_IsString(role) ? " " : "",
-                    cJSON_IsString(role) ? role->valuestring : "");
+  if (r->zap)
+    fprintf(stderr, "cosim: CURVE: the coupler's public key is %s; each participant "
+            "needs its key file (copy it to the participant's host, mode 0600; "
+            "it is removed when the run ends). Monitors: %s\n",
+            cpl_zap_public(r->zap), cpl_zap_monitor_file(r->zap));
 }
 
 static int wait_hellos(cpl_runner *r) {
-  if (r->opts->attach) {
-    fprintf(stderr, "cosim: waiting %g s for participants; start each with\n",
-            r->scene->handshake_timeout);
-    for (int i = 0; i < r->n; i++)
-      fprintf(stderr, "  %s --endpoint %s --name %s\n", r->peers[i].proc->exec,
-              r->ctl_endpoint, r->peers[i].proc->name);
-  }
+  if (r->opts->attach) print_attach(r);
   int missing = r->n;
-  double until = proto_now() + r->scene->handshake_timeout;
+  const double until = cpl_watch(r) + r->scene->hello_timeout;
   proto_msg m = {0};
   while (missing > 0) {
     int from = -1;
-    double left = until - proto_now();
-    if (cpl_receive(r, -1, left > 0 ? left : 0, &m, &from) < 0) {
+    double left = until - cpl_watch(r);
+    if (cpl_receive(r, -1, left > 0 ? left : 0, "hello_timeout", &m, &from) < 0) {
       if (strstr(r->err.msg, "did not answer")) {
         char names[256] = {0};
         for (int i = 0; i < r->n; i++)
@@ -248,14 +172,13 @@ static int wait_hellos(cpl_runner *r) {
             strncat(names, r->peers[i].proc->name, sizeof names - strlen(names) - 1);
             if (r->failed_peer < 0) r->failed_peer = i;
           }
-        proto_fail(&r->err, "no handshake within %g s (coupling."
-                   "handshake_timeout) from:%s", r->scene->handshake_timeout,
-                   names);
+        proto_fail(&r->err, "no hello within %g s (coupling.hello_timeout) from:%s",
+                   r->scene->hello_timeout, names);
       }
       proto_msg_free(&m);
       return -1;
     }
-    if (hello_ok(r, from, &m) < 0) {
+    if (cpl_take_hello(r, from, &m) < 0) {
       proto_msg_free(&m);
       return -1;
     }
@@ -283,15 +206,18 @@ static void fill_run_header(cpl_runner *r, proto_msg *w, const cpl_process *p) {
   cJSON_AddNumberToObject(run, "n_steps", (double)s->n_steps);
   cJSON_AddNumberToObject(run, "output_every", (double)s->output_every);
   cJSON_AddStringToObject(run, "output_dir", s->output_dir);
-  cJSON_AddStringToObject(run, "bus", r->bus_inner);
+  cJSON_AddStringToObject(run, "bus", r->bus_eps.inner);
   cJSON_AddNumberToObject(run, "deadline_s", s->step_timeout);
   cJSON_AddStringToObject(run, "scheme", cpl_scheme_name(s->scheme));
   cJSON_AddBoolToObject(run, PROTO_H_ROLLBACK, s->scheme == CPL_SCHEME_IMPLICIT);
-  /* a participant waits for others' steps too: be generous before giving
+  cJSON_AddNumberToObject(run, PROTO_H_RESTART_STEP, (double)r->k0);
+  /* a launched participant watches its launcher instead (0: no limit); one
+   * started by hand waits for others' steps too: be generous before giving
    * up (implicit: every iteration of a step) */
   double per_step = s->step_timeout * (r->n + 1) *
                     (s->scheme == CPL_SCHEME_IMPLICIT ? (double)s->implicit.max_iterations : 1);
-  cJSON_AddNumberToObject(run, "idle_timeout_s", per_step + s->handshake_timeout);
+  cJSON_AddNumberToObject(run, "idle_timeout_s",
+                          r->opts->attach ? per_step + s->handshake_timeout : 0);
 }
 
 /* Keeps the fem's surface for the coupling (world = rim frame at t = 0). */
@@ -348,8 +274,11 @@ static int welcome_one(cpl_runner *r, int i) {
   proto_msg_free(&w);
   int from;
   if (rc == 0)
-    rc = cpl_receive(r, i, r->scene->handshake_timeout + r->scene->step_timeout,
-                     &p->reply, &from);
+    rc = cpl_receive(r, i, r->scene->handshake_timeout, "handshake_timeout", &p->reply,
+                     &from);
+  p->initialized = rc == 0;
+  if (rc == 0 && p->shown >= 0 && r->opts->progress && !r->opts->quiet)
+    fprintf(stderr, "\r  %s: ready%*s\n", p->proc->name, 40, "");
   if (rc == 0 && strcmp(p->reply.type, proto_msg_type(PROTO_MSG_READY)) != 0)
     rc = proto_fail(&r->err, "participant '%s': expected 'ready', got '%s'",
                     p->proc->name, p->reply.type);
@@ -359,7 +288,6 @@ static int welcome_one(cpl_runner *r, int i) {
   p->rollback = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(p->reply.header,
                                                               PROTO_H_ROLLBACK));
   if (rc == 0 && i == r->fem) rc = take_surface(r, &p->reply);
-  if (rc == 0) rc = cpl_output_participant(r->out, p->proc->name, &p->reply, &r->err);
   if (rc < 0 && r->failed_peer < 0) r->failed_peer = i;
   return rc;
 }
@@ -386,6 +314,29 @@ static int check_rollback(cpl_runner *r) {
   return 0;
 }
 
+/* results.h5, once every participant has passed its handshake (README
+ * "Output"): a new file, or the one a restart continues; the participants'
+ * datasets from their ready messages; the endpoints; a reserve for closing
+ * it on a full disk. */
+static int open_output(cpl_runner *r) {
+  cpl_scene *s = r->scene;
+  if (!r->ckpt && cpl_checkpoint_clear(s->output_dir, &r->err) < 0) return -1;
+  r->out = cpl_output_open(s, r->ckpt ? r->k0 : -1, &r->err);
+  int rc = r->out ? 0 : -1;
+  for (int i = 0; i < r->n && rc == 0; i++)
+    if (cpl_output_participant(r->out, r->peers[i].proc->name, &r->peers[i].reply,
+                               &r->err) < 0) {
+      if (!cpl_output_io_failed(r->out)) r->failed_peer = i;
+      rc = proto_wrap(&r->err, "participant '%s'", r->peers[i].proc->name);
+    }
+  if (rc == 0) rc = cpl_output_endpoints(r->out, r->ctl_endpoint, r->bus_eps.monitor, &r->err);
+  if (rc == 0) rc = cpl_output_flush(r->out, &r->err);
+  if (rc == 0)
+    rc = cpl_reserve_make(s->output_dir, cpl_output_pending_bytes(r->out), &r->err);
+  if (rc < 0 && r->failed_peer < 0) r->exit_code = CPL_EXIT_OUTPUT;
+  return rc;
+}
+
 /* --------------------------------------------------------------- teardown */
 
 static void say_stop(cpl_runner *r) {
@@ -400,7 +351,8 @@ static void say_stop(cpl_runner *r) {
       while (proto_now() < until && proto_poll_in(r->router, 100) > 0) {
         char id[PROTO_NAME_LEN];
         if (proto_recv(r->router, &reply, id, &ignore) == 0 &&
-            strcmp(id, r->peers[i].proc->name) == 0)
+            strcmp(id, r->peers[i].proc->name) == 0 &&
+            strcmp(reply.type, proto_msg_type(PROTO_MSG_BYE)) == 0)
           break;
       }
     }
@@ -410,6 +362,17 @@ static void say_stop(cpl_runner *r) {
   proto_msg_free(&reply);
 }
 
+static void remove_run_dir(cpl_runner *r) {
+  if (!r->run_dir[0]) return;
+  static const char *const files[] = {"control", "bus"};
+  char path[CPL_PATH_LEN + 16];
+  for (int i = 0; i < 2; i++) {
+    snprintf(path, sizeof path, "%s/%s", r->run_dir, files[i]);
+    unlink(path);
+  }
+  rmdir(r->run_dir);
+}
+
 static void teardown(cpl_runner *r, int ok) {
   if (ok) say_stop(r);
   cpl_stop_all(r->children, r->nchildren, ok ? 3.0 : 0.5);
@@ -417,21 +380,16 @@ static void teardown(cpl_runner *r, int ok) {
   proto_msg_free(&r->inbox);
   cpl_bus_stop(r->bus);
   if (r->router) zmq_close(r->router);
+  cpl_zap_stop(r->zap); /* removes the key files */
   if (r->ctx) zmq_ctx_term(r->ctx);
-  if (r->run_dir[0]) {
-    char path[CPL_PATH_LEN + 16];
-    snprintf(path, sizeof path, "%s/control", r->run_dir);
-    unlink(path);
-    snprintf(path, sizeof path, "%s/bus", r->run_dir);
-    unlink(path);
-    rmdir(r->run_dir);
-  }
+  remove_run_dir(r);
   free(r->surf.x0);
   free(r->surf.tri);
   cpl_fields_free(r);
   cpl_accel_free(r->accel);
   free(r->xi), free(r->xt), free(r->x_start), free(r->v_dem), free(r->f_fem),
       free(r->carry);
+  cpl_checkpoint_free(r->ckpt);
 }
 
 static void install_signals(void) {
@@ -444,21 +402,38 @@ static void install_signals(void) {
   signal(SIGPIPE, SIG_IGN);
 }
 
+/* Before anything in output.dir is touched: its lock, the kept-results
+ * rule, the checkpoint to continue from (a bad one: exit 1, nothing
+ * started). */
+static int claim_output_dir(cpl_runner *r) {
+  cpl_scene *s = r->scene;
+  r->lock_fd = cpl_outdir_lock(s->output_dir, &r->err);
+  if (r->lock_fd < 0) return -1;
+  if (r->opts->restart) {
+    r->ckpt = cpl_checkpoint_read(r->opts->restart, s, &r->err);
+    if (!r->ckpt) return -1;
+    r->k0 = cpl_checkpoint_step(r->ckpt);
+    if (r->k0 >= s->n_steps)
+      return proto_fail(&r->err, "--restart: the checkpoint is of step %lld, but the "
+                        "scene ends at step %lld (time.end = %g s)", (long long)r->k0,
+                        (long long)s->n_steps, s->t_end);
+  }
+  return cpl_outdir_results(s->output_dir, r->ckpt != NULL, r->opts->overwrite, &r->err);
+}
+
 static int prepare(cpl_runner *r) {
   int rc = 0;
   if (!r->opts->attach)
     for (int i = 0; i < r->n && rc == 0; i++)
       rc = cpl_resolve_exec(&r->scene->procs[i], &r->err);
-  if (rc == 0) {
-    r->out = cpl_output_open(r->scene, &r->err);
-    rc = r->out ? 0 : -1;
-  }
+  if (rc == 0) rc = claim_output_dir(r);
   if (rc == 0) rc = setup_sockets(r);
   if (rc == 0) rc = write_endpoints(r);
   if (rc == 0 && !r->opts->attach) rc = start_children(r);
   if (rc == 0) rc = wait_hellos(r);
   if (rc == 0) rc = welcome_all(r);
   if (rc == 0) rc = check_rollback(r);
+  if (rc == 0) rc = open_output(r);
   if (rc == 0) {
     cpl_schedule_build(r);
     if (!r->opts->quiet) cpl_schedule_print(r, stdout);
@@ -469,14 +444,33 @@ static int prepare(cpl_runner *r) {
   return rc;
 }
 
+/* The results are closed complete even on a full disk: after a write error
+ * the reserve is freed first. */
+static int close_output(cpl_runner *r, int *exit_code) {
+  cpl_scene *s = r->scene;
+  if (!r->out) return 0;
+  int failed = cpl_output_io_failed(r->out);
+  cpl_reserve_release(s->output_dir);
+  proto_err err = {{0}};
+  int rc = cpl_output_close(r->out, &err);
+  r->out = NULL;
+  if (rc < 0 && !failed) {
+    fprintf(stderr, "cosim: output error: %s\n", err.msg);
+    *exit_code = CPL_EXIT_OUTPUT;
+  }
+  return rc;
+}
+
 int cpl_run(cpl_scene *s, const cpl_run_opts *opts) {
   cpl_runner *r = calloc(1, sizeof *r);
-  if (!r) return 4;
+  if (!r) return CPL_EXIT_OUTPUT;
   r->scene = s;
   r->opts = opts;
   r->failed_peer = -1;
   r->fem = -1;
+  r->lock_fd = -1;
   r->n = s->nprocs;
+  r->watch_wall = proto_now();
   for (int i = 0; i < r->n; i++) r->peers[i].proc = &s->procs[i];
   install_signals();
   cpl_rim_init(&r->rim, &s->scenario);
@@ -488,30 +482,35 @@ int cpl_run(cpl_scene *s, const cpl_run_opts *opts) {
   if (rc == 0) rc = cpl_step_loop(r);
   int exit_code = 0;
   if (rc < 0) {
-    exit_code = cpl_interrupted ? 130 : r->failed_peer >= 0 ? 3 : 1;
-    fprintf(stderr, "\ncosim: run '%s' failed: %s\n", s->name, r->err.msg);
-    if (r->failed_peer >= 0)
+    exit_code = cpl_interrupted        ? CPL_EXIT_INTERRUPTED
+                : r->out && cpl_output_io_failed(r->out) ? CPL_EXIT_OUTPUT
+                : r->exit_code         ? r->exit_code
+                : r->failed_peer >= 0  ? CPL_EXIT_PARTICIPANT
+                                       : CPL_EXIT_USAGE;
+    char msg[sizeof r->err.msg]; /* parts of it may come from the wire or a log */
+    cpl_printable(msg, sizeof msg, r->err.msg);
+    fprintf(stderr, "\ncosim: run '%s' failed: %s%s\n", s->name,
+            exit_code == CPL_EXIT_OUTPUT ? "output error: " : "", msg);
+    if (r->failed_peer >= 0 && exit_code == CPL_EXIT_PARTICIPANT)
       fprintf(stderr, "cosim: failed participant: %s\n",
-              r->peers[r->failed_peer].proc->name);
+                r->peers[r->failed_peer].proc->name);
   }
   teardown(r, rc == 0);
   char summary[2048] = {0};
+  int had_output = r->out != NULL;
   if (r->out) cpl_output_summary(r->out, summary, sizeof summary);
-  if (r->out && cpl_output_close(r->out) < 0 && exit_code == 0) {
-    fprintf(stderr, "cosim: could not write %s/results.h5 completely\n",
-            s->output_dir);
-    exit_code = 4;
-  }
+  close_output(r, &exit_code);
+  cpl_outdir_unlock(r->lock_fd);
   if (exit_code == 0) {
     printf("cosim: run '%s' finished: %lld steps, t = %g s, %.2f s wall\n",
            s->name, (long long)s->n_steps, (double)s->n_steps * s->dt,
            proto_now() - r->wall_start);
     if (!opts->quiet) cpl_timing_print(r, stdout);
-    printf("results: %s/results.h5 (logs in %s/logs)\n%s", s->output_dir,
+    printf("results: %s/%s (logs in %s/logs)\n%s", s->output_dir, CPL_RESULTS_FILE,
            s->output_dir, summary);
-  } else if (r->out || exit_code != 1) {
-    fprintf(stderr, "cosim: what was written so far is in %s/results.h5\n",
-            s->output_dir);
+  } else if (had_output) {
+    fprintf(stderr, "cosim: what was written so far is in %s/%s\n", s->output_dir,
+            CPL_RESULTS_FILE);
   }
   cpl_timing_free(r->timing);
   free(r);

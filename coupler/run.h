@@ -74,6 +74,15 @@ typedef struct cpl_peer {
   proto_msg reply;   /* its last reply (kept for output until the next step) */
   /* timing of the current step (timing.c) */
   double t_sent, busy, compute;
+  /* liveness (liveness.c), times on the coupler's watch clock */
+  int pid;           /* from its hello */
+  double hb_s;       /* the heartbeat interval its hello announced; 0: none */
+  double heard;      /* its last message */
+  double progressed; /* its last new progress report */
+  double progress;   /* fraction it last reported (< 0: unknown) */
+  char what[64];     /* what it said it was doing (printable) */
+  int shown;         /* progress shown so far (tenths), -1: nothing yet */
+  int initialized;   /* its ready arrived */
 } cpl_peer;
 
 /* The shared surface of the tread: node positions in the rim frame at rest
@@ -92,6 +101,7 @@ typedef struct cpl_road {
 
 typedef struct cpl_timing cpl_timing;
 typedef struct cpl_accel cpl_accel;
+typedef struct cpl_ckpt cpl_ckpt;
 
 typedef struct cpl_runner {
   cpl_scene *scene;
@@ -101,8 +111,7 @@ typedef struct cpl_runner {
   cpl_output *out;
   char run_dir[CPL_PATH_LEN];
   char ctl_endpoint[CPL_PATH_LEN];
-  char bus_inner[CPL_PATH_LEN];
-  char bus_public[CPL_PATH_LEN]; /* actual monitor endpoint (port 0 resolved) */
+  cpl_bus_eps bus_eps; /* as bound (port 0 resolved) */
   int n;
   cpl_peer peers[CPL_MAX_PROCS];
   cpl_child children[CPL_MAX_PROCS];
@@ -133,16 +142,53 @@ typedef struct cpl_runner {
   double wall_start, t_blocked; /* t_blocked: time in receive this step */
   proto_msg inbox; /* receive buffer, swapped into the sender's reply slot */
   int failed_peer; /* index of the participant that failed, or -1 */
+  int exit_code;   /* when the kind of failure is not a participant's: 1, 4 */
   proto_err err;
+  /* liveness: the watch clock advances only while the coupler looks */
+  double watch, watch_wall;
+  int strangers;   /* messages from unknown identities, ignored */
+  /* output.dir, security, restart */
+  int lock_fd;
+  cpl_zap *zap;
+  cpl_ckpt *ckpt;  /* the checkpoint a restart continues from */
+  int64_t k0;      /* the last step done before this run (restart), else 0 */
 } cpl_runner;
 
-/* run.c: receives the next message from `expect` (a peer index, or -1 for
- * any peer), watching the children, the deadline and Ctrl-C. The sender's
- * index goes to *from. Returns -1 with r->err set and r->failed_peer naming
- * the culprit when one can be named. */
-int cpl_receive(cpl_runner *r, int expect, double timeout_s, proto_msg *m,
-                int *from);
+/* liveness.c: receives the next message from `expect` (a peer index, or -1
+ * for any peer), watching the children, their heartbeats, the deadline
+ * (timeout_s without news: a progress report restarts it; `key` names it in
+ * the message) and Ctrl-C. Heartbeats are taken in passing; messages from
+ * unknown identities are logged and ignored. The sender's index goes to
+ * *from. Returns -1 with r->err set and r->failed_peer naming the culprit
+ * when one can be named. m == NULL: the message lands in the sender's reply
+ * slot. */
+int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
+                proto_msg *m, int *from);
 int cpl_send(cpl_runner *r, int peer, const proto_msg *m);
+/* The watch clock (s): advances with the wall clock while the coupler runs,
+ * by at most a second at a time, so its own pauses (Ctrl-Z, SIGSTOP) do not
+ * count as the participants' silence. */
+double cpl_watch(cpl_runner *r);
+/* Copies s into out with anything a terminal would act on replaced. */
+void cpl_printable(char *out, size_t cap, const char *s);
+/* A hello: its role, pid and heartbeat interval. */
+int cpl_take_hello(cpl_runner *r, int from, const proto_msg *m);
+
+/* checkpoint.c (README "Checkpoints and restart") */
+/* Writes output.dir/checkpoint_<k>.h5 after step k: every participant's
+ * state, the coupler's. Keeps the newest scene.checkpoint_keep. */
+int cpl_checkpoint_write(cpl_runner *r, int64_t k);
+/* Reads a checkpoint ("latest": the newest in output.dir) and checks that
+ * the scene continues it (the keys that decide the results agree). */
+cpl_ckpt *cpl_checkpoint_read(const char *path, const cpl_scene *s, proto_err *err);
+int64_t cpl_checkpoint_step(const cpl_ckpt *c);
+/* Restores every participant and the coupler from r->ckpt (after the
+ * handshake and the scheme's set-up). */
+int cpl_checkpoint_restore(cpl_runner *r);
+void cpl_checkpoint_free(cpl_ckpt *c);
+/* Removes output.dir's checkpoints (a new results file starts: they belong
+ * to the results it replaces). */
+int cpl_checkpoint_clear(const char *dir, proto_err *err);
 
 /* schedule.c */
 /* Allocates the fields for a surface of n nodes (n may be 0). */
@@ -184,6 +230,15 @@ int cpl_accel_next(cpl_accel *a, double *x, const double *xt,
                    const double *const *base, double *res);
 void cpl_accel_end(cpl_accel *a);
 int cpl_accel_columns(const cpl_accel *a);
+/* What carries over from one step to the next (restart: bitwise): up to cap
+ * named buffers into v; returns how many. */
+typedef struct cpl_stateval {
+  const char *name;
+  proto_dtype dtype;
+  void *data;
+  int64_t count;
+} cpl_stateval;
+int cpl_accel_state(cpl_accel *a, cpl_stateval *v, int cap);
 
 /* timing.c: compute / transfer+encode / waiting per process and step, the
  * coupler's own mapping and output time; /coupler/timing rows; the

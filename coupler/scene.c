@@ -51,19 +51,71 @@ static int read_output(proto_cfg *root, cpl_scene *s) {
   return proto_cfg_end(&c);
 }
 
+static int bus_endpoint(proto_cfg *c, const char *key, const char *ep) {
+  if (ep[0] && strncmp(ep, "tcp://", 6) && strncmp(ep, "ipc://", 6))
+    return proto_fail(c->err, "bus.%s: expected a tcp:// or ipc:// endpoint, got '%s'",
+                      key, ep);
+  if (!strncmp(ep, "tcp://", 6) && !strrchr(ep + 6, ':'))
+    return proto_fail(c->err, "bus.%s: expected tcp://HOST:PORT (PORT 0: any free "
+                      "port), got '%s'", key, ep);
+  return 0;
+}
+
+/* The snapshot stream's default endpoint: next to the monitor one (tcp: the
+ * same host, any free port; ipc: the same path with "-snapshots"). */
+static void default_snapshots(cpl_scene *s) {
+  const char *m = s->bus_monitor;
+  if (!m[0]) return;
+  if (!strncmp(m, "tcp://", 6))
+    snprintf(s->bus_snapshots, sizeof s->bus_snapshots, "%.*s:0",
+             (int)(strrchr(m + 6, ':') - m), m);
+  else
+    snprintf(s->bus_snapshots, sizeof s->bus_snapshots, "%.*s-snapshots",
+             (int)sizeof s->bus_snapshots - 16, m);
+}
+
 static int read_bus(proto_cfg *root, cpl_scene *s) {
   proto_cfg c;
   s->bus_hwm = 1000;
+  s->bus_snapshot_hwm = 2;
   int rc = proto_cfg_child(root, "bus", PROTO_OPTIONAL, &c);
   if (rc != 0) return rc < 0 ? -1 : 0;
   if (proto_cfg_str(&c, "monitor", PROTO_OPTIONAL, s->bus_monitor,
                     sizeof s->bus_monitor) < 0 ||
-      proto_cfg_int(&c, "hwm", PROTO_OPTIONAL, 1, 1000000, &s->bus_hwm) < 0)
+      proto_cfg_str(&c, "snapshots", PROTO_OPTIONAL, s->bus_snapshots,
+                    sizeof s->bus_snapshots) < 0 ||
+      proto_cfg_int(&c, "hwm", PROTO_OPTIONAL, 1, 1000000, &s->bus_hwm) < 0 ||
+      proto_cfg_int(&c, "snapshot_hwm", PROTO_OPTIONAL, 1, 1000, &s->bus_snapshot_hwm) < 0)
     return -1;
-  const char *m = s->bus_monitor;
-  if (m[0] && strncmp(m, "tcp://", 6) && strncmp(m, "ipc://", 6))
-    return proto_fail(c.err, "bus.monitor: expected a tcp:// or ipc:// "
-                      "endpoint, got '%s'", m);
+  if (bus_endpoint(&c, "monitor", s->bus_monitor) < 0 ||
+      bus_endpoint(&c, "snapshots", s->bus_snapshots) < 0)
+    return -1;
+  if (s->bus_snapshots[0] && !s->bus_monitor[0])
+    return proto_fail(c.err, "bus.snapshots: needs bus.monitor");
+  if (!s->bus_snapshots[0]) default_snapshots(s);
+  return proto_cfg_end(&c);
+}
+
+/* checkpoint: {"every": K, "keep": N} (README "Checkpoints and restart"). */
+static int read_checkpoint(proto_cfg *root, cpl_scene *s) {
+  proto_cfg c;
+  s->checkpoint_every = 0;
+  s->checkpoint_keep = 3;
+  int rc = proto_cfg_child(root, "checkpoint", PROTO_OPTIONAL, &c);
+  if (rc != 0) return rc < 0 ? -1 : 0;
+  if (proto_cfg_int(&c, "every", PROTO_REQUIRED, 1, INT64_MAX, &s->checkpoint_every) < 0 ||
+      proto_cfg_int(&c, "keep", PROTO_OPTIONAL, 1, 1000, &s->checkpoint_keep) < 0)
+    return -1;
+  return proto_cfg_end(&c);
+}
+
+/* security: {"curve": true} (README "Security"). */
+static int read_security(proto_cfg *root, cpl_scene *s) {
+  proto_cfg c;
+  s->curve = 0;
+  int rc = proto_cfg_child(root, "security", PROTO_OPTIONAL, &c);
+  if (rc != 0) return rc < 0 ? -1 : 0;
+  if (proto_cfg_bool(&c, "curve", PROTO_OPTIONAL, &s->curve) < 0) return -1;
   return proto_cfg_end(&c);
 }
 
@@ -98,13 +150,19 @@ static int read_implicit(proto_cfg *parent, cpl_scene *s) {
 static int read_coupling(proto_cfg *root, cpl_scene *s) {
   proto_cfg c;
   int scheme = 0;
-  s->handshake_timeout = 10;
+  s->hello_timeout = 10;
+  s->heartbeat_timeout = 10;
+  s->handshake_timeout = 60;
   s->step_timeout = 60;
   snprintf(s->attach_endpoint, sizeof s->attach_endpoint, "tcp://127.0.0.1:0");
   int rc = proto_cfg_child(root, "coupling", PROTO_OPTIONAL, &c);
   if (rc < 0) return -1;
   if (rc > 0) return read_implicit(NULL, s);
   if (proto_cfg_enum(&c, "scheme", PROTO_OPTIONAL, scheme_names, &scheme) < 0 ||
+      proto_cfg_num(&c, "hello_timeout", PROTO_OPTIONAL, 0.1, 86400,
+                    &s->hello_timeout) < 0 ||
+      proto_cfg_num(&c, "heartbeat_timeout", PROTO_OPTIONAL, 2 * PROTO_HEARTBEAT_S, 86400,
+                    &s->heartbeat_timeout) < 0 ||
       proto_cfg_num(&c, "handshake_timeout", PROTO_OPTIONAL, 0.1, 86400,
                     &s->handshake_timeout) < 0 ||
       proto_cfg_num(&c, "step_timeout", PROTO_OPTIONAL, 0.1, 86400,
@@ -295,7 +353,8 @@ int cpl_scene_from_json(cpl_scene *s, cJSON *json, const char *source,
     return -1;
   if (read_time(&root, s) < 0 || read_output(&root, s) < 0 ||
       read_bus(&root, s) < 0 || read_coupling(&root, s) < 0 ||
-      read_scenario(&root, s) < 0 || read_processes(&root, s) < 0 ||
+      read_scenario(&root, s) < 0 || read_checkpoint(&root, s) < 0 ||
+      read_security(&root, s) < 0 || read_processes(&root, s) < 0 ||
       proto_cfg_end(&root) < 0)
     return proto_wrap(err, "%s", source);
   return 0;

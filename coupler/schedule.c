@@ -289,7 +289,17 @@ static int run_stage(cpl_runner *r, int stage, int64_t k, int iteration, int out
   while (waiting > 0) {
     int from = -1;
     double t0 = proto_now();
-    if (cpl_receive(r, -1, r->scene->step_timeout, NULL, &from) < 0) return -1;
+    if (cpl_receive(r, -1, r->scene->step_timeout, "step_timeout", NULL, &from) < 0) {
+      const int late = r->failed_peer < 0 && strstr(r->err.msg, "did not answer");
+      for (int e = 0; e < r->nex && late && r->failed_peer < 0; e++) /* name who is late */
+        if (r->ex[e].stage == stage && r->ex[e].peer >= 0 && !replied[r->ex[e].peer]) {
+          r->failed_peer = r->ex[e].peer;
+          proto_fail(&r->err, "participant '%s' did not answer within %g s "
+                     "(coupling.step_timeout)", r->peers[r->failed_peer].proc->name,
+                     r->scene->step_timeout);
+        }
+      return -1;
+    }
     double now = proto_now();
     r->t_blocked += now - t0;
     if (!in_stage(r, stage, from) || replied[from]) {

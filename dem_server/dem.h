@@ -230,9 +230,14 @@ void dem_bed_paper(dem_bed_spec *b, double scale);
 /* Places grains without overlap on jittered lattices in the model's grain
  * arrays (replaces any). Does not settle. */
 int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err);
-/* Runs until the kinetic energy per grain is below ke_per_grain or max_steps. */
+/* Progress of a long call: the fraction done in [0, 1] and what is being
+ * done. The library only calls it (a participant passes it on as its
+ * heartbeats' progress, proto_peer_progress); it may be NULL. */
+typedef void (*dem_progress_fn)(void *ctx, double fraction, const char *what);
+/* Runs until the kinetic energy per grain is below ke_per_grain or
+ * max_steps, reporting progress now and then (the fraction of max_steps). */
 int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain,
-               int64_t max_steps, proto_err *err);
+               int64_t max_steps, dem_progress_fn progress, void *ctx, proto_err *err);
 /* Most grains a model may have (generated or read). */
 #define DEM_MAX_GRAINS ((int64_t)100000000)
 /* HDF5 beds: datasets x [n,3], v [n,3], omega [n,3], r [n], material [n] (i4),

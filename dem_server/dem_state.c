@@ -256,11 +256,16 @@ double dem_coordination(const dem_model *m, const dem_state *s) {
   return s->n ? 2.0 * (double)s->work->pair_contacts / s->n : 0;
 }
 
+#define SETTLE_REPORT_EVERY 50 /* steps between progress reports */
+
 int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain, int64_t max_steps,
-               proto_err *err) {
+               dem_progress_fn progress, void *ctx, proto_err *err) {
   for (int64_t k = 0; k < max_steps; k++) {
     if (dem_step(m, s, err)) return proto_wrap(err, "settling the bed");
+    if (progress && k % SETTLE_REPORT_EVERY == 0)
+      progress(ctx, (double)k / (double)max_steps, "settling the bed");
     if (k > 100 && s->kinetic_energy < ke_per_grain * s->n) break;
   }
+  if (progress) progress(ctx, 1.0, "settling the bed");
   return 0;
 }

@@ -18,6 +18,8 @@ typedef struct dem_app {
   dem_state state;
   int have_model, have_state;
   double run_dt;
+  proto_peer *peer;     /* for init progress (settling) */
+  int64_t restart_step; /* > 0: a restart, whose state replaces the settled bed */
   int surface;         /* mesh index of the coupled FEM surface, -1 if none */
   int threads_logged;  /* thread count last written to the log */
   double series[6];
@@ -36,10 +38,11 @@ static const char *const SERIES[] = {"t", "kinetic_energy", "contacts", "max_ove
 static int configure(void *user, const proto_run_info *info, const cJSON *section, proto_err *err) {
   dem_app *a = user;
   if (a->have_model) dem_model_free(&a->model);
-  a->have_model = 0;
   a->have_model = 1; /* also a half-read model: finish() frees it */
   if (dem_model_from_json(&a->model, section, info->key_path, err)) return -1;
   a->run_dt = info->dt;
+  a->peer = info->peer;
+  a->restart_step = info->restart_step;
   snprintf(a->name, sizeof a->name, "%s", info->name ? info->name : "dem");
   /* the initial configuration too (overlaps, grains outside): also for --check-config */
   dem_state probe;
@@ -69,21 +72,34 @@ static void log_threads(dem_app *a) {
   a->threads_logged = a->state.threads;
 }
 
+/* The DEM library's progress, as this participant's heartbeats say it. */
+static void report(void *ctx, double fraction, const char *what) {
+  proto_peer_progress(ctx, fraction, what);
+}
+
 static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_err *err) {
   dem_app *a = user;
   dem_model *m = &a->model;
   if (add_surface(a, welcome, err) || dem_state_init(m, &a->state, err)) return -1;
   a->have_state = 1;
   log_threads(a);
-  if (m->cfg.settle_steps > 0) {
+  /* a restart's state (dem_state_import into a fresh state, bitwise) takes
+   * the place of the settled bed: no need to settle it first */
+  if (m->cfg.settle_steps > 0 && a->restart_step > 0)
+    fprintf(stderr, "dem_server: restart from step %lld: not settling (the checkpoint "
+            "has the bed)\n", (long long)a->restart_step);
+  else if (m->cfg.settle_steps > 0) {
     double t0 = proto_now();
-    if (dem_settle(m, &a->state, m->cfg.settle_ke, (int64_t)m->cfg.settle_steps, err)) return -1;
+    if (dem_settle(m, &a->state, m->cfg.settle_ke, (int64_t)m->cfg.settle_steps, report,
+                   a->peer, err))
+      return -1;
     fprintf(stderr, "dem_server: bed of %d grains settled in %lld steps (%.1f s), KE %.3g J\n",
             m->n_grains, (long long)a->state.step, proto_now() - t0, a->state.kinetic_energy);
     a->state.t = 0;
     a->state.step = 0;
   }
-  if (m->cfg.save_bed[0] && dem_bed_save(m, &a->state, m->cfg.save_bed, err))
+  if (m->cfg.save_bed[0] && a->restart_step == 0 &&
+      dem_bed_save(m, &a->state, m->cfg.save_bed, err))
     return proto_wrap(err, "%s.particles.save", m->key_path);
   size_t n = (size_t)m->n_grains;
   a->wall_row = calloc(1 + 3 * (size_t)m->n_walls, sizeof(double));

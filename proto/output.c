@@ -13,6 +13,7 @@
  * with a message "<file>:<object path>: <what> (HDF5: <innermost reason>)". */
 #include "proto.h"
 
+#include <errno.h>
 #include <hdf5.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -20,6 +21,12 @@
 
 #define H5_PATH_CAP 256   /* object paths inside the file */
 #define FILE_PATH_CAP 512 /* the file's own path, for messages */
+
+/* bytes: HDF5's metadata cache of a file (its default maximum is 32 MiB) */
+#define METADATA_CACHE_MAX ((size_t)2 << 20)
+/* bytes: HDF5's free lists, all of one kind and each (H5set_free_list_limits) */
+#define FREE_LIST_GLOBAL (1 << 20)
+#define FREE_LIST_EACH (256 << 10)
 
 enum {
   SERIES_CHUNK_ROWS = 256,
@@ -61,23 +68,41 @@ static void h5_close_id(hid_t id) {
   }
 }
 
+/* What the error stack says: its innermost description and, when a system
+ * call failed (the sec2 driver writes "errno = 28, ..."), that errno. */
+typedef struct h5_reason {
+  char desc[200];
+  int sys_errno;
+} h5_reason;
+
 static herr_t innermost_cb(unsigned n, const H5E_error2_t *e, void *data) {
   (void)n;
+  h5_reason *r = data;
   /* Walking downward: the last entry visited is the most specific one. */
-  if (e->desc && e->desc[0]) snprintf((char *)data, 200, "%s", e->desc);
+  if (!e->desc || !e->desc[0]) return 0;
+  const char *eq = strstr(e->desc, "errno = ");
+  if (eq) {
+    r->sys_errno = atoi(eq + 8);
+    snprintf(r->desc, sizeof r->desc, "%s", "file write failed");
+  } else {
+    snprintf(r->desc, sizeof r->desc, "%s", e->desc);
+  }
   return 0;
 }
 
-/* Fails with "<file>:<obj>: <what>" plus the innermost HDF5 reason
- * (obj NULL: the file itself). */
+/* Fails with "<file>:<obj>: <what>" plus the innermost HDF5 reason and the
+ * system error, if any (obj NULL: the file itself). */
 static int h5_fail(proto_err *err, const char *file, const char *obj,
                    const char *what) {
-  char reason[200] = "";
-  H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, innermost_cb, reason);
+  h5_reason r = {"", 0};
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, innermost_cb, &r);
   H5Eclear2(H5E_DEFAULT);
-  return proto_fail(err, "%s%s%s: %s%s%s%s", file, obj ? ":" : "",
-                    obj ? obj : "", what, reason[0] ? " (HDF5: " : "", reason,
-                    reason[0] ? ")" : "");
+  char sys[96] = "";
+  if (r.sys_errno > 0)
+    snprintf(sys, sizeof sys, ": %s (errno %d)", strerror(r.sys_errno), r.sys_errno);
+  return proto_fail(err, "%s%s%s: %s%s%s%s%s", file, obj ? ":" : "",
+                    obj ? obj : "", what, sys, r.desc[0] ? " (HDF5: " : "",
+                    r.desc, r.desc[0] ? ")" : "");
 }
 
 /* "/a//b/" + "c" -> "/a/b/c"; name may be NULL. Empty result is "/". */
@@ -179,9 +204,22 @@ done:
 
 /* ---------------------------------------------------------------- file */
 
-proto_h5 *proto_h5_create(const char *path, proto_err *err) {
-  /* Library errors come back as messages, not as stack dumps on stderr. */
+/* Library errors come back as messages, not as stack dumps on stderr; and
+ * HDF5 must not close files from an atexit handler: a file whose close
+ * failed (a full disk) is left alone at exit rather than closed again by a
+ * handler that crashes on it (HDF5 1.10: SIGSEGV in H5F__close_cb). */
+static void h5_setup(void) {
+  H5dont_atexit(); /* fails harmlessly once the library is initialised */
   H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+  /* HDF5 keeps freed blocks (evicted chunk-index nodes ...) on free lists of
+   * up to 16 MiB each kind, which a long run fills: bound them */
+  H5set_free_list_limits(FREE_LIST_GLOBAL, FREE_LIST_EACH, FREE_LIST_GLOBAL, FREE_LIST_EACH,
+                         FREE_LIST_GLOBAL, FREE_LIST_EACH);
+}
+
+static proto_h5 *h5_file(const char *path, int create, int writable,
+                         proto_err *err) {
+  h5_setup();
   if (!path || !path[0]) {
     proto_fail(err, "HDF5 output: empty file name");
     return NULL;
@@ -197,16 +235,45 @@ proto_h5 *proto_h5_create(const char *path, proto_err *err) {
   /* Keep locking, but do not fail on file systems without it (NFS...). */
   if (fapl >= 0) H5Pset_file_locking(fapl, 1, 1);
 #endif
-  f->file = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT,
-                      fapl >= 0 ? fapl : H5P_DEFAULT);
+  /* A long run adds chunk-index nodes to the metadata cache, which HDF5
+   * would let grow to 32 MiB: cap it, so that memory stays flat. */
+  H5AC_cache_config_t mdc = {.version = H5AC__CURR_CACHE_CONFIG_VERSION};
+  if (fapl >= 0 && H5Pget_mdc_config(fapl, &mdc) >= 0) {
+    mdc.max_size = METADATA_CACHE_MAX;
+    if (mdc.initial_size > mdc.max_size) mdc.initial_size = mdc.max_size;
+    if (mdc.min_size > mdc.max_size) mdc.min_size = mdc.max_size;
+    H5Pset_mdc_config(fapl, &mdc);
+  }
+  hid_t use = fapl >= 0 ? fapl : H5P_DEFAULT;
+  f->file = create ? H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, use)
+                   : H5Fopen(path, writable ? H5F_ACC_RDWR : H5F_ACC_RDONLY, use);
   if (f->file < 0) /* read the reason before H5Pclose clears the stack */
-    h5_fail(err, path, NULL, "cannot create HDF5 file");
+    h5_fail(err, path, NULL, create ? "cannot create HDF5 file"
+                                    : "cannot open HDF5 file");
   h5_close_id(fapl);
   if (f->file < 0) {
     free(f);
     return NULL;
   }
   return f;
+}
+
+proto_h5 *proto_h5_create(const char *path, proto_err *err) {
+  return h5_file(path, 1, 1, err);
+}
+
+proto_h5 *proto_h5_open(const char *path, int writable, proto_err *err) {
+  return h5_file(path, 0, writable, err);
+}
+
+int proto_h5_probe(const char *path) {
+  h5_setup();
+  FILE *fp = fopen(path, "rb");
+  if (!fp) return errno == ENOENT ? 0 : 2;
+  fclose(fp);
+  htri_t is = H5Fis_hdf5(path);
+  H5Eclear2(H5E_DEFAULT);
+  return is > 0 ? 1 : 2;
 }
 
 /* Writes the buffered rows of one series. */
@@ -240,29 +307,30 @@ done:
   return rc;
 }
 
-int proto_h5_flush(proto_h5 *f) {
-  if (!f) return -1;
+int proto_h5_flush(proto_h5 *f, proto_err *err) {
+  if (!f) return proto_fail(err, "proto_h5_flush: no file");
   int rc = 0;
-  proto_err scratch;
   for (proto_series *s = f->series; s; s = s->next)
-    if (series_write(s, &scratch) < 0) rc = -1;
-  if (H5Fflush(f->file, H5F_SCOPE_GLOBAL) < 0) rc = -1;
+    if (series_write(s, err) < 0) rc = -1;
+  if (rc == 0 && H5Fflush(f->file, H5F_SCOPE_GLOBAL) < 0)
+    rc = h5_fail(err, f->path, NULL, "cannot flush");
   H5Eclear2(H5E_DEFAULT);
   return rc;
 }
 
-int proto_h5_close(proto_h5 *f) {
+int proto_h5_close(proto_h5 *f, proto_err *err) {
   if (!f) return 0;
-  int rc = proto_h5_flush(f);
+  int rc = proto_h5_flush(f, err);
   proto_series *s = f->series;
   while (s) {
     proto_series *next = s->next;
-    if (H5Dclose(s->dset) < 0) rc = -1;
+    H5Dclose(s->dset);
     free(s->buf);
     free(s);
     s = next;
   }
-  if (H5Fclose(f->file) < 0) rc = -1;
+  /* after a failed flush the close fails too: keep the first message */
+  if (H5Fclose(f->file) < 0 && rc == 0) rc = h5_fail(err, f->path, NULL, "cannot close");
   H5Eclear2(H5E_DEFAULT);
   free(f);
   return rc;
@@ -294,36 +362,40 @@ int proto_h5_attr_str(proto_h5 *f, const char *group, const char *name,
 
 /* -------------------------------------------------------------- series */
 
-proto_series *proto_h5_series(proto_h5 *f, const char *path, int ncols,
-                              const char *const *columns, proto_err *err) {
-  char full[H5_PATH_CAP];
-  if (!f) {
-    proto_fail(err, "proto_h5_series: no file");
-    return NULL;
-  }
-  if (join_path(full, sizeof full, path, NULL, f->path, err) < 0) return NULL;
-  if (strcmp(full, "/") == 0) {
-    proto_fail(err, "%s:%s: a series needs a dataset path", f->path, full);
-    return NULL;
-  }
-  if (ncols < 1 || ncols > SERIES_MAX_COLS || !columns) {
-    proto_fail(err, "%s:%s: need 1..%d columns with names, got %d", f->path,
-               full, SERIES_MAX_COLS, ncols);
-    return NULL;
-  }
+/* Checks a series' path and columns; full gets the normalised path. */
+static int series_args(proto_h5 *f, const char *path, int ncols,
+                       const char *const *columns, char *full, proto_err *err) {
+  if (!f) return proto_fail(err, "proto_h5_series: no file");
+  if (join_path(full, H5_PATH_CAP, path, NULL, f->path, err) < 0) return -1;
+  if (strcmp(full, "/") == 0)
+    return proto_fail(err, "%s:%s: a series needs a dataset path", f->path, full);
+  if (ncols < 1 || ncols > SERIES_MAX_COLS || !columns)
+    return proto_fail(err, "%s:%s: need 1..%d columns with names, got %d", f->path,
+                      full, SERIES_MAX_COLS, ncols);
   for (int c = 0; c < ncols; c++)
-    if (!columns[c]) {
-      proto_fail(err, "%s:%s: column %d has no name", f->path, full, c);
-      return NULL;
-    }
-  if (make_groups(f, full, 1, err) < 0) return NULL;
-  htri_t exists = H5Lexists(f->file, full, H5P_DEFAULT);
-  if (exists != 0) {
-    if (exists < 0) h5_fail(err, f->path, full, "cannot look up series");
-    else proto_fail(err, "%s:%s: already exists", f->path, full);
-    return NULL;
-  }
+    if (!columns[c]) return proto_fail(err, "%s:%s: column %d has no name", f->path, full, c);
+  return 0;
+}
 
+/* A series is written a whole chunk at a time from its own buffer and never
+ * read back: HDF5's chunk cache (1 MiB per dataset) would only hold copies
+ * of written chunks. Off. */
+static hid_t series_access(void) {
+  static hid_t dapl = H5I_INVALID_HID;
+  if (dapl < 0) {
+    dapl = H5Pcreate(H5P_DATASET_ACCESS);
+    if (dapl >= 0 && H5Pset_chunk_cache(dapl, H5D_CHUNK_CACHE_NSLOTS_DEFAULT, 0,
+                                        H5D_CHUNK_CACHE_W0_DEFAULT) < 0) {
+      H5Pclose(dapl);
+      dapl = H5I_INVALID_HID;
+    }
+  }
+  return dapl >= 0 ? dapl : H5P_DEFAULT;
+}
+
+/* A series handle with its one-chunk row buffer (dataset not yet opened). */
+static proto_series *series_alloc(proto_h5 *f, const char *full, int ncols,
+                                  proto_err *err) {
   proto_series *s = calloc(1, sizeof *s);
   int rows = SERIES_CHUNK_BYTES / (8 * ncols);
   rows = rows < 1 ? 1 : rows > SERIES_CHUNK_ROWS ? SERIES_CHUNK_ROWS : rows;
@@ -336,33 +408,138 @@ proto_series *proto_h5_series(proto_h5 *f, const char *path, int ncols,
   s->file = f;
   s->ncols = ncols;
   s->buf_rows = rows;
-  snprintf(s->path, sizeof s->path, "%s", full);
-
-  hsize_t dims[2] = {0, (hsize_t)ncols};
-  hsize_t maxdims[2] = {H5S_UNLIMITED, (hsize_t)ncols};
-  hsize_t chunk[2] = {(hsize_t)rows, (hsize_t)ncols};
-  hid_t space = H5Screate_simple(2, dims, maxdims);
-  hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
   s->dset = H5I_INVALID_HID;
-  if (space >= 0 && dcpl >= 0 && H5Pset_chunk(dcpl, 2, chunk) >= 0)
-    s->dset = H5Dcreate2(f->file, full, H5T_IEEE_F64LE, space, H5P_DEFAULT,
-                         dcpl, H5P_DEFAULT);
-  h5_close_id(dcpl);
-  h5_close_id(space);
-  if (s->dset < 0) {
-    h5_fail(err, f->path, full, "cannot create series");
-    goto fail;
-  }
-  if (write_str_attr(f, s->dset, full, "columns", ncols, columns, err) < 0)
-    goto fail;
+  snprintf(s->path, sizeof s->path, "%s", full);
+  return s;
+}
+
+static proto_series *series_keep(proto_h5 *f, proto_series *s) {
   s->next = f->series;
   f->series = s;
   return s;
-fail:
+}
+
+static proto_series *series_drop(proto_series *s) {
   h5_close_id(s->dset);
   free(s->buf);
   free(s);
   return NULL;
+}
+
+proto_series *proto_h5_series(proto_h5 *f, const char *path, int ncols,
+                              const char *const *columns, proto_err *err) {
+  char full[H5_PATH_CAP];
+  if (series_args(f, path, ncols, columns, full, err) < 0) return NULL;
+  if (make_groups(f, full, 1, err) < 0) return NULL;
+  htri_t exists = H5Lexists(f->file, full, H5P_DEFAULT);
+  if (exists != 0) {
+    if (exists < 0) h5_fail(err, f->path, full, "cannot look up series");
+    else proto_fail(err, "%s:%s: already exists", f->path, full);
+    return NULL;
+  }
+  proto_series *s = series_alloc(f, full, ncols, err);
+  if (!s) return NULL;
+  hsize_t dims[2] = {0, (hsize_t)ncols};
+  hsize_t maxdims[2] = {H5S_UNLIMITED, (hsize_t)ncols};
+  hsize_t chunk[2] = {(hsize_t)s->buf_rows, (hsize_t)ncols};
+  hid_t space = H5Screate_simple(2, dims, maxdims);
+  hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+  if (space >= 0 && dcpl >= 0 && H5Pset_chunk(dcpl, 2, chunk) >= 0)
+    s->dset = H5Dcreate2(f->file, full, H5T_IEEE_F64LE, space, H5P_DEFAULT,
+                         dcpl, series_access());
+  h5_close_id(dcpl);
+  h5_close_id(space);
+  if (s->dset < 0) {
+    h5_fail(err, f->path, full, "cannot create series");
+    return series_drop(s);
+  }
+  if (write_str_attr(f, s->dset, full, "columns", ncols, columns, err) < 0)
+    return series_drop(s);
+  return series_keep(f, s);
+}
+
+/* Element i of a string attribute (scalar: i = 0) into out; -1 if absent. */
+static int read_str_attr(proto_h5 *f, hid_t obj, const char *obj_path,
+                         const char *name, int want_n, char **out, int cap,
+                         proto_err *err) {
+  hid_t attr = H5Aopen(obj, name, H5P_DEFAULT);
+  hid_t space = attr >= 0 ? H5Aget_space(attr) : H5I_INVALID_HID;
+  hid_t type = vlen_str_type();
+  hssize_t n = space >= 0 ? H5Sget_simple_extent_npoints(space) : -1;
+  int rc = -1;
+  if (attr < 0 || space < 0 || type < 0 || n < 1 || n > cap ||
+      (want_n >= 0 && n != want_n)) {
+    if (n >= 0 && want_n >= 0 && n != want_n)
+      proto_fail(err, "%s:%s: attribute '%s' has %lld entries, expected %d", f->path,
+                 obj_path, name, (long long)n, want_n);
+    else
+      h5_fail(err, f->path, obj_path, "cannot read string attribute");
+  } else if (H5Aread(attr, type, out) < 0) {
+    h5_fail(err, f->path, obj_path, "cannot read string attribute");
+  } else {
+    rc = (int)n;
+  }
+  h5_close_id(type);
+  h5_close_id(space);
+  h5_close_id(attr);
+  return rc;
+}
+
+static void free_strs(char **v, int n) {
+  for (int i = 0; i < n; i++) H5free_memory(v[i]);
+}
+
+/* The columns attribute of an existing series must be `columns`. */
+static int same_columns(proto_h5 *f, proto_series *s, const char *const *columns,
+                        proto_err *err) {
+  char **have = calloc((size_t)s->ncols, sizeof *have);
+  if (!have) return proto_fail(err, "%s:%s: out of memory", f->path, s->path);
+  int n = read_str_attr(f, s->dset, s->path, "columns", s->ncols, have, s->ncols, err);
+  int rc = n < 0 ? -1 : 0;
+  for (int c = 0; rc == 0 && c < s->ncols; c++)
+    if (strcmp(have[c], columns[c]) != 0)
+      rc = proto_fail(err, "%s:%s: column %d is '%s' in the file, '%s' now", f->path,
+                      s->path, c, have[c], columns[c]);
+  if (n > 0) free_strs(have, n);
+  free(have);
+  return rc;
+}
+
+proto_series *proto_h5_series_resume(proto_h5 *f, const char *path, int ncols,
+                                     const char *const *columns, int64_t keep_rows,
+                                     proto_err *err) {
+  char full[H5_PATH_CAP];
+  if (series_args(f, path, ncols, columns, full, err) < 0) return NULL;
+  if (H5Lexists(f->file, full, H5P_DEFAULT) <= 0) {
+    H5Eclear2(H5E_DEFAULT);
+    proto_fail(err, "%s:%s: no such series to continue", f->path, full);
+    return NULL;
+  }
+  proto_series *s = series_alloc(f, full, ncols, err);
+  if (!s) return NULL;
+  s->dset = H5Dopen2(f->file, full, series_access());
+  hid_t space = s->dset >= 0 ? H5Dget_space(s->dset) : H5I_INVALID_HID;
+  hsize_t dims[2] = {0, 0};
+  int rank = space >= 0 ? H5Sget_simple_extent_dims(space, dims, NULL) : -1;
+  h5_close_id(space);
+  if (rank != 2 || dims[1] != (hsize_t)ncols) {
+    if (rank < 0) h5_fail(err, f->path, full, "cannot open series");
+    else proto_fail(err, "%s:%s: is not a series of %d columns", f->path, full, ncols);
+    return series_drop(s);
+  }
+  if (same_columns(f, s, columns, err) < 0) return series_drop(s);
+  if ((int64_t)dims[0] < keep_rows) {
+    proto_fail(err, "%s:%s: has %lld rows, fewer than the %lld to continue from",
+               f->path, full, (long long)dims[0], (long long)keep_rows);
+    return series_drop(s);
+  }
+  dims[0] = (hsize_t)keep_rows;
+  if (H5Dset_extent(s->dset, dims) < 0) {
+    h5_fail(err, f->path, full, "cannot truncate series");
+    return series_drop(s);
+  }
+  s->rows_on_disk = keep_rows;
+  return series_keep(f, s);
 }
 
 int proto_series_append(proto_series *s, const double *row, proto_err *err) {
@@ -373,6 +550,13 @@ int proto_series_append(proto_series *s, const double *row, proto_err *err) {
          (size_t)s->ncols * sizeof(double));
   s->nbuf++;
   return 0;
+}
+
+size_t proto_h5_buffer_bytes(const proto_h5 *f) {
+  size_t n = 0;
+  for (const proto_series *s = f ? f->series : NULL; s; s = s->next)
+    n += (size_t)s->buf_rows * (size_t)s->ncols * sizeof(double);
+  return n;
 }
 
 int64_t proto_series_rows(const proto_series *s) {
@@ -440,11 +624,156 @@ int proto_h5_write_array(proto_h5 *f, const char *group, const proto_array *a,
   if (count > 0 &&
       H5Dwrite(dset, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, a->data) < 0) {
     h5_fail(err, f->path, full, "cannot write dataset");
+    H5Ldelete(f->file, full, H5P_DEFAULT); /* no half-written dataset left behind */
+    H5Eclear2(H5E_DEFAULT);
     goto done;
   }
   rc = 0;
 done:
   h5_close_id(dset);
   h5_close_id(space);
+  return rc;
+}
+
+/* ------------------------------------------------------------- reading */
+
+int proto_h5_attr_get(proto_h5 *f, const char *group, const char *name,
+                      char **value, proto_err *err) {
+  char path[H5_PATH_CAP];
+  *value = NULL;
+  if (!f) return proto_fail(err, "proto_h5_attr_get: no file");
+  if (join_path(path, sizeof path, group, NULL, f->path, err) < 0) return -1;
+  hid_t obj = H5Oopen(f->file, path, H5P_DEFAULT);
+  if (obj < 0) return h5_fail(err, f->path, path, "cannot open object");
+  char *v[1] = {NULL};
+  int rc = H5Aexists(obj, name) > 0
+               ? read_str_attr(f, obj, path, name, -1, v, 1, err)
+               : proto_fail(err, "%s:%s: no attribute '%s'", f->path, path, name);
+  H5Oclose(obj);
+  H5Eclear2(H5E_DEFAULT);
+  if (rc < 0) return -1;
+  *value = strdup(v[0] ? v[0] : "");
+  free_strs(v, 1);
+  return *value ? 0 : proto_fail(err, "%s: out of memory", f->path);
+}
+
+int proto_h5_exists(proto_h5 *f, const char *path) {
+  char full[H5_PATH_CAP];
+  if (!f || join_path(full, sizeof full, path, NULL, f->path, NULL) < 0) return 0;
+  /* every link on the way must exist for H5Lexists not to fail */
+  for (char *p = full + 1; *p; p++) {
+    if (*p != '/') continue;
+    *p = 0;
+    htri_t e = H5Lexists(f->file, full, H5P_DEFAULT);
+    *p = '/';
+    if (e <= 0) {
+      H5Eclear2(H5E_DEFAULT);
+      return 0;
+    }
+  }
+  htri_t e = strcmp(full, "/") == 0 ? 1 : H5Lexists(f->file, full, H5P_DEFAULT);
+  H5Eclear2(H5E_DEFAULT);
+  return e > 0;
+}
+
+int proto_h5_unlink(proto_h5 *f, const char *path, proto_err *err) {
+  char full[H5_PATH_CAP];
+  if (!f) return proto_fail(err, "proto_h5_unlink: no file");
+  if (join_path(full, sizeof full, path, NULL, f->path, err) < 0) return -1;
+  if (!proto_h5_exists(f, full)) return 0;
+  if (H5Ldelete(f->file, full, H5P_DEFAULT) < 0)
+    return h5_fail(err, f->path, full, "cannot delete");
+  return 0;
+}
+
+typedef struct list_ctx {
+  int (*fn)(const char *name, void *ctx);
+  void *ctx;
+  int stop;
+} list_ctx;
+
+static herr_t list_cb(hid_t g, const char *name, const H5L_info_t *info, void *data) {
+  (void)g, (void)info;
+  list_ctx *c = data;
+  c->stop = c->fn(name, c->ctx);
+  return c->stop ? 1 : 0;
+}
+
+int proto_h5_list(proto_h5 *f, const char *group,
+                  int (*fn)(const char *name, void *ctx), void *ctx, proto_err *err) {
+  char full[H5_PATH_CAP];
+  if (!f) return proto_fail(err, "proto_h5_list: no file");
+  if (join_path(full, sizeof full, group, NULL, f->path, err) < 0) return -1;
+  if (!proto_h5_exists(f, full)) return 0;
+  hid_t g = H5Gopen2(f->file, full, H5P_DEFAULT);
+  if (g < 0) return h5_fail(err, f->path, full, "cannot open group");
+  list_ctx c = {fn, ctx, 0};
+  herr_t r = H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, list_cb, &c);
+  H5Gclose(g);
+  if (r < 0) return h5_fail(err, f->path, full, "cannot list group");
+  return c.stop < 0 ? -1 : 0;
+}
+
+static int dtype_of(hid_t t, proto_dtype *d) {
+  H5T_class_t cls = H5Tget_class(t);
+  size_t size = H5Tget_size(t);
+  if (cls == H5T_FLOAT && size == 8) *d = PROTO_F8;
+  else if (cls == H5T_INTEGER && size == 4) *d = PROTO_I4;
+  else if (cls == H5T_INTEGER && size == 8) *d = PROTO_I8;
+  else if (cls == H5T_INTEGER && size == 1) *d = PROTO_U1;
+  else return -1;
+  return 0;
+}
+
+int proto_h5_read_array(proto_h5 *f, const char *path, proto_array *a, void **data,
+                        proto_err *err) {
+  char full[H5_PATH_CAP];
+  *data = NULL;
+  memset(a, 0, sizeof *a);
+  if (!f) return proto_fail(err, "proto_h5_read_array: no file");
+  if (join_path(full, sizeof full, path, NULL, f->path, err) < 0) return -1;
+  if (!proto_h5_exists(f, full))
+    return proto_fail(err, "%s:%s: no such dataset", f->path, full);
+  hid_t d = H5Dopen2(f->file, full, H5P_DEFAULT);
+  hid_t t = d >= 0 ? H5Dget_type(d) : H5I_INVALID_HID;
+  hid_t sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID;
+  hsize_t dims[PROTO_MAX_NDIM] = {0};
+  int rank = sp >= 0 ? H5Sget_simple_extent_ndims(sp) : -1;
+  int rc = -1;
+  size_t el = 0;
+  if (d < 0 || t < 0 || rank < 1 || rank > PROTO_MAX_NDIM || dtype_of(t, &a->dtype) < 0) {
+    if (d < 0) h5_fail(err, f->path, full, "cannot open dataset");
+    else proto_fail(err, "%s:%s: not a 1-3 dimensional array of f8, i4, i8 or u1",
+                    f->path, full);
+    goto done;
+  }
+  H5Sget_simple_extent_dims(sp, dims, NULL);
+  size_t count = 1;
+  for (int i = 0; i < rank; i++) {
+    a->shape[i] = (int64_t)dims[i];
+    count *= (size_t)dims[i];
+  }
+  a->ndim = rank;
+  hid_t mtype = dtype_h5(a->dtype, &el);
+  const char *slash = strrchr(full, '/');
+  snprintf(a->name, sizeof a->name, "%s", slash ? slash + 1 : full);
+  a->nbytes = count * el;
+  *data = malloc(a->nbytes + 1);
+  if (!*data) {
+    proto_fail(err, "%s:%s: out of memory (%zu bytes)", f->path, full, a->nbytes);
+    goto done;
+  }
+  if (count && H5Dread(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, *data) < 0) {
+    h5_fail(err, f->path, full, "cannot read dataset");
+    free(*data);
+    *data = NULL;
+    goto done;
+  }
+  a->data = *data;
+  rc = 0;
+done:
+  h5_close_id(sp);
+  h5_close_id(t);
+  h5_close_id(d);
   return rc;
 }

@@ -7,11 +7,44 @@
 
 #include <errno.h>
 #include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 #include <zmq.h>
+
+/* Liveness (PROTOCOL.md "Liveness"): the participant is never silent for
+ * longer than PROTO_HEARTBEAT_S. While the main thread waits for the
+ * coupler it sends the heartbeats itself; while it computes (configure,
+ * init, step, state) a heartbeat thread does, through the same socket under
+ * a mutex. That thread reads only the progress record below, never the
+ * solver's data: a process that is stopped or dead goes silent, whatever
+ * its init or step time. */
+#define HEARTBEAT_DUE_S (0.5 * PROTO_HEARTBEAT_S) /* silent this long: send one */
+#define HEARTBEAT_TICK_NS 100000000L             /* the thread looks every 0.1 s */
+#define WAIT_SLICE_MS 250                        /* waits poll in slices */
+#define WHAT_LEN 96
+#define WELCOME_TIMEOUT_S 600.0 /* started by hand: give up on a coupler gone this long */
+
+/* The phases a heartbeat names. */
+static const char *const PHASE_WELCOME = "welcome";
+static const char *const PHASE_INIT = "init";
+static const char *const PHASE_IDLE = "idle";
+static const char *const PHASE_STEP = "step";
+static const char *const PHASE_STATE = "state";
+
+/* What the heartbeats say: set by the main thread (proto_peer_progress,
+ * phase changes), read by the heartbeat thread; guarded by its mutex. */
+typedef struct progress_rec {
+  pthread_mutex_t lock;
+  const char *phase;
+  int64_t step;
+  double fraction; /* < 0: unknown */
+  char what[WHAT_LEN];
+} progress_rec;
 
 /* A deep copy of the state arrays at the start of a step (rollback). The
  * arena only grows, so a steady run allocates nothing per step. */
@@ -35,11 +68,84 @@ struct proto_peer {
   double run_dt;         /* welcome run.dt: a step request without dt uses it */
   proto_dims dims;       /* the role table's n, m as this conversation bound them */
   state_copy state;
+  /* the dealer is shared with the heartbeat thread: io guards it */
+  pthread_mutex_t io;
+  double last_sent;      /* when anything was last sent (under io) */
+  pthread_t hb_thread;
+  int hb_started;
+  atomic_int hb_stop;
+  progress_rec prog;
+  int curve_on;          /* CURVE keys from --curve / COSIM_CURVE_FILE */
+  proto_curve curve;
 };
 
 int proto_peer_publish(proto_peer *peer, const proto_msg *m) {
   if (!peer || !peer->bus) return 0;
   return proto_publish(peer->bus, m);
+}
+
+void proto_peer_progress(proto_peer *peer, double fraction, const char *what) {
+  if (!peer) return;
+  pthread_mutex_lock(&peer->prog.lock);
+  peer->prog.fraction = fraction > 1 ? 1 : fraction;
+  if (what) snprintf(peer->prog.what, sizeof peer->prog.what, "%s", what);
+  pthread_mutex_unlock(&peer->prog.lock);
+}
+
+/* A new phase clears the progress of the last one. */
+static void set_phase(proto_peer *p, const char *phase, int64_t step) {
+  pthread_mutex_lock(&p->prog.lock);
+  p->prog.phase = phase;
+  p->prog.step = step;
+  p->prog.fraction = -1;
+  p->prog.what[0] = 0;
+  pthread_mutex_unlock(&p->prog.lock);
+}
+
+/* Sends on the dealer; the caller holds io. */
+static int send_locked(proto_peer *p, const proto_msg *m, proto_err *err) {
+  int rc = proto_send(p->dealer, m, 0, err);
+  if (rc == 0) p->last_sent = proto_now();
+  return rc;
+}
+
+static int peer_send(proto_peer *p, const proto_msg *m, proto_err *err) {
+  pthread_mutex_lock(&p->io);
+  int rc = send_locked(p, m, err);
+  pthread_mutex_unlock(&p->io);
+  return rc;
+}
+
+/* One heartbeat with the current progress record; the caller holds io. */
+static void heartbeat_locked(proto_peer *p) {
+  proto_msg m = {0};
+  pthread_mutex_lock(&p->prog.lock);
+  progress_rec r = p->prog;
+  pthread_mutex_unlock(&p->prog.lock);
+  proto_msg_reset(&m, p->name, proto_msg_type(PROTO_MSG_HEARTBEAT), r.step, 0);
+  cJSON *h = proto_msg_header(&m);
+  cJSON_AddStringToObject(h, PROTO_H_PHASE, r.phase ? r.phase : PHASE_IDLE);
+  if (r.fraction >= 0) cJSON_AddNumberToObject(h, PROTO_H_PROGRESS, r.fraction);
+  if (r.what[0]) cJSON_AddStringToObject(h, PROTO_H_WHAT, r.what);
+  proto_err ignore;
+  /* never block on a coupler that does not read: a full queue drops it
+   * (and the next one is due an interval later either way) */
+  proto_send(p->dealer, &m, ZMQ_DONTWAIT, &ignore);
+  p->last_sent = proto_now();
+  proto_msg_free(&m);
+}
+
+static void *heartbeat_main(void *arg) {
+  proto_peer *p = arg;
+  const struct timespec tick = {0, HEARTBEAT_TICK_NS};
+  while (!atomic_load(&p->hb_stop)) {
+    nanosleep(&tick, NULL);
+    /* busy: the main thread is sending, or waiting (then it sends its own) */
+    if (pthread_mutex_trylock(&p->io) != 0) continue;
+    if (proto_now() - p->last_sent >= HEARTBEAT_DUE_S) heartbeat_locked(p);
+    pthread_mutex_unlock(&p->io);
+  }
+  return NULL;
 }
 
 int proto_ready_series(proto_msg *ready, const char *dataset, int ncols,
@@ -83,10 +189,12 @@ int proto_state_get(const proto_msg *state, const char *name, proto_dtype dtype,
 
 static void usage(const char *prog, const char *role) {
   fprintf(stderr,
-          "usage: %s --endpoint ENDPOINT --name NAME\n"
+          "usage: %s --endpoint ENDPOINT --name NAME [--curve KEYFILE]\n"
           "       %s --check-config FILE|- [--name NAME]\n"
           "A cosim %s participant. Normally started by `cosim run`, which passes\n"
           "the endpoint; start it by hand for `cosim run --attach` (see README).\n"
+          "--curve (or the environment variable " PROTO_ENV_CURVE ") names the key\n"
+          "file of a run with security.curve, as `cosim run --attach` prints it.\n"
           "--check-config validates a config section (processes.NAME of a scene,\n"
           "as a JSON object) and exits 0 if it is valid.\n",
           prog, prog, role);
@@ -96,6 +204,7 @@ typedef struct args {
   const char *endpoint;
   const char *name;
   const char *check;
+  const char *curve; /* key file */
 } args;
 
 static int parse_args(int argc, char **argv, const proto_participant_ops *ops,
@@ -103,11 +212,13 @@ static int parse_args(int argc, char **argv, const proto_participant_ops *ops,
   memset(a, 0, sizeof *a);
   a->endpoint = getenv("COSIM_ENDPOINT");
   a->name = getenv("COSIM_NAME");
+  a->curve = getenv(PROTO_ENV_CURVE);
   for (int i = 1; i < argc; i++) {
     const char *opt = argv[i];
     const char **dst = strcmp(opt, "--endpoint") == 0       ? &a->endpoint
                        : strcmp(opt, "--name") == 0         ? &a->name
                        : strcmp(opt, "--check-config") == 0 ? &a->check
+                       : strcmp(opt, "--curve") == 0        ? &a->curve
                                                             : NULL;
     if (strcmp(opt, "-h") == 0 || strcmp(opt, "--help") == 0) {
       usage(argv[0], proto_role_name(ops->role));
@@ -153,25 +264,34 @@ static int send_simple(proto_peer *p, const char *type, int64_t step,
   proto_msg_reset(&m, p->name, type, step, t);
   if (message) cJSON_AddStringToObject(proto_msg_header(&m), PROTO_H_MESSAGE, message);
   proto_err err;
-  int rc = proto_send(p->dealer, &m, 0, &err);
+  int rc = peer_send(p, &m, &err);
   proto_msg_free(&m);
   return rc;
 }
 
-/* Waits for the next message from the coupler; -1 on timeout or decode error
- * (err says which). */
-static int wait_message(proto_peer *p, proto_msg *m, double timeout_s,
-                        proto_err *err) {
-  double until = proto_now() + timeout_s;
+static int launched(void) { return getenv("COSIM_LAUNCHED") != NULL; }
+
+/* Waits for the next message from the coupler, sending heartbeats while it
+ * waits; timeout_s <= 0: no limit (a launched participant watches its
+ * launcher instead). -1 on timeout or decode error (err says which). */
+static int wait_message(proto_peer *p, proto_msg *m, const char *phase,
+                        double timeout_s, proto_err *err) {
+  set_phase(p, phase, p->prog.step);
+  double until = timeout_s > 0 ? proto_now() + timeout_s : 0;
   while (1) {
-    double left = until - proto_now();
+    double left = until > 0 ? until - proto_now() : WAIT_SLICE_MS * 1e-3;
     if (left <= 0)
       return proto_fail(err, "the coupler was silent for %.0f s; giving up",
                         timeout_s);
-    int r = proto_poll_in(p->dealer, left > 0.25 ? 250 : (int)(left * 1000) + 1);
-    if (r > 0) return proto_recv(p->dealer, m, NULL, err);
+    int slice = left > WAIT_SLICE_MS * 1e-3 ? WAIT_SLICE_MS : (int)(left * 1000) + 1;
+    pthread_mutex_lock(&p->io);
+    if (proto_now() - p->last_sent >= HEARTBEAT_DUE_S) heartbeat_locked(p);
+    int r = proto_poll_in(p->dealer, slice);
+    int rc = r > 0 ? proto_recv(p->dealer, m, NULL, err) : 0;
+    pthread_mutex_unlock(&p->io);
+    if (r > 0) return rc;
     /* the launcher (or a wrapper between it and us, e.g. mpirun) is gone */
-    if (getppid() != p->parent && getenv("COSIM_LAUNCHED"))
+    if (getppid() != p->parent && launched())
       return proto_fail(err, "the launcher died; exiting");
   }
 }
@@ -192,11 +312,14 @@ static double json_num(const cJSON *o, const char *key, double def) {
 /* welcome → configure → init → ready. */
 static int handshake(proto_peer *p, const proto_participant_ops *ops,
                      void *user, proto_msg *welcome, proto_err *err) {
-  double hello_timeout = 30;
+  /* the welcome may come after the other participants' init (minutes): a
+   * launched participant waits as long as its launcher lives */
+  double welcome_timeout = launched() ? 0 : WELCOME_TIMEOUT_S;
   const char *env = getenv("COSIM_HANDSHAKE_TIMEOUT");
-  if (env) hello_timeout = atof(env);
-  if (wait_message(p, welcome, hello_timeout, err) < 0)
+  if (env) welcome_timeout = atof(env);
+  if (wait_message(p, welcome, PHASE_WELCOME, welcome_timeout, err) < 0)
     return proto_wrap(err, "waiting for welcome");
+  set_phase(p, PHASE_INIT, 0);
   if (strcmp(welcome->type, proto_msg_type(PROTO_MSG_WELCOME)) != 0)
     return proto_fail(err, "expected 'welcome', got '%s'", welcome->type);
   const cJSON *run = cJSON_GetObjectItemCaseSensitive(welcome->header, PROTO_H_RUN);
@@ -219,6 +342,8 @@ static int handshake(proto_peer *p, const proto_participant_ops *ops,
       .n_steps = (int64_t)json_num(run, "n_steps", 0),
       .output_every = (int64_t)json_num(run, "output_every", 0),
       .rollback = p->rollback,
+      .restart_step = (int64_t)json_num(run, PROTO_H_RESTART_STEP, 0),
+      .peer = p,
   };
   p->idle_timeout_s = json_num(run, "idle_timeout_s", 600);
   p->run_dt = info.dt;
@@ -228,6 +353,7 @@ static int handshake(proto_peer *p, const proto_participant_ops *ops,
     int hwm = 1000, linger = 0;
     zmq_setsockopt(p->bus, ZMQ_SNDHWM, &hwm, sizeof hwm);
     zmq_setsockopt(p->bus, ZMQ_LINGER, &linger, sizeof linger);
+    if (p->curve_on && proto_curve_client(p->bus, &p->curve, err) < 0) return -1;
     if (zmq_connect(p->bus, bus) != 0)
       return proto_fail(err, "cannot connect to bus %s: %s", bus,
                         zmq_strerror(errno));
@@ -241,7 +367,7 @@ static int handshake(proto_peer *p, const proto_participant_ops *ops,
   int rc = ops->init ? ops->init(user, welcome, &ready, err) : 0;
   if (rc == 0 && proto_role_check(p->role, PROTO_MSG_READY, &ready, &p->dims, err) < 0)
     rc = proto_wrap(err, "the ready message built by init()");
-  if (rc == 0) rc = proto_send(p->dealer, &ready, 0, err);
+  if (rc == 0) rc = peer_send(p, &ready, err);
   proto_msg_free(&ready);
   return rc;
 }
@@ -327,6 +453,7 @@ static int do_step(proto_peer *p, const proto_participant_ops *ops, void *user,
   if (proto_role_check(p->role, PROTO_MSG_STEP, req, &p->dims, err) < 0)
     return proto_wrap(err, "step %lld", (long long)si.k);
   double t0 = proto_now();
+  set_phase(p, PHASE_STEP, si.k);
   if (si.iteration > 0) {
     if (state_restore(p, ops, user, &si, err) < 0) return -1;
   } else if (p->rollback && ops->state_save) {
@@ -341,7 +468,7 @@ static int do_step(proto_peer *p, const proto_participant_ops *ops, void *user,
   cJSON *h = proto_msg_header(reply);
   cJSON_AddNumberToObject(h, PROTO_H_ITERATION, si.iteration);
   cJSON_AddNumberToObject(h, PROTO_H_COMPUTE_S, compute);
-  return proto_send(p->dealer, reply, 0, err);
+  return peer_send(p, reply, err);
 }
 
 /* checkpoint → state (the live arrays, zero-copy: valid until the next
@@ -352,6 +479,7 @@ static int do_state(proto_peer *p, const proto_participant_ops *ops, void *user,
   if (!ops->state_save || !ops->state_load)
     return proto_fail(err, "'%s' requested, but this participant has no "
                       "state_save/state_load", req->type);
+  set_phase(p, PHASE_STATE, req->step);
   if (kind == PROTO_MSG_CHECKPOINT) {
     proto_msg_reset(reply, p->name, proto_msg_type(PROTO_MSG_STATE), req->step, req->t);
     if (ops->state_save(user, reply, err) < 0) return proto_wrap(err, "state_save");
@@ -360,7 +488,7 @@ static int do_state(proto_peer *p, const proto_participant_ops *ops, void *user,
     proto_msg_reset(reply, p->name, proto_msg_type(PROTO_MSG_RESTORED), req->step, req->t);
     p->state.step = -1;
   }
-  return proto_send(p->dealer, reply, 0, err);
+  return peer_send(p, reply, err);
 }
 
 /* Steps until "stop". Returns 0 on a clean stop. */
@@ -369,7 +497,7 @@ static int step_loop(proto_peer *p, const proto_participant_ops *ops,
   proto_msg req = {0}, reply = {0};
   int rc = 0;
   while (rc == 0) {
-    if (wait_message(p, &req, p->idle_timeout_s, err) < 0) {
+    if (wait_message(p, &req, PHASE_IDLE, p->idle_timeout_s, err) < 0) {
       rc = -1;
       break;
     }
@@ -390,6 +518,32 @@ static int step_loop(proto_peer *p, const proto_participant_ops *ops,
   return rc;
 }
 
+/* Connects the dealer (a CURVE client when keys are given) and says hello
+ * at once, before any long init: the coupler then knows the process lives. */
+static int connect_and_hello(proto_peer *p, const args *a, proto_err *err) {
+  if (a->curve && a->curve[0]) {
+    if (proto_curve_read(a->curve, &p->curve, err) < 0) return -1;
+    p->curve_on = 1;
+    if (proto_curve_client(p->dealer, &p->curve, err) < 0) return -1;
+  }
+  if (zmq_connect(p->dealer, a->endpoint) != 0)
+    return proto_fail(err, "cannot connect to %s: %s", a->endpoint, zmq_strerror(errno));
+  proto_msg hello = {0};
+  proto_msg_reset(&hello, p->name, proto_msg_type(PROTO_MSG_HELLO), 0, 0);
+  cJSON *h = proto_msg_header(&hello);
+  cJSON_AddStringToObject(h, PROTO_H_ROLE, proto_role_name(p->role));
+  cJSON_AddStringToObject(h, PROTO_H_NAME, p->name);
+  cJSON_AddNumberToObject(h, PROTO_H_PID, (double)getpid());
+  cJSON_AddNumberToObject(h, PROTO_H_HEARTBEAT_S, PROTO_HEARTBEAT_S);
+  int rc = peer_send(p, &hello, err);
+  proto_msg_free(&hello);
+  if (rc == 0 && pthread_create(&p->hb_thread, NULL, heartbeat_main, p) == 0)
+    p->hb_started = 1;
+  else if (rc == 0)
+    rc = proto_fail(err, "cannot start the heartbeat thread");
+  return rc;
+}
+
 int proto_participant_main(int argc, char **argv,
                            const proto_participant_ops *ops, void *user) {
   args a;
@@ -402,6 +556,9 @@ int proto_participant_main(int argc, char **argv,
   p.role = ops->role;
   p.parent = getppid();
   p.state.step = -1;
+  pthread_mutex_init(&p.io, NULL);
+  pthread_mutex_init(&p.prog.lock, NULL);
+  set_phase(&p, PHASE_WELCOME, 0);
   proto_dims_init(&p.dims);
   p.ctx = zmq_ctx_new();
   p.dealer = zmq_socket(p.ctx, ZMQ_DEALER);
@@ -411,25 +568,16 @@ int proto_participant_main(int argc, char **argv,
   zmq_setsockopt(p.dealer, ZMQ_ROUTING_ID, p.name, strlen(p.name));
   proto_err err = {{0}};
   proto_msg welcome = {0};
-  int rc = 0;
-  if (zmq_connect(p.dealer, a.endpoint) != 0) {
-    rc = proto_fail(&err, "cannot connect to %s: %s", a.endpoint,
-                    zmq_strerror(errno));
-  } else {
-    proto_msg hello = {0};
-    proto_msg_reset(&hello, p.name, proto_msg_type(PROTO_MSG_HELLO), 0, 0);
-    cJSON *h = proto_msg_header(&hello);
-    cJSON_AddStringToObject(h, PROTO_H_ROLE, proto_role_name(p.role));
-    cJSON_AddStringToObject(h, PROTO_H_NAME, p.name);
-    cJSON_AddNumberToObject(h, PROTO_H_PID, (double)getpid());
-    rc = proto_send(p.dealer, &hello, 0, &err);
-    proto_msg_free(&hello);
-  }
+  int rc = connect_and_hello(&p, &a, &err);
   if (rc == 0) rc = handshake(&p, ops, user, &welcome, &err);
   if (rc == 0) rc = step_loop(&p, ops, user, &err);
   if (rc < 0) {
     fprintf(stderr, "%s (%s): error: %s\n", p.name, proto_role_name(p.role), err.msg);
     send_simple(&p, proto_msg_type(PROTO_MSG_ERROR), 0, 0, err.msg);
+  }
+  if (p.hb_started) {
+    atomic_store(&p.hb_stop, 1);
+    pthread_join(p.hb_thread, NULL);
   }
   proto_msg_free(&welcome);
   proto_msg_free(&p.state.live);
@@ -439,5 +587,7 @@ int proto_participant_main(int argc, char **argv,
   if (p.bus) zmq_close(p.bus);
   zmq_close(p.dealer);
   zmq_ctx_term(p.ctx);
+  pthread_mutex_destroy(&p.io);
+  pthread_mutex_destroy(&p.prog.lock);
   return rc < 0 ? 1 : 0;
 }

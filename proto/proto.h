@@ -192,6 +192,9 @@ typedef enum proto_msg_kind {
   /* checkpoint/restart (issue 11 builds on these): the coupler asks for the
    * participant's state and gets it back as arrays "state.<x>" */
   PROTO_MSG_CHECKPOINT, PROTO_MSG_STATE, PROTO_MSG_RESTORE, PROTO_MSG_RESTORED,
+  /* liveness: a participant that announced heartbeat_s in its hello sends
+   * one whenever it has been silent that long (PROTOCOL.md "Liveness") */
+  PROTO_MSG_HEARTBEAT,
   PROTO_N_MSGS
 } proto_msg_kind;
 
@@ -228,6 +231,18 @@ typedef enum proto_msg_kind {
 #define PROTO_H_SERIES "series"       /* ready: {dataset: [column names]} */
 #define PROTO_H_SNAPSHOT "snapshot"   /* ready: how to show snapshots */
 #define PROTO_H_MESSAGE "message"     /* error */
+#define PROTO_H_HEARTBEAT_S "heartbeat_s" /* hello: the longest it stays silent, s */
+#define PROTO_H_PHASE "phase"         /* heartbeat: "welcome", "init", "step", "idle" */
+#define PROTO_H_PROGRESS "progress"   /* heartbeat: fraction done in [0, 1], or absent */
+#define PROTO_H_WHAT "what"           /* heartbeat: what it is doing ("settling the bed") */
+#define PROTO_H_RESTART_STEP "restart_step" /* welcome run: the checkpoint's step, 0 if none */
+
+/* A participant says something at least this often (s): a heartbeat when it
+ * has nothing else to say. */
+#define PROTO_HEARTBEAT_S 1.0
+/* Participants read their CURVE keys from this file (PROTOCOL.md
+ * "Security"); the path comes in this environment variable or --curve. */
+#define PROTO_ENV_CURVE "COSIM_CURVE_FILE"
 
 /* Symbolic dimensions of the table (a positive dim is literal). */
 enum { PROTO_DIM_NODES = -1, /* n: surface nodes (bound by surface_x0) */
@@ -330,6 +345,11 @@ typedef struct proto_run_info {
   int64_t n_steps;
   int64_t output_every;   /* snapshot every this many steps */
   int rollback;           /* the coupler may repeat steps (implicit scheme) */
+  int64_t restart_step;   /* > 0: the run restarts from a checkpoint of this
+                             step; state_load follows init, so init may skip
+                             work whose result the state replaces (settling) */
+  proto_peer *peer;       /* for proto_peer_progress from init (NULL in
+                             --check-config) */
 } proto_run_info;
 
 /* One step request, parsed (the callback never reads the header). */
@@ -396,6 +416,33 @@ int proto_participant_main(int argc, char **argv,
                            const proto_participant_ops *ops, void *user);
 /* Publishes on the bus from inside step() (topic "<name>.<what>"). */
 int proto_peer_publish(proto_peer *peer, const proto_msg *m);
+/* Reports progress of a long init (or step): fraction in [0, 1] (< 0:
+ * unknown) and what is being done. Only records the values (cheap: call it
+ * as often as you like); the loop's heartbeat thread sends them, so the
+ * coupler shows them and knows the process is alive. peer may be NULL. */
+void proto_peer_progress(proto_peer *peer, double fraction, const char *what);
+
+/* ------------------------------------------------------------------ CURVE
+ * (PROTOCOL.md "Security"). Keys are 40-character Z85 strings. A key file is
+ * a JSON object {"server_public", "public", "secret"}: what a client needs
+ * to connect to a coupler that runs with security.curve. */
+#define PROTO_KEY_LEN 41 /* Z85 key + NUL */
+typedef struct proto_curve {
+  char server_public[PROTO_KEY_LEN]; /* the coupler's */
+  char public_key[PROTO_KEY_LEN], secret_key[PROTO_KEY_LEN]; /* this client's */
+} proto_curve;
+/* Makes a key pair (public, secret: PROTO_KEY_LEN bytes each). */
+int proto_curve_keypair(char *public_key, char *secret_key, proto_err *err);
+/* Writes a client key file, mode 0600 (refuses to replace another file). */
+int proto_curve_write(const char *path, const proto_curve *k, proto_err *err);
+/* Reads a key file; refuses one that others may read (mode & 077). */
+int proto_curve_read(const char *path, proto_curve *k, proto_err *err);
+/* Makes socket a CURVE client of the server in k (before connect). */
+int proto_curve_client(void *socket, const proto_curve *k, proto_err *err);
+/* Makes socket a CURVE server with the given secret key (before bind);
+ * domain: the ZAP domain its clients are checked in. */
+int proto_curve_server(void *socket, const char *secret_key, const char *domain,
+                       proto_err *err);
 
 /* ------------------------------------------------------------------ config */
 
@@ -489,20 +536,55 @@ typedef struct proto_h5 proto_h5;        /* the file */
 typedef struct proto_series proto_series; /* one growing 2-D dataset */
 
 proto_h5 *proto_h5_create(const char *path, proto_err *err);
-int proto_h5_close(proto_h5 *f); /* flushes; returns -1 if the flush failed */
-int proto_h5_flush(proto_h5 *f);
+/* Opens an existing file (writable: to continue it, read-only otherwise). */
+proto_h5 *proto_h5_open(const char *path, int writable, proto_err *err);
+/* What is at path: 0 nothing, 1 an HDF5 file, 2 anything else (another
+ * kind of file, or one that cannot be read). Never changes the file. */
+int proto_h5_probe(const char *path);
+/* Writes every buffered row and flushes HDF5's caches to the file. Errors
+ * name the file, the object and the system error ("No space left on device
+ * (errno 28)"); the rows stay buffered, so a later flush may still write
+ * them. */
+int proto_h5_flush(proto_h5 *f, proto_err *err);
+/* Flushes and closes; the handle is freed either way. -1 (err may be NULL)
+ * if anything failed. HDF5 never closes a file again at exit. */
+int proto_h5_close(proto_h5 *f, proto_err *err);
 /* Stores a string attribute (e.g. the config) on a group ("/" = root). */
 int proto_h5_attr_str(proto_h5 *f, const char *group, const char *name,
                       const char *value, proto_err *err);
 /* "/dem/series" with the given columns; parent groups made as needed. */
 proto_series *proto_h5_series(proto_h5 *f, const char *path, int ncols,
                               const char *const *columns, proto_err *err);
+/* An existing series, to append to after its first keep_rows rows (the
+ * rest is cut off): its columns must be these. */
+proto_series *proto_h5_series_resume(proto_h5 *f, const char *path, int ncols,
+                                     const char *const *columns, int64_t keep_rows,
+                                     proto_err *err);
 int proto_series_append(proto_series *s, const double *row, proto_err *err);
 int64_t proto_series_rows(const proto_series *s);
+/* The most the series' row buffers can hold (bytes): what a flush may
+ * have to write besides HDF5's own metadata. */
+size_t proto_h5_buffer_bytes(const proto_h5 *f);
 /* Writes an array (any dtype/shape of proto_array) as dataset
  * "<group>/<a->name>"; groups made as needed. */
 int proto_h5_write_array(proto_h5 *f, const char *group, const proto_array *a,
                          proto_err *err);
+
+/* Reading back (checkpoints, continuing a results file). */
+int proto_h5_exists(proto_h5 *f, const char *path); /* 1 if a link is there */
+int proto_h5_unlink(proto_h5 *f, const char *path, proto_err *err); /* absent: ok */
+/* Calls fn(name, ctx) for each member of group, in name order; fn returns
+ * 0 to go on, 1 to stop, -1 to stop with an error (returned). A missing
+ * group has no members. */
+int proto_h5_list(proto_h5 *f, const char *group,
+                  int (*fn)(const char *name, void *ctx), void *ctx, proto_err *err);
+/* Reads a dataset into a new buffer (*data, caller frees): a points at it,
+ * named by the last path element. */
+int proto_h5_read_array(proto_h5 *f, const char *path, proto_array *a, void **data,
+                        proto_err *err);
+/* A string attribute (*value: caller frees). */
+int proto_h5_attr_get(proto_h5 *f, const char *group, const char *name,
+                      char **value, proto_err *err);
 
 /* ------------------------------------------------------------- HDF5 input
  *
@@ -557,6 +639,10 @@ int proto_xdmf_step(proto_xdmf *x, const char *grid_name, double t,
                     int n_attrs, const char *const *attrs,
                     const int64_t *attr_cols /* 1 scalar, 3 vector, 6/9 tensor */,
                     const int64_t *attr_rows);
+/* Continues an XDMF file this layer wrote: its grids later than t_keep are
+ * dropped (a restart recomputes them). A missing file is created. */
+proto_xdmf *proto_xdmf_resume(const char *path, const char *h5_name, double t_keep,
+                              proto_err *err);
 /* Rewrites the closing tags so the file is valid after every step. */
 int proto_xdmf_close(proto_xdmf *x);
 

@@ -10,10 +10,10 @@
 static const char *const role_names[PROTO_N_ROLES] = {"dem", "fem", "block"};
 static const char *const msg_types[PROTO_N_MSGS] = {
     "hello", "welcome", "ready", "step", "done", "stop", "bye", "error",
-    "checkpoint", "state", "restore", "restored"};
+    "checkpoint", "state", "restore", "restored", "heartbeat"};
 /* Direction of each message kind: 1 participant → coupler, 0 the other way. */
 static const int from_participant[PROTO_N_MSGS] = {1, 0, 1, 0, 1, 0, 1, 1,
-                                                   0, 1, 0, 1};
+                                                   0, 1, 0, 1, 1};
 
 #define N3 {PROTO_DIM_NODES, 3}
 #define M3 {PROTO_DIM_TRIS, 3}

@@ -12,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 struct proto_xdmf {
   FILE *fp;
@@ -82,6 +83,56 @@ fail:
   free(x->h5_name);
   free(x);
   return NULL;
+}
+
+/* Reads the whole file (NULL if it cannot). */
+static char *slurp(FILE *fp, long *len) {
+  if (fseek(fp, 0, SEEK_END) != 0 || (*len = ftell(fp)) < 0 || fseek(fp, 0, SEEK_SET) != 0)
+    return NULL;
+  char *text = malloc((size_t)*len + 1);
+  if (text && fread(text, 1, (size_t)*len, fp) != (size_t)*len) {
+    free(text);
+    return NULL;
+  }
+  if (text) text[*len] = 0;
+  return text;
+}
+
+proto_xdmf *proto_xdmf_resume(const char *path, const char *h5_name, double t_keep,
+                              proto_err *err) {
+  FILE *fp = path ? fopen(path, "r+") : NULL;
+  if (!fp) return proto_xdmf_open(path, h5_name, err);
+  long len = 0;
+  char *text = slurp(fp, &len);
+  /* the grids this file describes, in order; the first later than t_keep
+   * and everything after it go (the tail is rewritten there) */
+  const char *end = text ? strstr(text, XDMF_TAIL) : NULL;
+  long cut = end ? (long)(end - text) : -1;
+  for (const char *g = text ? strstr(text, "      <Grid Name=") : NULL; g && end && g < end;
+       g = strstr(g + 1, "      <Grid Name=")) {
+    const char *tv = strstr(g, "<Time Value=\"");
+    if (tv && strtod(tv + strlen("<Time Value=\""), NULL) > t_keep) {
+      cut = (long)(g - text);
+      break;
+    }
+  }
+  free(text);
+  proto_xdmf *x = cut >= 0 ? calloc(1, sizeof *x) : NULL;
+  if (x) x->h5_name = strdup(h5_name);
+  if (!x || !x->h5_name || fseek(fp, cut, SEEK_SET) != 0) {
+    if (x) free(x->h5_name);
+    free(x);
+    fclose(fp);
+    proto_fail(err, "%s: not an XDMF file cosim wrote, or unreadable", path);
+    return NULL;
+  }
+  x->fp = fp;
+  if (write_tail(x) < 0 || ftruncate(fileno(fp), ftell(fp)) != 0) {
+    proto_xdmf_close(x);
+    proto_fail(err, "%s: cannot rewrite the XDMF file", path);
+    return NULL;
+  }
+  return x;
 }
 
 /* <DataItem Dimensions="rows[ cols]" ...>file.h5:/path</DataItem> */

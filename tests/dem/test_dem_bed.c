@@ -50,7 +50,7 @@ int main(void) {
   dem_state s;
   proto_err err;
   scene("{" MAT "," BOX ",\"dt\":5e-5,\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":3}}", &m, &s);
-  CHECK(dem_settle(&m, &s, 1e-9, 6000, &err) == 0, "settling: %s", err.msg);
+  CHECK(dem_settle(&m, &s, 1e-9, 6000, NULL, NULL, &err) == 0, "settling: %s", err.msg);
   char path[] = "/tmp/test_dem_settled_XXXXXX";
   close(mkstemp(path));
   CHECK(dem_bed_save(&m, &s, path, &err) == 0, "save: %s", err.msg);
@@ -75,7 +75,7 @@ int main(void) {
   char json[512];
   snprintf(json, sizeof json, "{" MAT "," BOX ",\"dt\":5e-5,\"particles\":{\"file\":\"%s\"}}", path);
   scene("{" MAT "," BOX ",\"dt\":5e-5,\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":3}}", &m, &s);
-  dem_settle(&m, &s, 1e-9, 6000, &err);
+  dem_settle(&m, &s, 1e-9, 6000, NULL, NULL, &err);
   dem_bed_save(&m, &s, path, &err);
   dem_state_free(&s);
   dem_model_free(&m);

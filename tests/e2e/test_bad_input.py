@@ -96,14 +96,14 @@ expect("scenario needs roles", s, 1, ["'tire_travel' needs a process of role dem
 def rogue(mode, needles, name=None, max_s=20, role="block"):
     s = block_scene(name or mode, )
     s["processes"]["block"] = {"exec": ROGUE}
-    s["coupling"] = {"handshake_timeout": 2, "step_timeout": 2}
+    s["coupling"] = {"hello_timeout": 2, "handshake_timeout": 2, "step_timeout": 2}
     expect(f"rogue {mode}", s, 3, needles + ["failed participant: block"],
            env={"ROGUE_MODE": mode, "ROGUE_ROLE": role}, max_s=max_s)
 
 
 rogue("crash", ["participant 'block'", "exited with status 3", "crashing on purpose"])
 rogue("segv", ["participant 'block'", "signal 11"])
-rogue("silent", ["no handshake within 2 s", "block"])
+rogue("silent", ["no hello within 2 s", "block"])
 rogue("mute", ["participant 'block' did not answer within"])
 rogue("version", ["protocol version mismatch", "participant 'block'"])
 rogue("truncated", ["needs 240 bytes, frame has 17", "participant 'block'"])

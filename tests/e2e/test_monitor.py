@@ -1,6 +1,7 @@
 """The monitor bus: a SUB attached during a run receives the expected topics,
-with arrays equal to what results.h5 holds; a monitor that never reads does
-not block the run (it finishes, complete). What such a monitor costs in wall
+with arrays equal to what results.h5 holds (snapshots on their own stream);
+a monitor that never reads does not block the run (it finishes, complete);
+one that subscribes to everything on the monitor stream gets no snapshots. What such a monitor costs in wall
 time is measured by bench/proto/bench_monitor.py, not asserted here: the
 machine is shared and a timing ratio fails at random."""
 import json
@@ -25,15 +26,17 @@ def tyre_scene(name, n, end, every):
     s["time"] = {"dt": 1e-3, "end": end}
     s["output"]["every"] = every
     ep = "ipc://" + os.path.join(tempfile.mkdtemp(prefix="cosim-bus-"), "monitor")
-    s["bus"] = {"monitor": ep, "hwm": 100000}
+    s["bus"] = {"monitor": ep, "hwm": 100000, "snapshot_hwm": 1000}
     return s, ep
 
 
-def collect(ep, stop, got):
+def collect(ep, stop, got, snapshots=True):
     sub = zmq.Context.instance().socket(zmq.SUB)
     sub.setsockopt(zmq.RCVHWM, 0)
     sub.setsockopt(zmq.SUBSCRIBE, b"")
     sub.connect(ep)
+    if snapshots:
+        sub.connect(ep + "-snapshots")  # the snapshot stream (bus.snapshots' default)
     while not stop.is_set():
         if sub.poll(100):
             frames = sub.recv_multipart()
@@ -59,14 +62,20 @@ def run_with_lazy_monitor(s, ep):
 # queue deep enough for the whole run: with the default hwm a reader slower
 # than the run loses messages, by design)
 s, ep = tyre_scene("monitor", 4, 5.0, 100)
-got, stop = [], threading.Event()
+got, stop, main_only = [], threading.Event(), []
 th = threading.Thread(target=collect, args=(ep, stop, got))
+th2 = threading.Thread(target=collect, args=(ep, stop, main_only, False))
 th.start()
+th2.start()
 time.sleep(0.3)
 p = subprocess.run([COSIM, "run", write(s)], capture_output=True, text=True, timeout=120)
 time.sleep(0.3)
 stop.set()
 th.join()
+th2.join()
+main_topics = {t for t, _, _ in main_only}
+check("dem.series" in main_topics and not any(t.endswith(".snapshot") for t in main_topics),
+      f"the monitor stream alone carries the series and no snapshot ({sorted(main_topics)})")
 check(p.returncode == 0, f"run ok ({p.stderr[-300:]})")
 no_orphans(s, "monitor run")
 topics = {t for t, _, _ in got}
@@ -86,8 +95,11 @@ check(len(steps) >= 0.25 * len(dem), f"monitor joined early enough ({len(steps)}
 mismatch = sum(not np.array_equal(row, dem[step - 1]) for step, row in series)
 check(mismatch == 0, f"every dem.series row equals results.h5 ({mismatch} differ)")
 snaps = [(h["step"], a) for t, h, a in got if t == "dem.snapshot"]
-want = [k for k in range(100, len(dem) + 1, 100) if k >= steps[0]]
-check([st for st, _ in snaps] == want, f"snapshots on the bus: {[st for st, _ in snaps]}")
+# the snapshot stream is another connection: it joins on its own (late joiner)
+first = snaps[0][0] if snaps else len(dem) + 1
+want = [k for k in range(100, len(dem) + 1, 100) if k >= first]
+check([st for st, _ in snaps] == want and len(want) >= 0.25 * len(dem) / 100,
+      f"every snapshot from the first one on: {[st for st, _ in snaps]}")
 bad = sum(not np.array_equal(a["snap.x"], f[f"/dem/steps/{step}/x"][:]) for step, a in snaps)
 check(bad == 0, f"every snapshot equals results.h5 ({bad} differ)")
 

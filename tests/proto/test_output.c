@@ -81,7 +81,7 @@ static void test_write(const char *h5path) {
   CHECK(s2 != NULL);
   double v = 1.0;
   CHECK(proto_series_append(s2, &v, &err) == 0);
-  CHECK(proto_h5_flush(f) == 0);
+  CHECK(proto_h5_flush(f, &err) == 0);
   v = 2.0;
   CHECK(proto_series_append(s2, &v, &err) == 0);
   CHECK(proto_series_rows(s2) == 2);
@@ -125,7 +125,7 @@ static void test_write(const char *h5path) {
   CHECK(strstr(err.msg, "/dem/series") != NULL);
   CHECK(proto_h5_series(f, "/x", 0, cols, &err) == NULL);
 
-  CHECK(proto_h5_close(f) == 0);
+  CHECK(proto_h5_close(f, &err) == 0);
 
   CHECK(proto_h5_create("/nonexistent-dir/r.h5", &err) == NULL);
   CHECK(strstr(err.msg, "/nonexistent-dir/r.h5") != NULL);
