@@ -5,9 +5,10 @@
  * added to the inflation pressure and gravity (rotated likewise), the tread
  * is advanced by sub-cycled central differences (or re-solved statically
  * with the kept factor in quasi_static mode), and the surface nodes go back
- * in the world frame: v = R v_rel + omega x (x - c) + v_c. Fictitious
- * (centrifugal, Coriolis) forces of the rotating frame are neglected, as in
- * the linear model of seed 000 §3. */
+ * in the world frame: v = R v_rel + omega x (x - c) + v_c. The rim frame's
+ * inertial forces (origin acceleration, Euler, centrifugal, Coriolis) act on
+ * the tread (fem_frame.c, fem_explicit.c); the frame's accelerations are
+ * backward differences of consecutive steps' rim_omega and rim_v. */
 #include "fem_server/fem.h"
 
 #include <math.h>
@@ -225,6 +226,7 @@ static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *r
   const cJSON *jdt = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "dt") : NULL;
   double span = cJSON_IsNumber(jdt) && jdt->valuedouble > 0 ? jdt->valuedouble : s->span;
   if (!(span > 0)) return proto_fail(err, "step request without a positive dt");
+  fem_frame_from_rim(&s->st, R, w, vc, span);
   /* external force in the rim frame: pressure + R^T g m + R^T f */
   double g[3];
   rot_t(R, s->cfg.gravity, g);
@@ -240,7 +242,9 @@ static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *r
   }
   if (s->cfg.mode == FEM_EXPLICIT) {
     if (fem_explicit_advance(md, &s->st, span, s->cfg.safety, s->cfg.dt_sub, err)) return -1;
-  } else { /* quasi-static: K u = b with the kept factor */
+  } else { /* quasi-static: K u = b with the kept factor; steady in the rim
+              frame, so no Coriolis; frame loads at the previous u (lag) */
+    fem_load_frame(md, &s->st.frame, s->st.u, b);
     memcpy(s->u_prev, s->st.u, sizeof *s->u_prev * (size_t)md->n_dof);
     if (fem_static_solve(md, s->cfg.solver, 1e-10, b, s->st.u, NULL, err)) return -1;
     for (int32_t i = 0; i < md->n_dof; i++) s->st.v[i] = (s->st.u[i] - s->u_prev[i]) / span;
