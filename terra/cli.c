@@ -86,6 +86,31 @@ static int need_out(const char *out, proto_err *err) {
   return out ? 0 : proto_fail(err, "--out is required");
 }
 
+/* Runs a virtual test on the scene's soil and writes its record. */
+typedef int (*test_fn)(const ter_dem_soil *soil, const void *spec, ter_series *out, proto_err *err);
+static int plate_fn(const ter_dem_soil *soil, const void *spec, ter_series *out, proto_err *err) {
+  return ter_plate_test(soil, spec, stderr, out, err);
+}
+static int shear_fn(const ter_dem_soil *soil, const void *spec, ter_series *out, proto_err *err) {
+  return ter_shear_test(soil, spec, stderr, out, err);
+}
+static int run_test(test_fn fn, const void *spec, const char *scene_path, double threads, const char *out,
+                    proto_err *err) {
+  ter_dem_soil soil;
+  cJSON *scene = load_scene(scene_path, &soil, err);
+  if (!scene) return -1;
+  soil.threads = (int)threads;
+  ter_series t;
+  int rc = fn(&soil, spec, &t, err);
+  if (!rc) {
+    ter_series_meta(&t, "scene", "%s", scene_path);
+    rc = ter_series_write(&t, out, err);
+    ter_series_free(&t);
+  }
+  cJSON_Delete(scene);
+  return rc;
+}
+
 /* ------------------------------------------------------- virtual tests */
 
 static int cmd_plate(int argc, char **argv, proto_err *err) {
@@ -99,21 +124,9 @@ static int cmd_plate(int argc, char **argv, proto_err *err) {
                    {"seed", OPT_NUM, &seed, 0},               {"threads", OPT_NUM, &threads, 0},
                    {"settle-steps", OPT_NUM, &settle, 0},     {"out", OPT_STR, &out, 0}};
   if (parse(argc, argv, 2, o, sizeof o / sizeof *o, &scene_path, err) || need_out(out, err)) return -1;
-  ter_dem_soil soil;
-  cJSON *scene = load_scene(scene_path, &soil, err);
-  if (!scene) return -1;
   sp.seed = (uint64_t)seed;
   sp.settle_max_steps = (int64_t)settle;
-  soil.threads = (int)threads;
-  ter_series t;
-  int rc = ter_plate_test(&soil, &sp, stderr, &t, err);
-  if (!rc) {
-    ter_series_meta(&t, "scene", "%s", scene_path);
-    rc = ter_series_write(&t, out, err);
-    ter_series_free(&t);
-  }
-  cJSON_Delete(scene);
-  return rc;
+  return run_test(plate_fn, &sp, scene_path, threads, out, err);
 }
 
 static int cmd_shear(int argc, char **argv, proto_err *err) {
@@ -129,21 +142,9 @@ static int cmd_shear(int argc, char **argv, proto_err *err) {
                    {"threads", OPT_NUM, &threads, 0},    {"settle-steps", OPT_NUM, &settle, 0},
                    {"out", OPT_STR, &out, 0}};
   if (parse(argc, argv, 2, o, sizeof o / sizeof *o, &scene_path, err) || need_out(out, err)) return -1;
-  ter_dem_soil soil;
-  cJSON *scene = load_scene(scene_path, &soil, err);
-  if (!scene) return -1;
   sp.seed = (uint64_t)seed;
   sp.settle_max_steps = (int64_t)settle;
-  soil.threads = (int)threads;
-  ter_series t;
-  int rc = ter_shear_test(&soil, &sp, stderr, &t, err);
-  if (!rc) {
-    ter_series_meta(&t, "scene", "%s", scene_path);
-    rc = ter_series_write(&t, out, err);
-    ter_series_free(&t);
-  }
-  cJSON_Delete(scene);
-  return rc;
+  return run_test(shear_fn, &sp, scene_path, threads, out, err);
 }
 
 /* ------------------------------------------------------------------ fit */

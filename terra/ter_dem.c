@@ -132,6 +132,16 @@ static int build(cJSON *sec, const char *path, dem_model *m, dem_state *s, proto
   return rc;
 }
 
+static void release(dem_model *m, dem_state *s) {
+  dem_state_free(s);
+  dem_model_free(m);
+}
+
+/* grain-steps per wall-clock second since (step k0, time t0) */
+static double rate(const dem_state *s, int64_t k0, double t0) {
+  return (double)s->n * (double)(s->step - k0) / fmax(proto_now() - t0, 1e-9);
+}
+
 static int settle(const dem_model *m, dem_state *s, double ke, int64_t max_steps, FILE *log,
                   proto_err *err) {
   double t0 = proto_now();
@@ -140,8 +150,7 @@ static int settle(const dem_model *m, dem_state *s, double ke, int64_t max_steps
   if (log)
     fprintf(log, "terra: %d grains settled in %lld steps of %.3g s (%.1f s wall, %.3g grain-steps/s), "
             "KE %.3g J per grain\n", s->n, (long long)(s->step - k0), m->dt, proto_now() - t0,
-            (double)s->n * (double)(s->step - k0) / fmax(proto_now() - t0, 1e-9),
-            s->kinetic_energy / s->n);
+            rate(s, k0, t0), s->kinetic_energy / s->n);
   return 0;
 }
 
@@ -270,16 +279,14 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
       bin++;
       if (log && bin % (int)fmax(1, floor(0.1 * sp->z_max / sp->dz)) == 0)
         fprintf(log, "terra: plate sinkage %.1f mm, p %.4g Pa, I %.2g, max overlap %.3g, %.3g grain-steps/s\n",
-                1e3 * sink, p, I, row[4], (double)s.n * (double)(s.step - k0) / fmax(proto_now() - t0, 1e-9));
+                1e3 * sink, p, I, row[4], rate(&s, k0, t0));
     }
     if (sink >= sp->z_max) break;
   }
-  dem_state_free(&s);
-  dem_model_free(&m);
+  release(&m, &s);
   return 0;
 fail:
-  dem_state_free(&s);
-  dem_model_free(&m);
+  release(&m, &s);
   ter_series_free(out);
   return proto_wrap(err, "plate test (b = %g m)", sp->width);
 }
@@ -452,8 +459,7 @@ int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log
       bin++;
       if (log && bin % (int)fmax(1, floor(0.1 * sp->j_max / sp->dj)) == 0)
         fprintf(log, "terra: shear j %.1f mm, tau %.4g Pa, sigma %.4g Pa, dilation %.3g mm, %.3g grain-steps/s\n",
-                1e3 * j, row[1], row[3], 1e3 * row[5],
-                (double)s.n * (double)(s.step - k0) / fmax(proto_now() - t0, 1e-9));
+                1e3 * j, row[1], row[3], 1e3 * row[5], rate(&s, k0, t0));
     }
     if (j >= sp->j_max) break;
   }
@@ -461,12 +467,10 @@ int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log
   for (int i = 0; i < s.n; i++) lost += s.x[3 * i + 2] < -s.radius[i];
   ter_series_meta(out, "lost_grains", "%d", lost);
   if (log && lost) fprintf(log, "terra: %d grains fell out of the box\n", lost);
-  dem_state_free(&s);
-  dem_model_free(&m);
+  release(&m, &s);
   return 0;
 fail:
-  dem_state_free(&s);
-  dem_model_free(&m);
+  release(&m, &s);
   ter_series_free(out);
   return proto_wrap(err, "shear test (sigma_n = %g Pa)", sp->sigma_n);
 }
