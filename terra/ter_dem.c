@@ -15,7 +15,7 @@
 #include <string.h>
 
 #define TER_PARK_Z 5.0          /* tools wait here (m) while the grains settle */
-#define TER_PLATE_GAP 0.25      /* plate starts this many max diameters above the surface */
+#define TER_PLATE_GAP 0.1       /* plate starts this many max diameters above the highest grain */
 #define TER_SKIRT_EXTRA 0.05    /* skirt height above the deepest sinkage (m) */
 #define TER_SOLID_FRACTION 0.6  /* to size a shear specimen from its volume */
 #define TER_BED_GAP 0.5e-3      /* clearance of the lattice placement (m) */
@@ -199,6 +199,16 @@ static double surface_height(const dem_state *s, double cx, double cy, double h,
   return cnt ? sum / cnt : 0;
 }
 
+/* Highest point of the grains that reach into the footprint [c - h, c + h]^2. */
+static double highest_top(const dem_state *s, double cx, double cy, double h) {
+  double top = -INFINITY;
+  for (int i = 0; i < s->n; i++) {
+    const double *x = &s->x[3 * i], r = s->radius[i];
+    if (fabs(x[0] - cx) < h + r && fabs(x[1] - cy) < h + r) top = fmax(top, x[2] + r);
+  }
+  return top;
+}
+
 static double grain_density(const dem_model *m, int material) { return m->mat[material].density; }
 
 int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log, ter_series *out,
@@ -238,7 +248,9 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
   const double rho = grain_density(&m, soil->grain_material);
   double dmax = 0;
   for (int i = 0; i < s.n; i++) dmax = fmax(dmax, 2 * s.radius[i]);
-  const double z_start = z_surf + TER_PLATE_GAP * dmax, v[3] = {0, 0, -sp->speed};
+  /* start above every grain under the plate (the surface is a mean: some stick out) */
+  const double z_start = fmax(z_surf, highest_top(&s, c, c, h)) + TER_PLATE_GAP * dmax;
+  const double v[3] = {0, 0, -sp->speed};
   move_mesh(&m, &s, mesh_base, z_start - TER_PARK_Z, v, xbuf, vbuf);
   move_mesh(&m, &s, mesh_skirt, z_start - TER_PARK_Z, v, xbuf, vbuf);
   ter_series_meta(out, "test", "plate");

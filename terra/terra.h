@@ -161,7 +161,8 @@ int ter_dem_soil_from_scene(const cJSON *scene, ter_dem_soil *soil, proto_err *e
 /* Virtual bevameter (notes §6.2): the scene's bed (the paper's three layers,
  * grains per m^2 x depth_factor) settled in a square box of side container,
  * a rigid square plate of side width pushed at constant speed from just above
- * the surface (mean top of the grains under its footprint) to sinkage z_max.
+ * the highest grain under it to sinkage z_max, the sinkage counted from the
+ * surface (the mean top of the grains under its footprint).
  * Rows every dz of sinkage (means over the bin): z, p (base force / area),
  * p_skirt (vertical force on the plate's sides / area), inertial number I,
  * max overlap ratio, kinetic energy per grain. */

@@ -85,14 +85,14 @@ def plot_shear(res, soil, soil_fits):
         ax[0].plot(1e3 * d["j"], d["tau"] / 1e3, STYLES[(seed - 1) % 3], color=c, lw=1,
                    label=f"sigma_n = {float(sig) / 1e3:g} kPa" if seed == 1 else None)
         ax[1].plot(1e3 * d["j"], 1e3 * d["dilation"], STYLES[(seed - 1) % 3], color=c, lw=1)
-    for k, f in enumerate(soil_fits[:2]):
+    for k, f in enumerate(soil_fits):
         for t in f["mohr_coulomb"]["tests"]:
             j = np.linspace(0, 0.06, 100)
             ax[0].plot(1e3 * j, t["tau_f_fit"] * (1 - np.exp(-j / t["K"])) / 1e3, color="k", lw=0.7,
                        ls=STYLES[k], alpha=0.6)
         sig = np.array([t["sigma"] for t in f["mohr_coulomb"]["tests"]])
         tau = np.array([t["tau_plateau"] for t in f["mohr_coulomb"]["tests"]])
-        ax[2].plot(sig / 1e3, tau / 1e3, "o" if k == 0 else "s", mfc="none", label=f"packing {k + 1}")
+        ax[2].plot(sig / 1e3, tau / 1e3, "osd"[k % 3], mfc="none", label=f"packing {k + 1}")
         s = np.linspace(0, 1.1 * sig.max(), 10)
         mc = f["mohr_coulomb"]
         ax[2].plot(s / 1e3, (mc["c"] + s * math.tan(math.radians(mc["phi_deg"]))) / 1e3, ls=STYLES[k], color="k",
@@ -105,7 +105,8 @@ def plot_shear(res, soil, soil_fits):
     ax[2].set(xlabel="sigma_n on the shear plane [kPa]", ylabel="tau (plateau) [kPa]", title="Mohr-Coulomb",
               xlim=(0, None), ylim=(0, None))
     ax[2].legend(fontsize=8)
-    fig.text(0.5, 0.005, "packings: seed 1 solid, 2 dashed; black: Janosi-Hanamoto fits", ha="center", fontsize=8)
+    fig.text(0.5, 0.005, "packings: seed 1 solid, 2 dashed, 3 dotted; black: Janosi-Hanamoto fits", ha="center",
+             fontsize=8)
     fig.tight_layout()
     fig.savefig(os.path.join(res, f"terra_shear_{soil}.png"), dpi=110)
     plt.close(fig)
@@ -184,7 +185,7 @@ def tables(res, bed, soil_fits):
           f"{m['phi_deg']:.1f} ± {sd['phi_deg']:.1f} | {1e3 * m['K']:.2f} ± {1e3 * sd['K']:.2f} | | |")
     print("\n| packing | sigma [kPa] | tau plateau [kPa] | tau peak [kPa] | tau_f fit [kPa] | K [mm] |")
     print("|---|---|---|---|---|---|")
-    for k, f in enumerate(soil_fits[:2]):
+    for k, f in enumerate(soil_fits):
         for t in f["mohr_coulomb"]["tests"]:
             print(f"| {k + 1} | {t['sigma'] / 1e3:.2f} | {t['tau_plateau'] / 1e3:.3f} | {t['tau_peak'] / 1e3:.3f} | "
                   f"{t['tau_f_fit'] / 1e3:.3f} | {1e3 * t['K']:.2f} |")

@@ -41,11 +41,11 @@ plates() { # plates BED DEPTH_FACTOR ZMAX
   done
 }
 
-# The shear box at four normal stresses, two packings: the deep bed's top
+# The shear box at four normal stresses, three packings: the deep bed's top
 # (the 6.9 +- 0.345 and 7.8 mm layers) and the paper bed's 15.6 mm grains in a
 # box scaled with the grain (30 x 30 x 15 grain diameters, same inertial number).
 shears() { # shears SOIL DMIN DMAX LENGTH HEIGHT SPEED JMAX DJ
-  for seed in 1 2; do
+  for seed in 1 2 3; do
     for sig in 2500 5000 10000 20000; do
       run "$out/shear_$1_sig${sig}_s$seed.csv" shear "$scene" --sigma "$sig" --dmin "$2" --dmax "$3" \
         --length "$4" --box-width "$4" --height "$5" --speed "$6" --jmax "$7" --dj "$8" --seed "$seed"
@@ -76,8 +76,8 @@ m=s['processes']['dem']['materials'][0]; m['E']*=2; json.dump(s,open(sys.argv[2]
   fit)
     for bed in deep:fine:0.06 paper:coarse:0.025; do
       b=${bed%%:*}; rest=${bed#*:}; soil=${rest%:*}
-      for seed in 1 2 3; do
-        sh_seed=$(( (seed - 1) % 2 + 1 )) # two shear packings, reused for the third plate packing
+      for seed in 1 2 3; do # packing k: its plates and its shear box
+        sh_seed=$seed
         "$terra" fit --plate "$out/plate_${b}_b0.060_s$seed.csv" --plate "$out/plate_${b}_b0.110_s$seed.csv" \
           --plate "$out/plate_${b}_b0.165_s$seed.csv" \
           --shear "$out/shear_${soil}_sig2500_s$sh_seed.csv" --shear "$out/shear_${soil}_sig5000_s$sh_seed.csv" \
