@@ -2,8 +2,9 @@
  * ROUTER socket (PROTOCOL.md, role "fem"). Checks the ready message (surface
  * mesh outward-oriented, series and snapshot declarations), the rim frame
  * (a rigidly moving, unloaded, pre-inflated tread returns x = R x0 + c and
- * v = v_c + omega x (x - c) up to the centrifugal drift of the spinning rim), snapshot arrays at output steps, a response to
- * nodal forces (explicit and quasi-static), and a clean stop. */
+ * v = v_c + omega x (x - c) up to the centrifugal drift of the spinning
+ * rim), snapshot arrays at output steps, a response to nodal forces
+ * (explicit and quasi-static), and a clean stop. */
 #include "fem_test.h"
 
 #include <signal.h>
