@@ -341,6 +341,7 @@ static int cmd_combine(int argc, char **argv, proto_err *err) {
   if (need_out(out, err)) return -1;
   if (nf < 2) return proto_fail(err, "combine: need >= 2 packings' SOIL.json files (got %d)", nf);
   double v[MAX_FILES][N_SOIL_KEYS], mean[N_SOIL_KEYS] = {0}, sd[N_SOIL_KEYS] = {0};
+  double zr[2] = {0, INFINITY}; /* sinkage range every packing's plate fit covers */
   cJSON *root = cJSON_CreateObject(), *packs = cJSON_AddArrayToObject(root, "packings");
   for (int i = 0; i < nf; i++) {
     ter_soil p;
@@ -349,6 +350,12 @@ static int cmd_combine(int argc, char **argv, proto_err *err) {
       cJSON_Delete(root);
       return -1;
     }
+    const cJSON *pf = cJSON_GetObjectItemCaseSensitive(r, "plate_fit");
+    const cJSON *z0 = cJSON_GetObjectItemCaseSensitive(pf, "z_min"), *z1 = cJSON_GetObjectItemCaseSensitive(pf, "z_max");
+    if (cJSON_IsNumber(z0) && cJSON_IsNumber(z1)) {
+      zr[0] = fmax(zr[0], z0->valuedouble);
+      zr[1] = fmin(zr[1], z1->valuedouble);
+    }
     cJSON *e = cJSON_Duplicate(cJSON_GetObjectItemCaseSensitive(r, "soil"), 1);
     cJSON_AddStringToObject(e, "file", files[i]);
     cJSON_AddItemToArray(packs, e);
@@ -356,6 +363,7 @@ static int cmd_combine(int argc, char **argv, proto_err *err) {
     soil_vec(&p, v[i]);
     for (int k = 0; k < N_SOIL_KEYS; k++) mean[k] += v[i][k] / nf;
   }
+  if (isfinite(zr[1])) cJSON_AddItemToObject(root, "sinkage_fit_range", cJSON_CreateDoubleArray(zr, 2));
   cJSON *so = cJSON_AddObjectToObject(root, "soil"), *sj = cJSON_AddObjectToObject(root, "std");
   for (int k = 0; k < N_SOIL_KEYS; k++) {
     for (int i = 0; i < nf; i++) sd[k] += (v[i][k] - mean[k]) * (v[i][k] - mean[k]) / (nf - 1);
@@ -399,6 +407,10 @@ static int cmd_curve(int argc, char **argv, proto_err *err) {
   cJSON *root;
   if (read_soil_file(params, &mean, &root, err)) return -1;
   int nsets = 0, rc = 0;
+  const cJSON *zr = cJSON_GetObjectItemCaseSensitive(root, "sinkage_fit_range");
+  const int has_zr = cJSON_GetArraySize(zr) == 2;
+  const double z_lo = has_zr ? cJSON_GetArrayItem(zr, 0)->valuedouble : 0;
+  const double z_fit = has_zr ? cJSON_GetArrayItem(zr, 1)->valuedouble : INFINITY;
   const cJSON *packs = cJSON_GetObjectItemCaseSensitive(root, "packings");
   for (const cJSON *e = packs ? packs->child : NULL; e && !rc && nsets < MAX_FILES; e = e->next) {
     cJSON *copy = cJSON_Duplicate(e, 1);
@@ -424,6 +436,7 @@ static int cmd_curve(int argc, char **argv, proto_err *err) {
   ter_series_meta(&t, "columns", "F_t = r b Int tau cos (horizontal thrust); T_over_r = torque / r "
                   "(Shinone's T_H = M/R_T); DP = F_t - R");
   const ter_wheel wh = {r, b};
+  int beyond = 0;
   for (int i = 0; i < ns && !rc; i++) {
     ter_forces f;
     rc = ter_solve(&wh, &mean, W, s[i], &f, err);
@@ -439,7 +452,15 @@ static int cmd_curve(int argc, char **argv, proto_err *err) {
         row[10 + 2 * m] = fmax(row[10 + 2 * m], qk[m]);
       }
     }
+    beyond += row[10] > z_fit;
     if (!rc) rc = ter_series_add(&t, row, err);
+  }
+  if (isfinite(z_fit)) {
+    ter_series_meta(&t, "sinkage_fit_range_m", "%.4g..%.4g", z_lo, z_fit);
+    ter_series_meta(&t, "rows_beyond_fit_range", "%d", beyond);
+    if (beyond)
+      fprintf(stderr, "cosim_terra curve: warning: at %d of %d slips the sinkage exceeds %.4g m, the deepest "
+              "the plate tests measured (extrapolated pressure-sinkage law)\n", beyond, ns, z_fit);
   }
   if (!rc) rc = ter_series_write(&t, out, err);
   ter_series_free(&t);

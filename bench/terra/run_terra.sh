@@ -55,26 +55,26 @@ shears() { # shears SOIL DMIN DMAX LENGTH HEIGHT SPEED JMAX DJ
 
 for st in $stages; do
   case $st in
-  deep) plates deep 4 0.06 ;;
+  deep) plates deep 4 0.045 ;;
   paper) plates paper 1 0.025 ;;
   fine) shears fine 0.006555 0.0078 0.2 0.1 0.02 0.03 0.00025 ;;
   coarse) shears coarse 0.0156 0.0156 0.4 0.2 0.04 0.06 0.0005 ;;
   checks)
     # quasi-static: half the speed; container: walls 2 widths away; stiffness: 2 E
     run "$out/check_plate_deep_b0.110_half_speed.csv" plate "$scene" --width 0.110 --container 0.50 \
-      --depth-factor 4 --speed 0.01 --zmax 0.06 --seed 1
+      --depth-factor 4 --speed 0.01 --zmax 0.045 --seed 1
     run "$out/check_plate_deep_b0.165_big_box.csv" plate "$scene" --width 0.165 --container 0.825 \
-      --depth-factor 4 --speed 0.02 --zmax 0.06 --seed 1
+      --depth-factor 4 --speed 0.02 --zmax 0.045 --seed 1
     stiff=$out/check_scene_2E.json
     /usr/bin/python3 -c "import json,sys; s=json.load(open(sys.argv[1])); \
 m=s['processes']['dem']['materials'][0]; m['E']*=2; json.dump(s,open(sys.argv[2],'w'),indent=1)" "$scene" "$stiff"
     run "$out/check_plate_deep_b0.110_2E.csv" plate "$stiff" --width 0.110 --container 0.50 \
-      --depth-factor 4 --speed 0.02 --zmax 0.06 --seed 1
+      --depth-factor 4 --speed 0.02 --zmax 0.045 --seed 1
     run "$out/check_shear_fine_sig5000_half_speed.csv" shear "$scene" --sigma 5000 --dmin 0.006555 \
       --dmax 0.0078 --length 0.2 --box-width 0.2 --height 0.1 --speed 0.01 --jmax 0.03 --dj 0.00025 --seed 1
     ;;
   fit)
-    for bed in deep:fine:0.06 paper:coarse:0.025; do
+    for bed in deep:fine paper:coarse; do
       b=${bed%%:*}; rest=${bed#*:}; soil=${rest%:*}
       for seed in 1 2 3; do # packing k: its plates and its shear box
         sh_seed=$seed

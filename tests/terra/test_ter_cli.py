@@ -46,13 +46,15 @@ def main():
     files = []
     for i, s in enumerate((sand, soft)):
         files.append(os.path.join(d, f"soil_{i}.json"))
-        json.dump({"soil": s}, open(files[-1], "w"))
+        json.dump({"soil": s, "plate_fit": {"z_min": 0.004 + 0.001 * i, "z_max": 0.05 - 0.002 * i}},
+                  open(files[-1], "w"))
     params = os.path.join(d, "params.json")
     rc, out = run(tool, "combine", *files, "--out", params)
     check(rc == 0, f"combine failed: {out}")
     P = json.load(open(params))
     check(abs(P["soil"]["k_phi"] - 0.5 * (1528.4e3 + 1.2e6)) < 1e-6 and len(P["packings"]) == 2
           and P["std"]["phi_deg"] > 1, f"combine: {P}")
+    check(P["sinkage_fit_range"] == [0.005, 0.048], f"combine: common sinkage range {P.get('sinkage_fit_range')}")
 
     ref = os.path.join(d, "ref.csv")
     rc, out = run(tool, "curve", "--params", files[0], "--radius", "0.3", "--width", "0.15", "--load", "1000",
@@ -75,6 +77,9 @@ def main():
         check(ok, f"band of {q} does not bracket the mean-parameter curve")
     check(all(b["DP"] > a["DP"] for a, b in zip(rows, rows[1:])), "DP must rise with slip")
     check(all(abs(r["T_over_r"] - r["T"] / 0.272) < 1e-6 * max(1, abs(r["T"])) for r in rows), "T_over_r = T/r")
+    beyond = sum(r["z_hi"] > 0.048 for r in rows)
+    check(meta.get("sinkage_fit_range_m") == "0.005..0.048" and int(meta["rows_beyond_fit_range"]) == beyond
+          and (beyond == 0) == ("warning" not in out), f"extrapolation flag: {meta}, {beyond}, {out}")
 
     bad_soil = os.path.join(d, "bad.json")
     json.dump({"soil": dict(sand, kphi=3)}, open(bad_soil, "w"))
