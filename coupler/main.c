@@ -14,6 +14,7 @@ static void usage(FILE *f) {
           "       cosim monitor ENDPOINT|OUTPUT_DIR [--topic PREFIX]... [--count N] [--timeout S]\n"
           "       cosim roles [--json]\n"
           "       cosim road|springs|green ARGS...   (forwarded to cosim_green)\n"
+          "       cosim terra plate|shear|fit|combine|curve ARGS...   (forwarded to cosim_terra)\n"
           "\n"
           "run      starts the participants the scene names, couples them step by\n"
           "         step and writes results.h5 in output.dir. --attach waits for\n"
@@ -145,16 +146,17 @@ static int cmd_roles(int argc, char **argv) {
   return 0;
 }
 
-/* `cosim road|springs|green ...` runs the cosim_green tool next to us. */
-static int forward_green(char **argv) {
+/* `cosim road|springs|green ...` runs the cosim_green tool next to us (with
+ * the command), `cosim terra CMD ...` runs cosim_terra CMD .... */
+static int forward(const char *name, char **argv) {
   char self[CPL_PATH_LEN] = {0}, tool[CPL_PATH_LEN + 16];
   ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
   char *slash = n > 0 ? strrchr(self, '/') : NULL;
   if (slash) *slash = 0;
-  snprintf(tool, sizeof tool, "%s/cosim_green", slash ? self : ".");
+  snprintf(tool, sizeof tool, "%s/%s", slash ? self : ".", name);
   argv[0] = tool;
   execv(tool, argv);
-  fprintf(stderr, "cosim %s: cannot run %s (is it built?)\n", argv[1], tool);
+  fprintf(stderr, "cosim: cannot run %s (is it built?)\n", tool);
   return 1;
 }
 
@@ -169,7 +171,8 @@ int cpl_main(int argc, char **argv) {
   if (strcmp(cmd, "roles") == 0) return cmd_roles(argc, argv);
   if (strcmp(cmd, "road") == 0 || strcmp(cmd, "springs") == 0 ||
       strcmp(cmd, "green") == 0)
-    return forward_green(argv);
+    return forward("cosim_green", argv);
+  if (strcmp(cmd, "terra") == 0) return forward("cosim_terra", argv + 1);
   if (strcmp(cmd, "run") != 0 && strcmp(cmd, "check") != 0) {
     fprintf(stderr, "cosim: unknown command '%s'\n", cmd);
     usage(stderr);

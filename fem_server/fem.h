@@ -241,6 +241,20 @@ const char *fem_blas_name(void);
 
 /* ------------------------------------------------------------- explicit */
 
+/* Motion of the frame the body is solved in (fem_server: the rim frame,
+ * x = R(t)(X + u) + c(t)), in FRAME components, held over one advance. All
+ * zero = an inertial frame. The body then feels, per unit mass, the
+ * fictitious acceleration of a point r = X + u moving with relative velocity
+ * w (Goldstein, Classical Mechanics, 3rd ed., §4.10; Meirovitch, Methods of
+ * Analytical Dynamics, §1.9):
+ *   -[acc + alpha x r + omega x (omega x r) + 2 omega x w]
+ *   (origin acceleration, Euler, centrifugal, Coriolis). */
+typedef struct fem_frame {
+  double omega[3]; /* angular velocity Omega = R^T omega_world, rad/s */
+  double alpha[3]; /* angular acceleration dOmega/dt = R^T d(omega_world)/dt */
+  double acc[3];   /* acceleration of the origin, R^T d2c/dt2, m/s^2 */
+} fem_frame;
+
 typedef struct fem_state {
   double t;             /* s */
   double *u;            /* [n_dof] displacement at t (rim frame) */
@@ -255,6 +269,10 @@ typedef struct fem_state {
   double kinetic, strain; /* 1/2 v.Mv, 1/2 u.Ku at t */
   double dt_sub;        /* last sub-step used */
   int64_t n_sub;        /* sub-steps taken so far */
+  fem_frame frame;      /* frame motion over the coming advance (zeroed by
+                           fem_state_init: inertial) */
+  double rim_w_prev[3], rim_v_prev[3]; /* fem_frame_from_rim: last call's */
+  int rim_has_prev;
 } fem_state;
 
 int fem_state_init(const fem_model *md, fem_state *st, proto_err *err);
@@ -268,12 +286,35 @@ void fem_state_reset(fem_model *md, fem_state *st, const double *u);
 int fem_stable_dt(fem_model *md, int max_iter, proto_err *err);
 
 /* Advances st by `span` seconds with central differences (eq. 32, leapfrog
- * form, damping C = alpha M), external force st->b held constant:
+ * form, damping C = alpha M), external force st->b held constant, in the
+ * frame st->frame (fictitious forces, fem_explicit.c):
  * n = ceil(span/(safety*dt_crit)) equal sub-steps, or a forced dt_sub > 0
  * (span/dt_sub rounded up). Stops with an error naming the limit when the
  * discrete energy exceeds 10x (energy0 + work_abs) or is not finite. */
 int fem_explicit_advance(fem_model *md, fem_state *st, double span,
                          double safety, double dt_sub, proto_err *err);
+
+/* Sets st->frame for the coming step of length span from the rim's motion
+ * at its end (world frame, PROTOCOL.md role fem): R (rim -> world, row-major),
+ * angular velocity w and origin velocity v. Omega = R^T w; the accelerations
+ * are backward differences over the step, alpha = R^T (w - w_prev)/span and
+ * acc = R^T (v - v_prev)/span (the previous call's w, v; zero at the first
+ * call: the body starts at rest relative to the frame, moving with it). A
+ * frame whose velocity jumps between steps (the coupler's piecewise-constant
+ * rim velocity) thus gets exactly the velocity change as an impulse spread
+ * over one step: first order in span for a smoothly accelerating frame. */
+void fem_frame_from_rim(fem_state *st, const double R[9], const double w[3],
+                        const double v[3], double span);
+/* True if the frame rotates or spins up (the explicit scheme then couples the
+ * three components of each node through the Coriolis term). */
+int fem_frame_rotating(const fem_frame *fr);
+/* Adds the frame's inertial (d'Alembert) loads at displacement u to b:
+ * b_a -= m_a [acc + alpha x r_a + Omega x (Omega x r_a)], r_a = X_a + u_a,
+ * lumped masses (consistent with the explicit scheme and fem_load_gravity).
+ * The Coriolis term is velocity dependent: fem_explicit_advance treats it
+ * itself; a steady (quasi-static) state has no relative velocity. */
+void fem_load_frame(const fem_model *md, const fem_frame *fr, const double *u,
+                    double *b);
 
 /* ---------------------------------------------------------------- config */
 

@@ -41,6 +41,16 @@ extern const double fem_quad4_w;
 void fem_face_load(const fem_model *md, int32_t e, int f, const double t_vec[3],
                    double p_normal, double *b);
 
+/* c = a x b */
+static inline void fem_cross(const double a[3], const double b[3], double c[3]) {
+  c[0] = a[1] * b[2] - a[2] * b[1];
+  c[1] = a[2] * b[0] - a[0] * b[2];
+  c[2] = a[0] * b[1] - a[1] * b[0];
+}
+/* Frame acceleration of a point r at rest in the frame (fem_frame.c):
+ * acc + alpha x r + Omega x (Omega x r). The body force is -m times it. */
+void fem_frame_point_acc(const fem_frame *fr, const double r[3], double a[3]);
+
 /* ANP (fem_anp.c): nodal dilatation of u into md->node_theta, and the
  * element force of the volumetric part added in elem_force (via
  * fem_anp_elem_pressure). */

@@ -5,9 +5,10 @@
  * added to the inflation pressure and gravity (rotated likewise), the tread
  * is advanced by sub-cycled central differences (or re-solved statically
  * with the kept factor in quasi_static mode), and the surface nodes go back
- * in the world frame: v = R v_rel + omega x (x - c) + v_c. Fictitious
- * (centrifugal, Coriolis) forces of the rotating frame are neglected, as in
- * the linear model of seed 000 §3. */
+ * in the world frame: v = R v_rel + omega x (x - c) + v_c. The rim frame's
+ * inertial forces (origin acceleration, Euler, centrifugal, Coriolis) act on
+ * the tread (fem_frame.c, fem_explicit.c); the frame's accelerations are
+ * backward differences of consecutive steps' rim_omega and rim_v. */
 #include "fem_server/fem.h"
 
 #include <math.h>
@@ -233,6 +234,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   const double *w = proto_msg_data(req, PROTO_A_RIM_OMEGA);
   const double *vc = proto_msg_data(req, PROTO_A_RIM_V);
   const double span = info->dt;
+  fem_frame_from_rim(&s->st, R, w, vc, span);
   /* external force in the rim frame: pressure + R^T g m + R^T f, constant
    * over the coupling step (the role table: f is the step's mean force) */
   double g[3];
@@ -249,7 +251,9 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   }
   if (s->cfg.mode == FEM_EXPLICIT) {
     if (fem_explicit_advance(md, &s->st, span, s->cfg.safety, s->cfg.dt_sub, err)) return -1;
-  } else { /* quasi-static: K u = b with the kept factor */
+  } else { /* quasi-static: K u = b with the kept factor; steady in the rim
+              frame, so no Coriolis; frame loads at the previous u (lag) */
+    fem_load_frame(md, &s->st.frame, s->st.u, b);
     memcpy(s->u_prev, s->st.u, sizeof *s->u_prev * (size_t)md->n_dof);
     if (fem_static_solve(md, s->cfg.solver, 1e-10, b, s->st.u, NULL, err)) return -1;
     for (int32_t i = 0; i < md->n_dof; i++) s->st.v[i] = (s->st.u[i] - s->u_prev[i]) / span;

@@ -2,8 +2,9 @@
  * ROUTER socket (PROTOCOL.md, role "fem"). Checks the ready message (surface
  * mesh outward-oriented, series and snapshot declarations), the rim frame
  * (a rigidly moving, unloaded, pre-inflated tread returns x = R x0 + c and
- * v = v_c + omega x (x - c)), snapshot arrays at output steps, a response to
- * nodal forces (explicit and quasi-static), and a clean stop. */
+ * v = v_c + omega x (x - c) up to the centrifugal drift of the spinning
+ * rim), snapshot arrays at output steps, a response to nodal forces
+ * (explicit and quasi-static), and a clean stop. */
 #include "fem_test.h"
 
 #include <signal.h>
@@ -160,8 +161,29 @@ static int run(const char *exe, const char *mode, const char *element) {
            row[3], row[4], ex, ev);
     if (k == 1) e_first = row[1];
     if (k <= 2) {
-      CHECK(ex < 1e-9, "%s: rigid rim motion not reproduced (%.3e m)", mode, ex);
-      CHECK(ev < 1e-6, "%s: rigid velocity not reproduced (%.3e m/s)", mode, ev);
+      /* The tread starts at rest relative to a rim spinning at |w| = 2 rad/s:
+       * only the centrifugal force moves it off the rigid motion. Explicit:
+       * no node outruns a free particle at the outer radius, whose leapfrog
+       * path after n sub-steps is a dt^2 n(n+1)/2 with a = w^2 r_max
+       * (factor 1.5 for elastic pulls between nodes). Quasi-static: the
+       * steady stretch stays below that of a free thin ring at r_max,
+       * rho w^2 r^3/E (the rim nodes are held), and the velocity vanishes
+       * once the lagged frame load has converged (step 2). */
+      const double a_cf = w[1] * w[1] * rmax, ns = k * row[4], dts = row[3];
+      const double x_free = 0.5 * a_cf * dts * dts * ns * (ns + 1), v_free = a_cf * dts * ns;
+      const double x_ring = 1100 * w[1] * w[1] * rmax * rmax * rmax / 2e7;
+      if (strcmp(mode, "explicit") == 0) {
+        CHECK(ex > 0.2 * x_free && ex < 1.5 * x_free,
+              "%s: motion off the rigid rim %.3e m, expected the centrifugal drift ~%.3e m", mode, ex,
+              x_free);
+        CHECK(ev > 0.2 * v_free && ev < 1.5 * v_free,
+              "%s: velocity off the rigid rim %.3e m/s, expected ~%.3e m/s", mode, ev, v_free);
+      } else {
+        CHECK(ex > 1e-3 * x_ring && ex < x_ring,
+              "%s: steady centrifugal stretch %.3e m, expected below the free ring's %.3e m", mode,
+              ex, x_ring);
+        if (k == 2) CHECK(ev < 1e-5, "%s: rigid velocity not reproduced (%.3e m/s)", mode, ev);
+      }
       CHECK(e_first > 0, "%s: inflation gives no strain energy", mode);
     } else {
       CHECK(ex > 1e-6, "%s: nodal forces did not deform the tread", mode);

@@ -1,0 +1,98 @@
+#!/bin/sh
+# Soil parameters of the tyre scenes' grains by virtual tests with dem_server's
+# library (terra/README.md), their fits, and the terramechanics reference curve.
+# Records in bench/results/terra/, tables and PNGs: bench/results/terra.md.
+#
+# usage: bench/terra/run_terra.sh [BUILD_DIR] [stage...]
+#   stages: deep paper fine coarse checks fit (default: all, in that order)
+# Runs that already have their record are skipped (delete it to redo).
+# COSIM_LOCK=FILE wraps every DEM run in `flock FILE` (machines shared with
+# other heavy jobs); THREADS (default 1: on a busy machine OpenMP threads wait for each other) sets the DEM's OpenMP threads.
+set -e
+root=$(cd "$(dirname "$0")/../.." && pwd)
+build=${1:-$root/build}
+[ $# -gt 0 ] && shift
+stages=${*:-deep paper fine coarse checks fit}
+out=$root/bench/results/terra
+scene=$root/configs/default.json
+threads=${THREADS:-1}
+terra=$build/bin/cosim_terra
+mkdir -p "$out"
+cmake --build "$build" -j2 --target cosim_terra_cli >/dev/null
+
+run() { # run OUTPUT ARGS...: one virtual test unless its record exists
+  o=$1; shift
+  [ -s "$o" ] && return 0
+  echo "== $(basename "$o")"
+  if [ -n "$COSIM_LOCK" ]; then flock "$COSIM_LOCK" "$terra" "$@" --threads "$threads" --out "$o.tmp"
+  else "$terra" "$@" --threads "$threads" --out "$o.tmp"; fi
+  mv "$o.tmp" "$o"
+}
+
+# The bevameter: three square plates (the largest = the tyre's width 0.165 m),
+# container walls 1.5-2.5 plate widths away, 0.02 m/s, three packings.
+plates() { # plates BED DEPTH_FACTOR ZMAX
+  for seed in 1 2 3; do
+    for bc in 0.060:0.36 0.110:0.50 0.165:0.66; do
+      b=${bc%:*}; L=${bc#*:}
+      run "$out/plate_$1_b${b}_s$seed.csv" plate "$scene" --width "$b" --container "$L" \
+        --depth-factor "$2" --speed 0.02 --zmax "$3" --seed "$seed"
+    done
+  done
+}
+
+# The shear box at four normal stresses, three packings: the deep bed's top
+# (the 6.9 +- 0.345 and 7.8 mm layers) and the paper bed's 15.6 mm grains in a
+# box scaled with the grain (30 x 30 x 15 grain diameters, same inertial number).
+shears() { # shears SOIL DMIN DMAX LENGTH HEIGHT SPEED JMAX DJ
+  for seed in 1 2 3; do
+    for sig in 2500 5000 10000 20000; do
+      run "$out/shear_$1_sig${sig}_s$seed.csv" shear "$scene" --sigma "$sig" --dmin "$2" --dmax "$3" \
+        --length "$4" --box-width "$4" --height "$5" --speed "$6" --jmax "$7" --dj "$8" --seed "$seed"
+    done
+  done
+}
+
+for st in $stages; do
+  case $st in
+  deep) plates deep 4 0.045 ;;
+  paper) plates paper 1 0.025 ;;
+  fine) shears fine 0.006555 0.0078 0.2 0.1 0.02 0.03 0.00025 ;;
+  coarse) shears coarse 0.0156 0.0156 0.4 0.2 0.04 0.06 0.0005 ;;
+  checks)
+    # quasi-static: half the speed; container: walls 2 widths away; stiffness: 2 E
+    run "$out/check_plate_deep_b0.110_half_speed.csv" plate "$scene" --width 0.110 --container 0.50 \
+      --depth-factor 4 --speed 0.01 --zmax 0.045 --seed 1
+    run "$out/check_plate_deep_b0.165_big_box.csv" plate "$scene" --width 0.165 --container 0.825 \
+      --depth-factor 4 --speed 0.02 --zmax 0.045 --seed 1
+    stiff=$out/check_scene_2E.json
+    /usr/bin/python3 -c "import json,sys; s=json.load(open(sys.argv[1])); \
+m=s['processes']['dem']['materials'][0]; m['E']*=2; json.dump(s,open(sys.argv[2],'w'),indent=1)" "$scene" "$stiff"
+    run "$out/check_plate_deep_b0.110_2E.csv" plate "$stiff" --width 0.110 --container 0.50 \
+      --depth-factor 4 --speed 0.02 --zmax 0.045 --seed 1
+    run "$out/check_shear_fine_sig5000_half_speed.csv" shear "$scene" --sigma 5000 --dmin 0.006555 \
+      --dmax 0.0078 --length 0.2 --box-width 0.2 --height 0.1 --speed 0.01 --jmax 0.03 --dj 0.00025 --seed 1
+    ;;
+  fit)
+    for bed in deep:fine paper:coarse; do
+      b=${bed%%:*}; rest=${bed#*:}; soil=${rest%:*}
+      for seed in 1 2 3; do # packing k: its plates and its shear box
+        sh_seed=$seed
+        "$terra" fit --plate "$out/plate_${b}_b0.060_s$seed.csv" --plate "$out/plate_${b}_b0.110_s$seed.csv" \
+          --plate "$out/plate_${b}_b0.165_s$seed.csv" \
+          --shear "$out/shear_${soil}_sig2500_s$sh_seed.csv" --shear "$out/shear_${soil}_sig5000_s$sh_seed.csv" \
+          --shear "$out/shear_${soil}_sig10000_s$sh_seed.csv" --shear "$out/shear_${soil}_sig20000_s$sh_seed.csv" \
+          --out "$out/soil_${b}_s$seed.json"
+      done
+      "$terra" combine "$out/soil_${b}_s1.json" "$out/soil_${b}_s2.json" "$out/soil_${b}_s3.json" \
+        --out "$root/bench/results/terra_params_$b.json"
+      for W in 100 250 500; do
+        "$terra" curve --params "$root/bench/results/terra_params_$b.json" --radius 0.272 --width 0.165 \
+          --load "$W" --slips 0:0.3:0.01 --out "$root/bench/results/terra_reference_${b}_W$W.csv"
+      done
+    done
+    /usr/bin/python3 "$root/bench/terra/plot_terra.py" "$root/bench/results"
+    ;;
+  *) echo "unknown stage '$st'" >&2; exit 1 ;;
+  esac
+done

@@ -1,0 +1,494 @@
+/* ter_dem.c — virtual soil tests on dem_server's library (notes §6), through
+ * its public API only (dem_server/dem.h): the model from a JSON section built
+ * here from the scene's DEM section, dem_state_init, dem_settle, dem_step,
+ * dem_mesh_set_nodes to move rigid meshes, wall forces.
+ *
+ * Rigid tools are mesh walls (two-sided triangles); each tool part is its own
+ * wall so that its force is reported on its own (dem_state.wall_force, the
+ * force of the grains ON the wall). */
+#include "terra/terra.h"
+
+#include "dem_server/dem.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define TER_PARK_Z 5.0          /* tools wait here (m) while the grains settle */
+#define TER_PLATE_GAP 0.1       /* plate starts this many max diameters above the highest grain */
+#define TER_SKIRT_EXTRA 0.05    /* skirt height above the deepest sinkage (m) */
+#define TER_SOLID_FRACTION 0.6  /* to size a shear specimen from its volume */
+#define TER_BED_GAP 0.5e-3      /* clearance of the lattice placement (m) */
+#define TER_SERVO_FILTER 20     /* platen force low-pass, in DEM steps */
+#define TER_CONSOLIDATE_TOL 0.02
+#define TER_CONSOLIDATE_HOLD 0.02 /* s within tolerance before shearing */
+#define TER_CONSOLIDATE_MAX 2.0   /* s */
+#define TER_PLATEN_INSET 0.2      /* platen edge inside the box, fraction of d_min */
+
+enum { F_BOTTOM = 1, F_XLO = 2, F_XHI = 4, F_YLO = 8, F_YHI = 16, F_SIDES = 30 };
+
+/* ------------------------------------------------------------ the scene */
+
+int ter_dem_soil_from_scene(const cJSON *scene, ter_dem_soil *soil, proto_err *err) {
+  memset(soil, 0, sizeof *soil);
+  const cJSON *procs = cJSON_GetObjectItemCaseSensitive(scene, "processes");
+  if (!cJSON_IsObject(procs)) return proto_fail(err, "scene: no 'processes' object");
+  for (const cJSON *p = procs->child; p; p = p->next) {
+    const cJSON *ex = cJSON_GetObjectItemCaseSensitive(p, "exec");
+    if (!cJSON_IsString(ex)) continue;
+    const char *base = strrchr(ex->valuestring, '/');
+    base = base ? base + 1 : ex->valuestring;
+    if (strcmp(base, "dem_server") != 0) continue;
+    soil->section = p;
+    snprintf(soil->path, sizeof soil->path, "processes.%s", p->string);
+  }
+  if (!soil->section) return proto_fail(err, "scene: no process with exec \"dem_server\"");
+  const cJSON *parts = cJSON_GetObjectItemCaseSensitive(soil->section, "particles");
+  const cJSON *gm = cJSON_IsObject(parts) ? cJSON_GetObjectItemCaseSensitive(parts, "material") : NULL;
+  const cJSON *walls = cJSON_GetObjectItemCaseSensitive(soil->section, "walls");
+  const cJSON *w0 = cJSON_IsArray(walls) ? cJSON_GetArrayItem(walls, 0) : NULL;
+  const cJSON *wm = w0 ? cJSON_GetObjectItemCaseSensitive(w0, "material") : NULL;
+  const cJSON *sm = cJSON_GetObjectItemCaseSensitive(soil->section, "surface_material");
+  soil->grain_material = cJSON_IsNumber(gm) ? gm->valueint : 0;
+  soil->wall_material = cJSON_IsNumber(wm) ? wm->valueint : soil->grain_material;
+  soil->plate_material = cJSON_IsNumber(sm) ? sm->valueint : soil->grain_material;
+  return 0;
+}
+
+/* The scene's section without its grains, walls and coupled surface. */
+static cJSON *base_section(const ter_dem_soil *soil, proto_err *err) {
+  cJSON *s = cJSON_Duplicate(soil->section, 1);
+  if (!s) {
+    proto_fail(err, "out of memory");
+    return NULL;
+  }
+  static const char *const drop[] = {"exec", "particles", "walls", "surface_material", "threads"};
+  for (size_t k = 0; k < sizeof drop / sizeof *drop; k++) cJSON_DeleteItemFromObjectCaseSensitive(s, drop[k]);
+  if (soil->threads > 0) cJSON_AddNumberToObject(s, "threads", soil->threads);
+  cJSON_AddArrayToObject(s, "walls");
+  return s;
+}
+
+static cJSON *vec3(double a, double b, double c) {
+  const double v[3] = {a, b, c};
+  return cJSON_CreateDoubleArray(v, 3);
+}
+
+/* A mesh wall made of the chosen faces of the box [lo, hi] (4 nodes and 2
+ * triangles per face; bottom at lo[2]). */
+static void add_box_mesh(cJSON *walls, int material, const double lo[3], const double hi[3],
+                         unsigned faces) {
+  cJSON *w = cJSON_CreateObject(), *nodes = cJSON_CreateArray(), *tris = cJSON_CreateArray();
+  cJSON_AddStringToObject(w, "type", "mesh");
+  cJSON_AddNumberToObject(w, "material", material);
+  const double x0 = lo[0], x1 = hi[0], y0 = lo[1], y1 = hi[1], z0 = lo[2], z1 = hi[2];
+  const double quad[5][4][3] = {
+      {{x0, y0, z0}, {x1, y0, z0}, {x1, y1, z0}, {x0, y1, z0}},  /* bottom */
+      {{x0, y0, z0}, {x0, y1, z0}, {x0, y1, z1}, {x0, y0, z1}},  /* x = lo */
+      {{x1, y0, z0}, {x1, y1, z0}, {x1, y1, z1}, {x1, y0, z1}},  /* x = hi */
+      {{x0, y0, z0}, {x1, y0, z0}, {x1, y0, z1}, {x0, y0, z1}},  /* y = lo */
+      {{x0, y1, z0}, {x1, y1, z0}, {x1, y1, z1}, {x0, y1, z1}}}; /* y = hi */
+  int nn = 0;
+  for (int f = 0; f < 5; f++) {
+    if (!(faces & (1u << f))) continue;
+    for (int a = 0; a < 4; a++) cJSON_AddItemToArray(nodes, vec3(quad[f][a][0], quad[f][a][1], quad[f][a][2]));
+    const int t[2][3] = {{nn, nn + 1, nn + 2}, {nn, nn + 2, nn + 3}};
+    for (int k = 0; k < 2; k++) cJSON_AddItemToArray(tris, cJSON_CreateIntArray(t[k], 3));
+    nn += 4;
+  }
+  cJSON_AddItemToObject(w, "nodes", nodes);
+  cJSON_AddItemToObject(w, "triangles", tris);
+  cJSON_AddItemToArray(walls, w);
+}
+
+static void add_container(cJSON *walls, int material, double Lx, double Ly) {
+  cJSON *w = cJSON_CreateObject();
+  cJSON_AddStringToObject(w, "type", "box");
+  cJSON_AddNumberToObject(w, "material", material);
+  cJSON_AddItemToObject(w, "lo", vec3(0, 0, 0));
+  cJSON_AddItemToObject(w, "hi", vec3(Lx, Ly, 100));
+  cJSON_AddBoolToObject(w, "open_top", 1);
+  cJSON_AddItemToArray(walls, w);
+}
+
+/* Moves mesh `mesh` rigidly: from where it is now by dz, with velocity v. */
+static void move_mesh(const dem_model *m, dem_state *s, int mesh, double dz, const double v[3],
+                      double *xbuf, double *vbuf) {
+  const int nn = m->meshes[mesh].n_nodes;
+  for (int a = 0; a < nn; a++)
+    for (int d = 0; d < 3; d++) {
+      xbuf[3 * a + d] = s->mesh_x[mesh][3 * a + d] + (d == 2 ? dz : 0);
+      vbuf[3 * a + d] = v[d];
+    }
+  dem_mesh_set_nodes(m, s, mesh, xbuf, vbuf);
+}
+
+static int build(cJSON *sec, const char *path, dem_model *m, dem_state *s, proto_err *err) {
+  int rc = dem_model_from_json(m, sec, path, err);
+  if (rc == 0 && dem_state_init(m, s, err)) {
+    dem_model_free(m);
+    rc = -1;
+  }
+  return rc;
+}
+
+static void release(dem_model *m, dem_state *s) {
+  dem_state_free(s);
+  dem_model_free(m);
+}
+
+/* grain-steps per wall-clock second since (step k0, time t0) */
+static double rate(const dem_state *s, int64_t k0, double t0) {
+  return (double)s->n * (double)(s->step - k0) / fmax(proto_now() - t0, 1e-9);
+}
+
+/* dem_settle's progress on the log (a deep bed settles for minutes) */
+static void settle_progress(void *ctx, double fraction, const char *what) {
+  fprintf(ctx, "terra: %s: %.0f %%\n", what, 100 * fraction);
+  fflush(ctx);
+}
+
+static int settle(const dem_model *m, dem_state *s, double ke, int64_t max_steps, FILE *log,
+                  proto_err *err) {
+  double t0 = proto_now();
+  int64_t k0 = s->step;
+  if (dem_settle(m, s, ke, max_steps, log ? settle_progress : NULL, log, err)) return -1;
+  if (log)
+    fprintf(log, "terra: %d grains settled in %lld steps of %.3g s (%.1f s wall, %.3g grain-steps/s), "
+            "KE %.3g J per grain\n", s->n, (long long)(s->step - k0), m->dt, proto_now() - t0,
+            rate(s, k0, t0), s->kinetic_energy / s->n);
+  return 0;
+}
+
+/* --------------------------------------------------------------- plate */
+
+void ter_plate_defaults(ter_plate_spec *p) {
+  memset(p, 0, sizeof *p);
+  p->width = 0.165;
+  p->container = 0.6;
+  p->depth_factor = 4;
+  p->speed = 0.02;
+  p->z_max = 0.04;
+  p->dz = 0.5e-3;
+  p->seed = 1;
+  p->settle_ke = 1e-7;
+  p->settle_max_steps = 40000;
+}
+
+/* Mean top of the grains under the square footprint [c - h, c + h]^2, over
+ * cells of the largest diameter; mean diameter of those top grains. */
+static double surface_height(const dem_state *s, double cx, double cy, double h, double *d_top) {
+  double dmax = 0;
+  for (int i = 0; i < s->n; i++) dmax = fmax(dmax, 2 * s->radius[i]);
+  int nc = (int)floor(2 * h / dmax);
+  if (nc < 1) nc = 1;
+  const double cell = 2 * h / nc;
+  double top[64 * 64], dsum = 0;
+  int who[64 * 64], cnt = 0;
+  if (nc > 64) nc = 64;
+  for (int k = 0; k < nc * nc; k++) top[k] = -INFINITY, who[k] = -1;
+  for (int i = 0; i < s->n; i++) {
+    const double *x = &s->x[3 * i];
+    int ix = (int)floor((x[0] - (cx - h)) / cell), iy = (int)floor((x[1] - (cy - h)) / cell);
+    if (ix < 0 || iy < 0 || ix >= nc || iy >= nc) continue;
+    double zt = x[2] + s->radius[i];
+    if (zt > top[iy * nc + ix]) top[iy * nc + ix] = zt, who[iy * nc + ix] = i;
+  }
+  double sum = 0;
+  for (int k = 0; k < nc * nc; k++)
+    if (who[k] >= 0) {
+      sum += top[k];
+      dsum += 2 * s->radius[who[k]];
+      cnt++;
+    }
+  *d_top = cnt ? dsum / cnt : dmax;
+  return cnt ? sum / cnt : 0;
+}
+
+/* Highest point of the grains that reach into the footprint [c - h, c + h]^2. */
+static double highest_top(const dem_state *s, double cx, double cy, double h) {
+  double top = -INFINITY;
+  for (int i = 0; i < s->n; i++) {
+    const double *x = &s->x[3 * i], r = s->radius[i];
+    if (fabs(x[0] - cx) < h + r && fabs(x[1] - cy) < h + r) top = fmax(top, x[2] + r);
+  }
+  return top;
+}
+
+static double grain_density(const dem_model *m, int material) { return m->mat[material].density; }
+
+int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log, ter_series *out,
+                   proto_err *err) {
+  if (!(sp->width > 0 && sp->container > 2 * sp->width && sp->depth_factor > 0 && sp->speed > 0 &&
+        sp->z_max > 0 && sp->dz > 0))
+    return proto_fail(err, "plate test: need width > 0, container > 2 width, depth_factor, speed, "
+                      "z_max, dz > 0 (got %g, %g, %g, %g, %g, %g)", sp->width, sp->container,
+                      sp->depth_factor, sp->speed, sp->z_max, sp->dz);
+  static const char *const cols[] = {"z", "p", "p_skirt", "inertial", "max_overlap", "ke_per_grain"};
+  if (ter_series_init(out, 6, cols, err)) return -1;
+  cJSON *sec = base_section(soil, err);
+  if (!sec) return -1;
+  const double L = sp->container, b = sp->width, h = 0.5 * b, c = 0.5 * L;
+  cJSON *parts = cJSON_AddObjectToObject(sec, "particles");
+  cJSON_AddStringToObject(parts, "generate", "bed");
+  cJSON_AddNumberToObject(parts, "scale", sp->depth_factor * L * L); /* grains per m^2 of the paper's bed */
+  cJSON_AddItemToObject(parts, "size", cJSON_CreateDoubleArray((const double[2]){L, L}, 2));
+  cJSON_AddNumberToObject(parts, "material", soil->grain_material);
+  cJSON_AddNumberToObject(parts, "seed", (double)sp->seed);
+  cJSON *walls = cJSON_GetObjectItemCaseSensitive(sec, "walls");
+  add_container(walls, soil->wall_material, L, L);
+  const double skirt = sp->z_max + TER_SKIRT_EXTRA;
+  add_box_mesh(walls, soil->plate_material, (const double[3]){c - h, c - h, TER_PARK_Z},
+               (const double[3]){c + h, c + h, TER_PARK_Z + skirt}, F_BOTTOM);
+  add_box_mesh(walls, soil->plate_material, (const double[3]){c - h, c - h, TER_PARK_Z},
+               (const double[3]){c + h, c + h, TER_PARK_Z + skirt}, F_SIDES);
+  dem_model m;
+  dem_state s;
+  int rc = build(sec, soil->path, &m, &s, err);
+  cJSON_Delete(sec);
+  if (rc) return proto_wrap(err, "plate test");
+  const int w_base = 1, w_skirt = 2, mesh_base = 0, mesh_skirt = 1;
+  double xbuf[3 * 24], vbuf[3 * 24];
+  if (settle(&m, &s, sp->settle_ke, sp->settle_max_steps, log, err)) goto fail;
+  double d_top, z_surf = surface_height(&s, c, c, h, &d_top);
+  const double rho = grain_density(&m, soil->grain_material);
+  double dmax = 0;
+  for (int i = 0; i < s.n; i++) dmax = fmax(dmax, 2 * s.radius[i]);
+  /* start above every grain under the plate (the surface is a mean: some stick out) */
+  const double z_start = fmax(z_surf, highest_top(&s, c, c, h)) + TER_PLATE_GAP * dmax;
+  const double v[3] = {0, 0, -sp->speed};
+  move_mesh(&m, &s, mesh_base, z_start - TER_PARK_Z, v, xbuf, vbuf);
+  move_mesh(&m, &s, mesh_skirt, z_start - TER_PARK_Z, v, xbuf, vbuf);
+  ter_series_meta(out, "test", "plate");
+  ter_series_meta(out, "width_m", "%.6g", b);
+  ter_series_meta(out, "container_m", "%.6g", L);
+  ter_series_meta(out, "depth_factor", "%.6g", sp->depth_factor);
+  ter_series_meta(out, "grains", "%d", s.n);
+  ter_series_meta(out, "speed_m_s", "%.6g", sp->speed);
+  ter_series_meta(out, "seed", "%llu", (unsigned long long)sp->seed);
+  ter_series_meta(out, "surface_z_m", "%.6g", z_surf);
+  ter_series_meta(out, "top_grain_diameter_m", "%.6g", d_top);
+  ter_series_meta(out, "dt_s", "%.6g", m.dt);
+  double bed_top = 0;
+  for (int i = 0; i < s.n; i++) bed_top = fmax(bed_top, s.x[3 * i + 2] + s.radius[i]);
+  ter_series_meta(out, "bed_max_height_m", "%.6g", bed_top);
+  if (log)
+    fprintf(log, "terra: plate %.3g m, surface at %.4g m (top grains %.3g mm), %d grains, dt %.3g s\n",
+            b, z_surf, 1e3 * d_top, s.n, m.dt);
+  /* push: bins of dz sinkage */
+  double acc[5] = {0, 0, 0, 0, 0}, t0 = proto_now();
+  int nacc = 0, bin = 0;
+  const int64_t k0 = s.step;
+  while (1) {
+    if (dem_step(&m, &s, err)) goto fail;
+    const double sink = z_surf - s.mesh_x[mesh_base][2];
+    acc[0] += s.wall_force[3 * w_base + 2] / (b * b);
+    acc[1] += s.wall_force[3 * w_skirt + 2] / (b * b);
+    acc[2] = fmax(acc[2], s.max_overlap_ratio);
+    acc[3] += s.kinetic_energy / s.n;
+    nacc++;
+    if (sink >= (bin + 1) * sp->dz || sink >= sp->z_max) {
+      double p = acc[0] / nacc;
+      double I = p > 0 ? (sp->speed / b) * d_top / sqrt(p / rho) : INFINITY;
+      double row[6] = {sink - 0.5 * sp->dz, p, acc[1] / nacc, I, acc[2], acc[3] / nacc};
+      if (sink > 0 && ter_series_add(out, row, err)) goto fail;
+      memset(acc, 0, sizeof acc);
+      nacc = 0;
+      bin++;
+      if (log && bin % (int)fmax(1, floor(0.1 * sp->z_max / sp->dz)) == 0)
+        fprintf(log, "terra: plate sinkage %.1f mm, p %.4g Pa, I %.2g, max overlap %.3g, %.3g grain-steps/s\n",
+                1e3 * sink, p, I, row[4], rate(&s, k0, t0));
+    }
+    if (sink >= sp->z_max) break;
+  }
+  release(&m, &s);
+  return 0;
+fail:
+  release(&m, &s);
+  ter_series_free(out);
+  return proto_wrap(err, "plate test (b = %g m)", sp->width);
+}
+
+/* ----------------------------------------------------------- shear box */
+
+void ter_shear_defaults(ter_shear_spec *p) {
+  memset(p, 0, sizeof *p);
+  p->length = 0.2;
+  p->width = 0.2;
+  p->height = 0.1;
+  p->d_min = 6.555e-3; /* the bed's two upper layers: 6.9 +- 0.345 and 7.8 mm */
+  p->d_max = 7.8e-3;
+  p->sigma_n = 10e3;
+  p->speed = 0.01;
+  p->j_max = 0.04;
+  p->dj = 0.25e-3;
+  p->servo_gain = 0;   /* 0: 30 x speed (1 % error at a dilation rate 0.3 x speed) */
+  p->servo_vmax = 0;   /* 0: max(0.05, 3 x speed) */
+  p->seed = 1;
+  p->settle_ke = 1e-8;
+  p->settle_max_steps = 40000;
+}
+
+/* Low-passed platen force and the servo's velocity (proportional law). */
+typedef struct servo {
+  double N_target, N_filt, alpha, gain, vmax;
+} servo;
+
+static double servo_velocity(servo *sv, double N) {
+  sv->N_filt += sv->alpha * (N - sv->N_filt);
+  double e = (sv->N_target - sv->N_filt) / sv->N_target; /* > 0: press harder: go down */
+  double vz = -sv->gain * e;
+  return vz > sv->vmax ? sv->vmax : vz < -sv->vmax ? -sv->vmax : vz;
+}
+
+int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log, ter_series *out,
+                   proto_err *err) {
+  if (!(sp->length > 0 && sp->width > 0 && sp->height > 0 && sp->d_min > 0 && sp->d_max >= sp->d_min &&
+        sp->sigma_n > 0 && sp->speed > 0 && sp->j_max > 0 && sp->j_max < 0.5 * sp->length && sp->dj > 0))
+    return proto_fail(err, "shear test: need positive sizes, d_max >= d_min, sigma_n, speed, dj > 0 "
+                      "and 0 < j_max < length/2");
+  if (sp->d_max > 0.2 * sp->height)
+    return proto_fail(err, "shear test: box height %g m is below 5 grain diameters (%g m)", sp->height, sp->d_max);
+  static const char *const cols[] = {"j", "tau", "tau_upper", "sigma", "sigma_platen", "dilation", "inertial"};
+  if (ter_series_init(out, 7, cols, err)) return -1;
+  const double L = sp->length, W = sp->width, H = sp->height, hs = 0.5 * H;
+  /* grains: diameters uniform in [d_min, d_max], enough for the height H */
+  const double d0 = sp->d_min, d1 = sp->d_max;
+  const double d3 = (pow(d1, 4) - pow(d0, 4)) / (4 * fmax(d1 - d0, 1e-300)); /* E[d^3] */
+  const double vgrain = M_PI / 6 * (d1 > d0 ? d3 : d0 * d0 * d0);
+  const int64_t count = (int64_t)ceil(TER_SOLID_FRACTION * L * W * H / vgrain);
+  const double pitch = d1 + TER_BED_GAP;
+  const int64_t per_level = (int64_t)floor(L / pitch) * (int64_t)floor(W / pitch);
+  if (per_level < 1) return proto_fail(err, "shear test: box smaller than one grain");
+  const double lattice_top = ceil((double)count / per_level) * pitch;
+  const double ztop = fmax(lattice_top, H) + 2 * d1;
+  cJSON *sec = base_section(soil, err);
+  if (!sec) return -1;
+  cJSON *parts = cJSON_AddArrayToObject(sec, "particles"), *g = cJSON_CreateObject();
+  cJSON_AddItemToObject(g, "x", vec3(0.5 * L, 0.5 * W, 0.5 * H));
+  cJSON_AddNumberToObject(g, "r", 0.5 * d0);
+  cJSON_AddNumberToObject(g, "material", soil->grain_material);
+  cJSON_AddItemToArray(parts, g);
+  cJSON *walls = cJSON_GetObjectItemCaseSensitive(sec, "walls");
+  /* Zero-thickness walls leave the upper half's overhang (x in [L, L + j])
+   * without support and the lower half's top at x in [0, j] uncovered: two
+   * flanges in the shear plane stand for the walls' thickness of a real box,
+   * each its own wall so that its friction stays out of the plane's shear. */
+  const double in = TER_PLATEN_INSET * d0, jm = sp->j_max + 2 * d1;
+  add_box_mesh(walls, soil->wall_material, (const double[3]){0, 0, 0}, (const double[3]){L, W, hs},
+               F_BOTTOM | F_SIDES);                                          /* lower half */
+  add_box_mesh(walls, soil->wall_material, (const double[3]){L, 0, hs}, (const double[3]){L + jm, W, hs},
+               F_BOTTOM);                                                    /* its flange */
+  add_box_mesh(walls, soil->wall_material, (const double[3]){0, 0, hs}, (const double[3]){L, W, ztop},
+               F_SIDES);                                                     /* upper ring */
+  add_box_mesh(walls, soil->wall_material, (const double[3]){-jm, 0, hs}, (const double[3]){0, W, hs},
+               F_BOTTOM);                                                    /* its flange */
+  add_box_mesh(walls, soil->grain_material, (const double[3]){in, in, TER_PARK_Z},
+               (const double[3]){L - in, W - in, TER_PARK_Z + 1}, F_BOTTOM); /* platen */
+  /* walls = meshes, in this order */
+  const int w_low = 0, w_lflange = 1, w_ring = 2, w_uflange = 3, w_plat = 4;
+  dem_model m;
+  dem_state s;
+  int rc = dem_model_from_json(&m, sec, soil->path, err);
+  cJSON_Delete(sec);
+  if (rc) return proto_wrap(err, "shear test");
+  dem_bed_spec bed = {.size = {L, W}, .n_layers = 1, .material = soil->grain_material,
+                      .gap = TER_BED_GAP, .seed = sp->seed};
+  bed.layers[0] = (dem_bed_layer){.diameter = 0.5 * (d0 + d1), .spread = 0.5 * (d1 - d0), .count = count};
+  if (dem_bed_place(&m, &bed, err)) {
+    dem_model_free(&m);
+    return proto_wrap(err, "shear test");
+  }
+  m.rayleigh_time = dem_model_rayleigh(&m);
+  if (dem_model_set_dt(&m, 0, err) || dem_state_init(&m, &s, err)) {
+    dem_model_free(&m);
+    return proto_wrap(err, "shear test");
+  }
+  double xbuf[3 * 24], vbuf[3 * 24];
+  const double rho = grain_density(&m, soil->grain_material), A0 = (L - 2 * in) * (W - 2 * in);
+  if (settle(&m, &s, sp->settle_ke, sp->settle_max_steps, log, err)) goto fail;
+  double top = 0;
+  for (int i = 0; i < s.n; i++) top = fmax(top, s.x[3 * i + 2] + s.radius[i]);
+  servo sv = {.N_target = sp->sigma_n * A0, .alpha = 1.0 / TER_SERVO_FILTER,
+              .gain = sp->servo_gain > 0 ? sp->servo_gain : 30 * sp->speed,
+              .vmax = sp->servo_vmax > 0 ? sp->servo_vmax : fmax(0.05, 3 * sp->speed)};
+  double vz0[3] = {0, 0, -sv.vmax};
+  move_mesh(&m, &s, w_plat, top + 0.5 * d1 - TER_PARK_Z, vz0, xbuf, vbuf);
+  /* consolidation: servo only, until the stress holds within tolerance */
+  double held = 0;
+  const double t_cons0 = s.t;
+  while (held < TER_CONSOLIDATE_HOLD) {
+    if (dem_step(&m, &s, err)) goto fail;
+    double v[3] = {0, 0, servo_velocity(&sv, s.wall_force[3 * w_plat + 2])};
+    move_mesh(&m, &s, w_plat, 0, v, xbuf, vbuf);
+    held = fabs(sv.N_filt / sv.N_target - 1) < TER_CONSOLIDATE_TOL ? held + m.dt : 0;
+    if (s.t - t_cons0 > TER_CONSOLIDATE_MAX) {
+      proto_fail(err, "the platen did not hold sigma_n within %g %% in %g s (at %g Pa)",
+                 100 * TER_CONSOLIDATE_TOL, TER_CONSOLIDATE_MAX, sv.N_filt / A0);
+      goto fail;
+    }
+  }
+  const double z_plat0 = s.mesh_x[w_plat][2];
+  double mass_up = 0;
+  for (int i = 0; i < s.n; i++)
+    if (s.x[3 * i + 2] > hs) mass_up += 4.0 / 3 * M_PI * pow(s.radius[i], 3) * rho;
+  ter_series_meta(out, "test", "shear");
+  ter_series_meta(out, "sigma_n_Pa", "%.6g", sp->sigma_n);
+  ter_series_meta(out, "box_m", "%.6g x %.6g x %.6g", L, W, H);
+  ter_series_meta(out, "diameters_m", "%.6g..%.6g", d0, d1);
+  ter_series_meta(out, "grains", "%d", s.n);
+  ter_series_meta(out, "specimen_height_m", "%.6g", z_plat0);
+  ter_series_meta(out, "speed_m_s", "%.6g", sp->speed);
+  ter_series_meta(out, "seed", "%llu", (unsigned long long)sp->seed);
+  ter_series_meta(out, "dt_s", "%.6g", m.dt);
+  ter_series_meta(out, "servo", "v_z = -%.4g m/s x (N_target - N)/N_target, |v_z| <= %.4g m/s", sv.gain, sv.vmax);
+  if (log)
+    fprintf(log, "terra: shear box %d grains, specimen %.4g m high, consolidated to %.4g Pa in %.3g s\n",
+            s.n, z_plat0, sv.N_filt / A0, s.t - t_cons0);
+  /* shear: the upper ring and the platen move along +x */
+  const double x_ring0 = s.mesh_x[w_ring][0];
+  const double vr[3] = {sp->speed, 0, 0};
+  move_mesh(&m, &s, w_ring, 0, vr, xbuf, vbuf);
+  move_mesh(&m, &s, w_uflange, 0, vr, xbuf, vbuf);
+  double acc[5] = {0, 0, 0, 0, 0}, t0 = proto_now();
+  int nacc = 0, bin = 0;
+  const int64_t k0 = s.step;
+  while (1) {
+    if (dem_step(&m, &s, err)) goto fail;
+    const double *F = s.wall_force; /* force of the grains ON each wall */
+    double v[3] = {sp->speed, 0, servo_velocity(&sv, F[3 * w_plat + 2])};
+    move_mesh(&m, &s, w_plat, 0, v, xbuf, vbuf);
+    const double j = s.mesh_x[w_ring][0] - x_ring0, Ac = (L - j) * W;
+    /* equilibrium of the lower grains (lower box, upper flange) and of the
+     * upper grains (ring, platen, lower flange, weight) across the plane */
+    acc[0] += (F[3 * w_low] + F[3 * w_uflange]) / Ac;
+    acc[1] += -(F[3 * w_ring] + F[3 * w_plat] + F[3 * w_lflange]) / Ac;
+    acc[2] += (F[3 * w_plat + 2] + F[3 * w_ring + 2] + F[3 * w_lflange + 2] + mass_up * -m.gravity[2]) / Ac;
+    acc[3] += F[3 * w_plat + 2] / Ac;
+    acc[4] += s.mesh_x[w_plat][2] - z_plat0;
+    nacc++;
+    if (j >= (bin + 1) * sp->dj || j >= sp->j_max) {
+      double sig = acc[2] / nacc;
+      double row[7] = {j - 0.5 * sp->dj, acc[0] / nacc, acc[1] / nacc, sig, acc[3] / nacc, acc[4] / nacc,
+                       sig > 0 ? sp->speed / (10 * sqrt(sig / rho)) : INFINITY};
+      if (ter_series_add(out, row, err)) goto fail;
+      memset(acc, 0, sizeof acc);
+      nacc = 0;
+      bin++;
+      if (log && bin % (int)fmax(1, floor(0.1 * sp->j_max / sp->dj)) == 0)
+        fprintf(log, "terra: shear j %.1f mm, tau %.4g Pa, sigma %.4g Pa, dilation %.3g mm, %.3g grain-steps/s\n",
+                1e3 * j, row[1], row[3], 1e3 * row[5], rate(&s, k0, t0));
+    }
+    if (j >= sp->j_max) break;
+  }
+  int lost = 0;
+  for (int i = 0; i < s.n; i++) lost += s.x[3 * i + 2] < -s.radius[i];
+  ter_series_meta(out, "lost_grains", "%d", lost);
+  if (log && lost) fprintf(log, "terra: %d grains fell out of the box\n", lost);
+  release(&m, &s);
+  return 0;
+fail:
+  release(&m, &s);
+  ter_series_free(out);
+  return proto_wrap(err, "shear test (sigma_n = %g Pa)", sp->sigma_n);
+}

@@ -1,0 +1,102 @@
+/* The virtual soil tests (terra/ter_dem.c) on a few hundred grains of the
+ * default scene's soil: they run, the signs are physical, the servo holds
+ * the normal stress, nothing leaves the box; the scene reader's errors.
+ * (The measurements themselves are bench/terra, results in
+ * bench/results/terra.md.) */
+#include "ter_test.h"
+
+static const char SCENE[] =
+    "{\"processes\": {\"fem\": {\"exec\": \"fem_server\"}, \"soil\": {\"exec\": \"dem_server\","
+    " \"materials\": [{\"density\": 2600, \"E\": 5e6, \"nu\": 0.3, \"restitution\": 0.5, \"friction\": 0.6},"
+    "                {\"density\": 1100, \"E\": 20e6, \"nu\": 0.45, \"restitution\": 0.5, \"friction\": 0.8}],"
+    " \"particles\": {\"generate\": \"bed\", \"scale\": 0.1}, \"threads\": 1,"
+    " \"walls\": [{\"type\": \"box\", \"lo\": [0, 0, 0], \"hi\": [1, 1, 1], \"open_top\": true}],"
+    " \"surface_material\": 1, \"gravity\": [0, 0, -9.81]}}}";
+
+static void plate(const ter_dem_soil *soil) {
+  proto_err err;
+  ter_plate_spec sp;
+  ter_plate_defaults(&sp);
+  sp.width = 0.04;
+  sp.container = 0.12;
+  sp.depth_factor = 1;
+  sp.speed = 0.1;
+  sp.z_max = 0.006;
+  sp.settle_max_steps = 3000;
+  ter_series t;
+  OK(ter_plate_test(soil, &sp, stdout, &t, &err));
+  int cz = ter_series_col(&t, "z"), cp = ter_series_col(&t, "p"), ci = ter_series_col(&t, "inertial");
+  double p_first = 0, p_last = 0, z_last = 0;
+  int n = t.n, third = n / 3;
+  for (int r = 0; r < n; r++) {
+    const double *row = t.row + (size_t)r * t.ncol;
+    if (r < third) p_first += row[cp] / third;
+    if (r >= n - third) p_last += row[cp] / third;
+    z_last = row[cz];
+    CHECK(row[cz] > 0 && row[cz] < sp.z_max, "sinkage %g outside (0, z_max)", row[cz]);
+    CHECK(isfinite(row[ci]) || row[cp] <= 0, "inertial number not finite at p = %g", row[cp]);
+  }
+  double grains = 0;
+  OK(ter_series_meta_num(&t, "grains", &grains, &err));
+  printf("plate: %d rows, %g grains, p %.4g Pa over the first third, %.4g Pa over the last, z to %.2f mm\n",
+         n, grains, p_first, p_last, 1e3 * z_last);
+  CHECK(n >= 10 && grains > 200, "%d rows, %g grains", n, grains);
+  CHECK(p_last > 0 && p_last > p_first, "pressure must rise with sinkage (%.4g -> %.4g Pa)", p_first, p_last);
+  ter_series_free(&t);
+  sp.container = 0.07;
+  FAILS_WITH(ter_plate_test(soil, &sp, NULL, &t, &err), "container > 2 width");
+}
+
+static void shear(const ter_dem_soil *soil) {
+  proto_err err;
+  ter_shear_spec sp;
+  ter_shear_defaults(&sp);
+  sp.length = sp.width = 0.06;
+  sp.height = 0.04;
+  sp.sigma_n = 4e3;
+  sp.speed = 0.05;
+  sp.j_max = 0.008;
+  sp.dj = 0.5e-3;
+  sp.settle_max_steps = 4000;
+  ter_series t;
+  OK(ter_shear_test(soil, &sp, stdout, &t, &err));
+  int ct = ter_series_col(&t, "tau"), cu = ter_series_col(&t, "tau_upper"), cs = ter_series_col(&t, "sigma");
+  double tau = 0, tau_up = 0, sig = 0, lost = -1;
+  int m = 0;
+  for (int r = t.n / 2; r < t.n; r++, m++) {
+    tau += t.row[(size_t)r * t.ncol + ct];
+    tau_up += t.row[(size_t)r * t.ncol + cu];
+    sig += t.row[(size_t)r * t.ncol + cs];
+  }
+  tau /= m;
+  tau_up /= m;
+  sig /= m;
+  OK(ter_series_meta_num(&t, "lost_grains", &lost, &err));
+  printf("shear: %d rows, second half: tau %.4g Pa (upper half %.4g), sigma %.4g Pa, tau/sigma %.3f, "
+         "%g grains lost\n", t.n, tau, tau_up, sig, tau / sig, lost);
+  /* the plane's normal force is the platen's N (held at sigma_n A) plus the weight above the plane,
+   * over the shrinking overlap area: between sigma_n and 2 sigma_n here */
+  CHECK(sig > 0.9 * sp.sigma_n && sig < 2 * sp.sigma_n, "normal stress %.4g Pa, target %.4g", sig, sp.sigma_n);
+  CHECK(tau / sig > 0.15 && tau / sig < 1.0, "tau/sigma %.3f not a granular friction", tau / sig);
+  CHECK(fabs(tau - tau_up) < 0.3 * tau, "the two halves' shear differ: %.4g and %.4g Pa", tau, tau_up);
+  CHECK(lost == 0, "%g grains fell out of the box", lost);
+  ter_series_free(&t);
+  sp.height = 0.02;
+  FAILS_WITH(ter_shear_test(soil, &sp, NULL, &t, &err), "below 5 grain diameters");
+}
+
+int main(void) {
+  proto_err err;
+  cJSON *scene = proto_json_parse(SCENE, "scene", &err);
+  ter_dem_soil soil;
+  OK(ter_dem_soil_from_scene(scene, &soil, &err));
+  CHECK(strcmp(soil.path, "processes.soil") == 0 && soil.plate_material == 1 && soil.grain_material == 0,
+        "scene reader: %s, plate material %d", soil.path, soil.plate_material);
+  plate(&soil);
+  shear(&soil);
+  cJSON *no_dem = proto_json_parse("{\"processes\": {\"fem\": {\"exec\": \"fem_server\"}}}", "x", &err);
+  FAILS_WITH(ter_dem_soil_from_scene(no_dem, &soil, &err), "dem_server");
+  cJSON_Delete(no_dem);
+  cJSON_Delete(scene);
+  return ter_test_done("test_ter_dem");
+}
