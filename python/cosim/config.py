@@ -47,7 +47,9 @@ class Config:
         if found and (isinstance(v, bool) or not isinstance(v, (int, float))):
             self._fail(key, f"expected a number, got {v!r}")
         if found and ((min is not None and v < min) or (max is not None and v > max)):
-            self._fail(key, f"must be in [{min}, {max}], got {v}")
+            want = (f"in [{min:g}, {max:g}]" if min is not None and max is not None else
+                    f">= {min:g}" if min is not None else f"<= {max:g}")
+            self._fail(key, f"must be {want}, got {v:g}")
         return float(v) if v is not None else v
 
     def integer(self, key, default=None, min=None, max=None):

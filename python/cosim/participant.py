@@ -18,7 +18,6 @@ import json
 import os
 import sys
 import time
-import traceback
 
 import numpy as np
 import zmq
@@ -432,7 +431,6 @@ class Participant:
 
     def __exit__(self, typ, e, tb):
         if e is not None and not isinstance(e, (KeyboardInterrupt, GeneratorExit, SystemExit)):
-            traceback.print_exception(typ, e, tb, file=sys.stderr)
             s = self.step
             where = f"step {s.k} (t = {s.t:g} s): " if s and not s.replied else ""
             self._report(e, where)
