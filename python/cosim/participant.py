@@ -149,6 +149,7 @@ class Participant:
         self._ctx = zmq.Context()
         self._sock = self._ctx.socket(zmq.DEALER)
         self._sock.setsockopt(zmq.LINGER, LINGER_MS)
+        self._sock.setsockopt(zmq.RCVTIMEO, POLL_MS)
         self._sock.setsockopt(zmq.ROUTING_ID, self.name.encode())
         self._bus = None
         try:
@@ -381,14 +382,13 @@ class Participant:
         out = [(n, P.wire_array(n, np.asarray(a))) for n, a in arrays.items()]
         frames = P.encode(topic, what, step, t, out, header)
         try:
-            self._bus.send_multipart(frames, flags=zmq.NOBLOCK, copy=True)
+            P.send(self._bus, frames, zmq.NOBLOCK, copy_all=True)
         except zmq.Again:
             pass
 
     # ---------------------------------------------------------- sockets
     def _send(self, type_, step=0, t=0.0, arrays=(), fields=None):
-        frames = P.encode(self.name, type_, step, t, arrays, fields)
-        self._sock.send_multipart(frames, copy=False)
+        P.send(self._sock, P.encode(self.name, type_, step, t, arrays, fields))
 
     def _wait(self, timeout, what):
         """The next message from the coupler, decoded; ProtocolError on
@@ -396,12 +396,13 @@ class Participant:
         until = time.monotonic() + timeout
         launched = os.environ.get(P.ENV_LAUNCHED)
         while True:
-            left = until - time.monotonic()
-            if left <= 0:
+            try:  # blocks up to POLL_MS (RCVTIMEO)
+                return P.decode(self._sock.recv_multipart(copy=False))
+            except zmq.Again:
+                pass
+            if time.monotonic() > until:
                 raise ProtocolError(f"{what}: the coupler was silent for {timeout:.0f} s; "
                                     f"giving up")
-            if self._sock.poll(min(POLL_MS, int(left * 1000) + 1)):
-                return P.decode(self._sock.recv_multipart(copy=False))
             if launched and os.getppid() != self._parent:
                 raise ProtocolError("the launcher died; exiting")
 

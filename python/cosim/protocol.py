@@ -11,6 +11,7 @@ a package older or newer than the coupler says so instead of misbehaving.
 import json
 
 import numpy as np
+import zmq
 
 from .errors import ProtocolError
 
@@ -155,6 +156,22 @@ def encode(topic, type_, step=0, t=0.0, arrays=(), fields=None):
     if fields:
         header.update(fields)
     return [topic.encode(), json.dumps(header).encode()] + [a for _, a in arrays]
+
+
+_SNDMORE = int(zmq.SNDMORE)
+ZERO_COPY_BYTES = 1 << 16  # below this, copying beats pyzmq's zero-copy bookkeeping
+
+
+def send(sock, frames, flags=0, copy_all=False):
+    """Sends frames as one message: arrays of 64 kB and more without a copy
+    (the caller keeps them unchanged until the peer answers), the rest
+    copied. ``copy_all`` for sockets whose messages may outlive the arrays
+    (the bus)."""
+    flags = int(flags)
+    last = len(frames) - 1
+    for i, f in enumerate(frames):
+        big = not copy_all and isinstance(f, np.ndarray) and f.nbytes >= ZERO_COPY_BYTES
+        sock.send(f, flags | (_SNDMORE if i < last else 0), copy=not big)
 
 
 def _frame_bytes(f):

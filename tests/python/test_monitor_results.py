@@ -6,7 +6,7 @@
    results.h5 holds, and ends by itself when the run ends; tools/monitor.py
    (on the package) plots a named column of the same run headless.
 2. cosim.Results reads every dataset of a default run (configs/default.json,
-   shortened with --set): each one through the API (series as named columns,
+   shortened with --set: 20 steps, a short settle): each one through the API (series as named columns,
    snapshots by step, meshes), the scene, the timing table.
 3. cosim.run turns exit codes into exceptions naming the failure.
 """
@@ -26,7 +26,7 @@ from common import check, done, no_orphans, scene  # noqa: E402
 import cosim  # noqa: E402
 
 # 1. a monitor attached to a running scene
-N_STEPS = 3000
+N_STEPS = 2000
 s = scene("pymon", {
     "fem": {"exec": "fem_stub", "surface": {"plane": {"size": [0.2, 0.16], "n": [4, 4], "z": -0.27}}},
     "dem": {"exec": "dem_stub", "force_per_node": [-0.1, 0.0, 1.0], "ramp_time": 0.1}},
@@ -76,7 +76,9 @@ print(f"monitor: {len(got['dem.series'])} of {N_STEPS} dem.series rows from step
 # 2. every dataset of a default run, through Results
 out = os.path.join(tempfile.mkdtemp(prefix="cosim-default-"), "default")
 r = cosim.run(os.path.join(ROOT, "configs", "default.json"),
-              set={"time.end": 1e-3, "output.every": 10}, output_dir=out, timeout=240)
+              set={"time.end": 1e-3, "output.every": 10,
+                   "processes.dem.particles.settle_max_steps": 500},  # a short settle: seconds
+              output_dir=out, timeout=240)
 reached = {}
 for p, ds in r.tables():
     t = r.series(p, ds)
