@@ -19,6 +19,7 @@ class Config:
         self._read = {EXEC_KEY}
         self._children = []
         self._ignoring = False
+        self.run = None  # a participant's section: the welcome's run information
 
     def _fail(self, key, what):
         raise ConfigError(f"{self.path}.{key}: {what}")

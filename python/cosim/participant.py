@@ -173,8 +173,9 @@ class Participant:
             return 1
         return 0
 
-    def _configured(self, section):
+    def _configured(self, section, run=None):
         cfg = Config(section, self.key_path)
+        cfg.run = run  # the welcome's run information (None under --check-config)
         params = self._configure(cfg) if self._configure else None
         cfg.finish()
         return params
@@ -200,7 +201,7 @@ class Participant:
             self._bus.setsockopt(zmq.SNDHWM, BUS_HWM)
             self._bus.setsockopt(zmq.LINGER, 0)
             self._bus.connect(bus)
-        self.params = self._configured(self.config)
+        self.params = self._configured(self.config, self.run)
 
     @property
     def can_rollback(self):
