@@ -43,6 +43,7 @@ def main():
     plt.ion()
     t, y, drawn, start = [], [], time.monotonic(), time.monotonic()
     mon = cosim.Monitor(a.source, topics=[a.topic], timeout=a.seconds or None)
+    print(f"monitor.py: listening on {mon.endpoint}", file=sys.stderr, flush=True)
     try:
         for msg in mon:
             row = msg["series"]

@@ -1,7 +1,7 @@
 """Watching and reading runs from Python:
 
 1. cosim.Monitor attached to a running scene through its output dir (the bus
-   on a free tcp port, found in endpoints.json) receives every row of every
+   endpoint found in endpoints.json) receives every row of every
    series topic from its first message on, bit for bit equal to what
    results.h5 holds, and ends by itself when the run ends; tools/monitor.py
    (on the package) plots a named column of the same run headless.
@@ -32,17 +32,22 @@ s = scene("pymon", {
     "dem": {"exec": "dem_stub", "force_per_node": [-0.1, 0.0, 1.0], "ramp_time": 0.1}},
     scenario={"kind": "tire_travel", "rim_center": [0, 0, 0.3], "sinkage_velocity": 0.1,
               "sinkage_force": 20, "slip": 0.05, "omega": 1.8, "radius": 0.272},
-    bus={"monitor": "tcp://127.0.0.1:0", "hwm": 100000})
+    # tools/monitor.py listens on a bus endpoint known before the run starts (it
+    # must not attach after a short run has ended); cosim.Monitor finds it in
+    # the output dir's endpoints.json while the run goes
+    bus={"monitor": "ipc://" + os.path.join(tempfile.mkdtemp(prefix="cosim-bus-"), "bus"),
+         "hwm": 100000})
 s["time"] = {"dt": 1e-3, "end": N_STEPS * 1e-3}
 s["output"]["every"] = 500
 outdir = s["output"]["dir"]
+png = os.path.join(tempfile.mkdtemp(prefix="cosim-mon-"), "traction.png")
+tool = subprocess.Popen([sys.executable, os.path.join(ROOT, "tools", "monitor.py"),
+                         s["bus"]["monitor"], "--topic", "coupler.traction", "--column", "T_R",
+                         "--png", png], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+check("listening" in tool.stderr.readline(), "tools/monitor.py started")
 ran = {}
 runner = threading.Thread(target=lambda: ran.setdefault("r", cosim.run(s, timeout=120)))
 runner.start()
-png = os.path.join(tempfile.mkdtemp(prefix="cosim-mon-"), "traction.png")
-tool = subprocess.Popen([sys.executable, os.path.join(ROOT, "tools", "monitor.py"), outdir,
-                         "--topic", "coupler.traction", "--column", "T_R", "--png", png],
-                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 SERIES = {"dem.series": "/dem/series", "fem.series": "/fem/series",
           "coupler.series": "/coupler/series", "coupler.traction": "/coupler/traction",
           "coupler.timing": "/coupler/timing"}
