@@ -105,6 +105,9 @@ class Message:
     def __getitem__(self, name):
         return self.arrays[name]
 
+    def __iter__(self):  # topic, header, arrays = msg
+        return iter((self.topic, self.header, self.arrays))
+
     @property
     def row(self):
         """{column: value} of the "series" array when the header names its

@@ -44,6 +44,9 @@ m = P.decode([bytes(memoryview(f)) for f in frames])
 check(m.topic == "soil" and m.type == "done" and m.step == 3 and m.t == 0.5, f"header {m}")
 check(np.array_equal(m["x"], x) and m["tri"].dtype == np.int32, "arrays round trip")
 check(not m["x"].flags.writeable, "received arrays are read-only views")
+topic, header, arrays = m
+check(topic == "soil" and header["compute_s"] == 1e-3 and set(arrays) == {"x", "tri"},
+      "a message unpacks as (topic, header, arrays)")
 
 
 def frames_with(header, payload=(b"\0" * 8,)):
