@@ -4,12 +4,11 @@
     /usr/bin/python3 tools/monitor.py OUTPUT_DIR|ENDPOINT [--topic dem.series]
                                       [--column 1|NAME] [--seconds 0] [--png out.png]
 
-OUTPUT_DIR is the run's output.dir (its endpoints.json names the bus; the plot
-stops when the run ends), or the bus endpoint (tcp://127.0.0.1:PORT). The
-column is an index of the series row (0 is t) or, for topics that name their
-columns (coupler.traction, coupler.series, coupler.timing), a name. With
---png the plot is saved too (without a display: MPLBACKEND=Agg). It may join
-late and be closed at any time: the run does not wait for it.
+OUTPUT_DIR is the run's output.dir (its endpoints.json names the bus), or the
+bus endpoint (tcp://127.0.0.1:PORT); the plot ends with the run. The column
+is an index of the series row (0 is t) or, for topics that name their columns
+(coupler.traction, coupler.series, coupler.timing), a name. --png saves the
+plot (without a display: MPLBACKEND=Agg). The run never waits for it.
 """
 import argparse
 import os
@@ -19,59 +18,43 @@ import time
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python"))
 import cosim  # noqa: E402
 
-REDRAW_S = 0.2
+ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+ap.add_argument("source")
+ap.add_argument("--topic", default="dem.series")
+ap.add_argument("--column", default="1", help="index in the row (0 is t), or a column name")
+ap.add_argument("--seconds", type=float, default=0, help="stop after this long (0: at the run's end)")
+ap.add_argument("--png", help="save the plot to this file as well")
+a = ap.parse_args()
+import matplotlib.pyplot as plt  # noqa: E402
 
-
-def main():
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("source")
-    ap.add_argument("--topic", default="dem.series")
-    ap.add_argument("--column", default="1", help="index in the row (0 is t), or a column name")
-    ap.add_argument("--seconds", type=float, default=0, help="stop after this long (0: at the end)")
-    ap.add_argument("--png", help="save the plot to this file as well")
-    a = ap.parse_args()
-    import matplotlib
-    if a.png and not sys.stdout.isatty():
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots()
-    (line,) = ax.plot([], [], "-")
-    ax.set_xlabel("t [s]")
-    ax.set_title(f"cosim monitor: {a.source}")
-    plt.ion()
-    t, y, drawn, start = [], [], time.monotonic(), time.monotonic()
-    mon = cosim.Monitor(a.source, topics=[a.topic], timeout=a.seconds or None)
-    print(f"monitor.py: listening on {mon.endpoint}", file=sys.stderr, flush=True)
-    try:
-        for msg in mon:
-            row = msg["series"]
-            col = int(a.column) if a.column.isdigit() else (msg.header.get("columns") or []).index(a.column)
-            t.append(msg.t)
-            y.append(row[col])
-            if time.monotonic() - drawn > REDRAW_S:
-                line.set_data(t, y)
-                ax.relim()
-                ax.autoscale_view()
-                plt.pause(0.001)
-                drawn = time.monotonic()
-            if a.seconds and time.monotonic() - start > a.seconds:
-                break
-    except KeyboardInterrupt:
-        pass
-    except ValueError:
-        sys.exit(f"monitor.py: {a.topic} has no column '{a.column}' "
-                 f"(columns: {', '.join(msg.header.get('columns') or []) or 'unnamed'})")
-    mon.close()
-    line.set_data(t, y)
-    ax.set_ylabel(f"{a.topic} {a.column}")
-    ax.relim()
-    ax.autoscale_view()
-    if a.png:
-        fig.savefig(a.png, dpi=100)
-        print(f"{len(t)} points, saved {a.png}")
-
-
-if __name__ == "__main__":
-    main()
+fig, ax = plt.subplots()
+(line,) = ax.plot([], [], "-")
+ax.set(xlabel="t [s]", ylabel=f"{a.topic} {a.column}", title=f"cosim monitor: {a.source}")
+plt.ion()
+t, y, drawn, start = [], [], 0.0, time.monotonic()
+mon = cosim.Monitor(a.source, topics=[a.topic], timeout=a.seconds or None)
+print(f"monitor.py: listening on {mon.endpoint}", file=sys.stderr, flush=True)
+try:
+    for msg in mon:
+        names = msg.header.get("columns") or []
+        if not a.column.isdigit() and a.column not in names:
+            sys.exit(f"monitor.py: {a.topic} has no column '{a.column}' ({', '.join(names) or 'unnamed'})")
+        t.append(msg.t)
+        y.append(msg["series"][int(a.column) if a.column.isdigit() else names.index(a.column)])
+        if time.monotonic() - drawn > 0.2 or not t[1:]:
+            line.set_data(t, y)
+            ax.relim()
+            ax.autoscale_view()
+            plt.pause(0.001)
+            drawn = time.monotonic()
+        if a.seconds and time.monotonic() - start > a.seconds:
+            break
+except KeyboardInterrupt:
+    pass
+mon.close()
+line.set_data(t, y)
+ax.relim()
+ax.autoscale_view()
+if a.png:
+    fig.savefig(a.png, dpi=100)
+    print(f"{len(t)} points, saved {a.png}")
