@@ -171,6 +171,9 @@ class Participant:
         except (ConfigError, OSError, ValueError) as e:
             print(e, file=sys.stderr)
             return 1
+        except Exception as e:  # a configure() that fails otherwise: still name the section
+            print(f"{self.key_path}: {type(e).__name__}: {e}", file=sys.stderr)
+            return 1
         return 0
 
     def _configured(self, section, run=None):
