@@ -17,6 +17,7 @@ protocol itself is in :mod:`cosim.protocol`.
 import json
 import os
 import sys
+import threading
 import time
 
 import numpy as np
@@ -27,7 +28,7 @@ from .config import Config
 from .errors import ArrayError, ConfigError, CosimError, ProtocolError
 from .roles import Dims, RoleTable, as_wire
 
-POLL_MS = 250       # between checks that the launcher is alive
+POLL_MS = 100       # between checks that the launcher is alive (and heartbeats due)
 LINGER_MS = 2000    # a last message (error, bye) still leaves when we exit
 BUS_HWM = 1000      # messages queued for the bus before dropping (as proto)
 USAGE = """usage: {prog} --endpoint ENDPOINT --name NAME
@@ -146,6 +147,14 @@ class Participant:
         self._series_cols = {}
         self._saved = None  # (k, {name: copy}) at the start of step k
         self._parent = os.getppid()
+        # liveness (when the coupler's table has heartbeats): the main thread
+        # sends them while it waits, a second thread while the user's code
+        # runs; the lock keeps the socket to one thread at a time
+        self._beats = self.table.has_message(P.HEARTBEAT)
+        self._lock = threading.Lock()
+        self._phase, self._progress, self._what = P.PHASE_WELCOME, None, None
+        self._last_sent = self._last_progress = time.monotonic()
+        self._stop = threading.Event()
         self._ctx = zmq.Context()
         self._sock = self._ctx.socket(zmq.DEALER)
         self._sock.setsockopt(zmq.LINGER, LINGER_MS)
@@ -154,8 +163,11 @@ class Participant:
         self._bus = None
         try:
             self._sock.connect(endpoint)
-            self._send(P.HELLO, fields={P.H_ROLE: role, P.H_NAME: self.name,
-                                        P.H_PID: os.getpid()})
+            hello = {P.H_ROLE: role, P.H_NAME: self.name, P.H_PID: os.getpid()}
+            if self._beats:
+                hello[P.H_HEARTBEAT_S] = P.HEARTBEAT_S
+                threading.Thread(target=self._beat_loop, daemon=True).start()
+            self._send(P.HELLO, fields=hello)
             self._handshake()
         except BaseException as e:
             self._report(e)
@@ -189,6 +201,7 @@ class Participant:
         if w.type != P.WELCOME:
             raise ProtocolError(f"expected '{P.WELCOME}', got '{w.type}'")
         self.welcome = w
+        self._phase = P.PHASE_INIT
         self.config, self.run = w.header.get(P.H_CONFIG), w.header.get(P.H_RUN)
         if not isinstance(self.config, dict) or not isinstance(self.run, dict):
             raise ProtocolError("welcome lacks 'run' or 'config'")
@@ -233,6 +246,7 @@ class Participant:
             fields[P.H_SNAPSHOT] = snapshot
         self._send(P.READY, arrays=out, fields=fields)
         self._ready_sent = True
+        self._progress = self._what = None
 
     # ---------------------------------------------------------- the loop
     def steps(self):
@@ -245,6 +259,7 @@ class Participant:
             if s is None:
                 return
             self.step = s
+            self._phase = P.PHASE_STEP
             yield s
             if not s.replied:
                 self._guarded(self._fail, f"step {s.k}: the loop went on without step.done()")
@@ -307,6 +322,7 @@ class Participant:
         self._load({k: v.copy() for k, v in self._saved[1].items()})
 
     def _state_request(self, m):
+        self._phase = P.PHASE_STATE
         if not self.can_rollback:
             raise ProtocolError(f"'{m.type}' requested, but this participant has no "
                                 f"save_state/load_state")
@@ -392,18 +408,71 @@ class Participant:
 
     # ---------------------------------------------------------- sockets
     def _send(self, type_, step=0, t=0.0, arrays=(), fields=None):
-        P.send(self._sock, P.encode(self.name, type_, step, t, arrays, fields))
+        frames = P.encode(self.name, type_, step, t, arrays, fields)
+        with self._lock:
+            P.send(self._sock, frames)
+            self._last_sent = time.monotonic()
+
+    # ---------------------------------------------------------- liveness
+    def progress(self, fraction=None, what=None):
+        """Says how far a long init (before ready) or step is: ``fraction``
+        in [0, 1], ``what`` a few words ("settling the bed"). `cosim run`
+        shows init progress, and news restarts the coupler's deadline. Sent
+        as a heartbeat when the coupler's protocol has them (else a no-op);
+        at most ten a second."""
+        if fraction is not None and not 0 <= fraction <= 1:
+            raise ValueError(f"progress: fraction {fraction} is not in [0, 1]")
+        if what is not None:
+            what = "".join(c for c in str(what) if c.isprintable())[:P.WHAT_MAX]
+        news = (fraction, what) != (self._progress, self._what)
+        self._progress, self._what = fraction, what
+        if self._beats and news and (time.monotonic() - self._last_progress > 0.1 or
+                                     fraction in (0, 1)):
+            with self._lock:
+                self._beat()
+            self._last_progress = time.monotonic()
+
+    def _beat(self):
+        """A heartbeat (the caller holds the lock)."""
+        fields = {P.H_PHASE: self._phase}
+        if self._progress is not None:
+            fields[P.H_PROGRESS] = self._progress
+        if self._what:
+            fields[P.H_WHAT] = self._what
+        step = self.step.k if self.step is not None else 0
+        P.send(self._sock, P.encode(self.name, P.HEARTBEAT, step, 0.0, (), fields))
+        self._last_sent = time.monotonic()
+
+    def _beat_due(self):
+        return self._beats and time.monotonic() - self._last_sent >= P.HEARTBEAT_S / 2
+
+    def _beat_loop(self):
+        """While the user's code runs (init, a step), the promise is kept
+        from here; waiting for the coupler, _wait keeps it."""
+        while not self._stop.wait(P.HEARTBEAT_S / 8):
+            if self._beat_due() and self._lock.acquire(timeout=P.HEARTBEAT_S / 4):
+                try:
+                    if self._beat_due() and not self._closed:
+                        self._beat()
+                except zmq.ZMQError:
+                    return
+                finally:
+                    self._lock.release()
 
     def _wait(self, timeout, what):
         """The next message from the coupler, decoded; ProtocolError on
         silence longer than timeout or when the launcher is gone."""
         until = time.monotonic() + timeout
         launched = os.environ.get(P.ENV_LAUNCHED)
+        if self._ready_sent:
+            self._phase = P.PHASE_IDLE
         while True:
-            try:  # blocks up to POLL_MS (RCVTIMEO)
-                return P.decode(self._sock.recv_multipart(copy=False))
-            except zmq.Again:
-                pass
+            with self._lock:
+                try:  # blocks up to POLL_MS (RCVTIMEO)
+                    return P.decode(self._sock.recv_multipart(copy=False))
+                except zmq.Again:
+                    if self._beat_due():
+                        self._beat()
             if time.monotonic() > until:
                 raise ProtocolError(f"{what}: the coupler was silent for {timeout:.0f} s; "
                                     f"giving up")
@@ -425,7 +494,9 @@ class Participant:
     def close(self):
         if self._closed:
             return
-        self._closed = True
+        self._stop.set()
+        with self._lock:
+            self._closed = True
         if self._bus:
             self._bus.close(0)
         self._sock.close()

@@ -30,11 +30,14 @@ CHECKPOINT = "checkpoint"  # C -> P: step
 STATE = "state"            # P -> C: state.<x> arrays
 RESTORE = "restore"        # C -> P: state.<x> arrays
 RESTORED = "restored"      # P -> C
+HEARTBEAT = "heartbeat"    # P -> C: step, phase, progress, what (never answered)
 P_TO_C, C_TO_P = "participant->coupler", "coupler->participant"
 USED_MESSAGES = {HELLO: P_TO_C, WELCOME: C_TO_P, READY: P_TO_C, STEP: C_TO_P,
                  DONE: P_TO_C, STOP: C_TO_P, BYE: P_TO_C, ERROR: P_TO_C,
                  CHECKPOINT: C_TO_P, STATE: P_TO_C, RESTORE: C_TO_P,
                  RESTORED: P_TO_C}
+# Used only when the coupler's role table has it (liveness, PROTOCOL.md)
+OPTIONAL_MESSAGES = {HEARTBEAT: P_TO_C}
 
 # ---- header keys: fixed fields of every header, then type-specific ones
 H_V, H_TYPE, H_STEP, H_T, H_ARRAYS = "v", "type", "step", "t", "arrays"
@@ -42,6 +45,10 @@ H_A_NAME, H_A_DTYPE, H_A_SHAPE = "name", "dtype", "shape"
 H_ROLE = "role"            # hello, ready
 H_NAME = "name"            # hello
 H_PID = "pid"              # hello
+H_HEARTBEAT_S = "heartbeat_s"  # hello: the longest the participant stays silent, s
+H_PHASE = "phase"          # heartbeat: PHASE_*
+H_PROGRESS = "progress"    # heartbeat: fraction done in [0, 1] (optional)
+H_WHAT = "what"            # heartbeat: what it is doing (optional, <= WHAT_MAX chars)
 H_CONFIG = "config"        # welcome: the participant's section of the scene
 H_RUN = "run"              # welcome: run information (RUN_* keys)
 H_DT = "dt"                # step
@@ -54,6 +61,13 @@ H_SNAPSHOT = "snapshot"    # ready: how to show snapshots (kind, geometry, ...)
 H_MESSAGE = "message"      # error
 H_COLUMNS = "columns"      # bus: coupler.timing, coupler.traction, ...
 H_N_STEPS = "n_steps"      # bus: coupler.progress
+
+# ---- liveness: a participant that promises heartbeat_s in its hello is never
+# silent longer than that until its bye; it says what it does in each phase
+HEARTBEAT_S = 1.0
+PHASE_WELCOME, PHASE_INIT, PHASE_STEP = "welcome", "init", "step"
+PHASE_STATE, PHASE_IDLE = "state", "idle"
+WHAT_MAX = 63
 
 # ---- keys of welcome.run
 RUN_NAME, RUN_DT, RUN_T_END, RUN_N_STEPS = "name", "dt", "t_end", "n_steps"
@@ -74,6 +88,7 @@ TOPIC_PROGRESS = "coupler.progress"
 # ---- environment: set by `cosim run` for what it launches, or by hand
 ENV_LAUNCHED = "COSIM_LAUNCHED"   # started by cosim: exit when the launcher dies
 ENV_EXE = "COSIM_EXE"             # the cosim binary (its role table)
+ENV_ROLES = "COSIM_ROLES"         # or the role table as a JSON file
 ENV_ENDPOINT, ENV_NAME = "COSIM_ENDPOINT", "COSIM_NAME"
 ENV_HANDSHAKE_TIMEOUT = "COSIM_HANDSHAKE_TIMEOUT"
 HANDSHAKE_TIMEOUT_S = 30.0        # wait this long for welcome (as proto)

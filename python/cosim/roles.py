@@ -6,9 +6,10 @@ way proto_role_check does, with the same messages.
 
 Where the table comes from, first found:
   1. the ``roles`` argument: a dict, or the path of a JSON file;
-  2. ``$COSIM_EXE roles --json`` (``cosim run`` sets COSIM_EXE for what it
+  2. $COSIM_ROLES, the path of such a file (``cosim roles --json > roles.json``);
+  3. ``$COSIM_EXE roles --json`` (``cosim run`` sets COSIM_EXE for what it
      launches: the table of the very coupler that runs the scene);
-  3. ``cosim roles --json`` with ``cosim`` found on PATH.
+  4. ``cosim roles --json`` with ``cosim`` found on PATH.
 """
 import json
 import os
@@ -76,6 +77,7 @@ class RoleTable:
         """The table from a dict, a JSON file, or the cosim binary (cached)."""
         if isinstance(roles, dict):
             return cls(roles)
+        roles = roles or os.environ.get(P.ENV_ROLES)
         if roles:
             with open(roles) as f:
                 return cls(json.load(f))
@@ -93,6 +95,9 @@ class RoleTable:
         if self.version != P.VERSION:
             raise ProtocolError(f"the role table is protocol v{self.version}; this package "
                                 f"speaks v{P.VERSION}")
+        for typ, direction in P.OPTIONAL_MESSAGES.items():
+            if self.messages.get(typ, direction) != direction:
+                raise ProtocolError(f"the role table's message '{typ}' is not {direction}")
         for typ, direction in P.USED_MESSAGES.items():
             if self.messages.get(typ) != direction:
                 raise ProtocolError(f"the role table has no message '{typ}' ({direction}): "
