@@ -20,6 +20,8 @@ from .errors import CosimError, ProtocolError
 
 ENDPOINTS_FILE = "endpoints.json"
 EP_BUS, EP_PID = "bus_monitor", "pid"
+EP_SNAPSHOTS = "bus_snapshots"        # the snapshot stream, when the run has one
+EP_KEY_FILE = "monitor_key_file"      # with security.curve: the monitors' CURVE keys
 POLL_MS = 100
 END_GRACE_S = 0.5  # after the last step: what participants publish still arrives
 DEFAULT_HWM = 10000
@@ -35,8 +37,9 @@ def _alive(pid):
 
 
 def run_endpoint(output_dir, wait):
-    """(bus endpoint, coupler pid) from a run's endpoints.json, waiting up to
-    ``wait`` seconds for a live run to write it."""
+    """The run's endpoints.json (bus_monitor, pid, and when the run has them
+    bus_snapshots, monitor_key_file), waiting up to ``wait`` seconds for a
+    live run to write it."""
     path = os.path.join(output_dir, ENDPOINTS_FILE)
     until = time.monotonic() + wait
     why = "does not exist"
@@ -48,7 +51,7 @@ def run_endpoint(output_dir, wait):
             if not bus:
                 raise CosimError(f"{path}: the run has no monitor bus (bus.monitor)")
             if pid is None or _alive(int(pid)):
-                return bus, pid
+                return ep
             why = f"names a run (pid {pid}) that has ended"
         except (OSError, ValueError):
             pass
@@ -64,23 +67,29 @@ class Monitor:
 
     source   the bus endpoint (``tcp://127.0.0.1:PORT``), or a run's output
              dir: its endpoints.json (waited for up to ``wait`` s) gives the
-             endpoint, and the iteration ends when that run has ended
+             endpoints (the monitor stream, and the snapshot stream and the
+             CURVE key file when the run has them), and the iteration ends
+             when that run has ended
     topics   topic prefixes to receive (default: all), e.g.
              ["coupler.traction", "dem.series"]
     timeout  end the iteration after this many seconds without a message
              (default: never; a run's end still ends it)
     hwm      messages this monitor queues before the bus drops for it
+    key_file the monitors' CURVE key file of a run with security.curve (from
+             an output dir's endpoints.json it is found by itself)
 
     The iteration also ends after the run's last step (its final
     ``coupler.progress``), once the bus has been quiet for a moment.
     """
 
-    def __init__(self, source, topics=None, timeout=None, hwm=DEFAULT_HWM, wait=10.0):
-        self.pid = None
-        if "://" in source:
-            self.endpoint = source
-        else:
-            self.endpoint, self.pid = run_endpoint(source, wait)
+    def __init__(self, source, topics=None, timeout=None, hwm=DEFAULT_HWM, wait=10.0,
+                 key_file=None):
+        self.pid, endpoints = None, [source]
+        if "://" not in source:
+            ep = run_endpoint(source, wait)
+            self.pid, key_file = ep.get(EP_PID), key_file or ep.get(EP_KEY_FILE)
+            endpoints = [ep[EP_BUS]] + ([ep[EP_SNAPSHOTS]] if ep.get(EP_SNAPSHOTS) else [])
+        self.endpoint = endpoints[0]
         if isinstance(topics, str):
             topics = [topics]
         self.topics = list(topics or [""])
@@ -93,7 +102,10 @@ class Monitor:
         self._sub.setsockopt(zmq.LINGER, 0)
         for t in set(self.topics) | {P.TOPIC_PROGRESS}:
             self._sub.setsockopt(zmq.SUBSCRIBE, t.encode())
-        self._sub.connect(self.endpoint)
+        if key_file:
+            P.curve_client([self._sub], key_file)
+        for ep in endpoints:  # one SUB may connect to both streams
+            self._sub.connect(ep)
 
     def __iter__(self):
         return self

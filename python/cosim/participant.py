@@ -162,6 +162,9 @@ class Participant:
         self._sock.setsockopt(zmq.ROUTING_ID, self.name.encode())
         self._bus = None
         try:
+            self._curve = os.environ.get(P.ENV_CURVE_FILE)
+            if self._curve:
+                P.curve_client([self._sock], self._curve)
             self._sock.connect(endpoint)
             hello = {P.H_ROLE: role, P.H_NAME: self.name, P.H_PID: os.getpid()}
             if self._beats:
@@ -210,12 +213,15 @@ class Participant:
         self.n_steps = int(self.run.get(P.RUN_N_STEPS, 0))
         self.output_dir = self.run.get(P.RUN_OUTPUT_DIR, ".")
         self.rollback_wanted = bool(self.run.get(P.RUN_ROLLBACK, False))
+        self.restart_step = int(self.run.get(P.RUN_RESTART_STEP, 0))
         self._idle = float(self.run.get(P.RUN_IDLE_TIMEOUT, P.IDLE_TIMEOUT_S))
         bus = self.run.get(P.RUN_BUS)
         if bus:
             self._bus = self._ctx.socket(zmq.PUB)
             self._bus.setsockopt(zmq.SNDHWM, BUS_HWM)
             self._bus.setsockopt(zmq.LINGER, 0)
+            if self._curve:
+                P.curve_client([self._bus], self._curve)
             self._bus.connect(bus)
         self.params = self._configured(self.config, self.run)
 
@@ -407,10 +413,10 @@ class Participant:
             pass
 
     # ---------------------------------------------------------- sockets
-    def _send(self, type_, step=0, t=0.0, arrays=(), fields=None):
+    def _send(self, type_, step=0, t=0.0, arrays=(), fields=None, flags=0):
         frames = P.encode(self.name, type_, step, t, arrays, fields)
         with self._lock:
-            P.send(self._sock, frames)
+            P.send(self._sock, frames, flags)
             self._last_sent = time.monotonic()
 
     # ---------------------------------------------------------- liveness
@@ -485,8 +491,8 @@ class Participant:
             return
         text = where + (str(e) if isinstance(e, CosimError) else f"{type(e).__name__}: {e}")
         print(f"{self.name} ({self.role}): error: {text}", file=sys.stderr, flush=True)
-        try:
-            self._send(P.ERROR, fields={P.H_MESSAGE: text})
+        try:  # never blocks: there may be no coupler to take it
+            self._send(P.ERROR, fields={P.H_MESSAGE: text}, flags=zmq.NOBLOCK)
             self._error_sent = True
         except zmq.ZMQError:
             pass

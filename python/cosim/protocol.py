@@ -9,6 +9,7 @@ the names below are the ones this package uses, and
 a package older or newer than the coupler says so instead of misbehaving.
 """
 import json
+import os
 
 import numpy as np
 import zmq
@@ -73,6 +74,7 @@ WHAT_MAX = 63
 RUN_NAME, RUN_DT, RUN_T_END, RUN_N_STEPS = "name", "dt", "t_end", "n_steps"
 RUN_OUTPUT_EVERY, RUN_OUTPUT_DIR, RUN_BUS = "output_every", "output_dir", "bus"
 RUN_IDLE_TIMEOUT, RUN_SCHEME, RUN_ROLLBACK = "idle_timeout_s", "scheme", "rollback"
+RUN_RESTART_STEP = "restart_step"  # > 0: the run restarts from this step's checkpoint
 
 # ---- participant-defined arrays, by prefix (role table "prefixes")
 A_SERIES = "series"   # done: the row of the "series" dataset
@@ -89,6 +91,9 @@ TOPIC_PROGRESS = "coupler.progress"
 ENV_LAUNCHED = "COSIM_LAUNCHED"   # started by cosim: exit when the launcher dies
 ENV_EXE = "COSIM_EXE"             # the cosim binary (its role table)
 ENV_ROLES = "COSIM_ROLES"         # or the role table as a JSON file
+ENV_CURVE_FILE = "COSIM_CURVE_FILE"  # this client's CURVE key file (security.curve)
+# ---- a CURVE key file: a JSON object of three Z85 keys, mode 0600
+KEY_SERVER_PUBLIC, KEY_PUBLIC, KEY_SECRET = "server_public", "public", "secret"
 ENV_ENDPOINT, ENV_NAME = "COSIM_ENDPOINT", "COSIM_NAME"
 ENV_HANDSHAKE_TIMEOUT = "COSIM_HANDSHAKE_TIMEOUT"
 HANDSHAKE_TIMEOUT_S = 30.0        # wait this long for welcome (as proto)
@@ -174,6 +179,30 @@ def encode(topic, type_, step=0, t=0.0, arrays=(), fields=None):
     if fields:
         header.update(fields)
     return [topic.encode(), json.dumps(header).encode()] + [a for _, a in arrays]
+
+
+def curve_client(sockets, key_file):
+    """Makes sockets CURVE clients with the keys of key_file (before they
+    connect); the file must not be readable by others."""
+    try:
+        st = os.stat(key_file)
+        with open(key_file) as f:
+            keys = json.load(f)
+    except (OSError, ValueError) as e:
+        raise ProtocolError(f"CURVE key file {key_file}: {e}") from None
+    if st.st_mode & 0o077:
+        raise ProtocolError(f"CURVE key file {key_file}: readable by others "
+                            f"(mode {st.st_mode & 0o777:o}); chmod 600 it")
+    if not zmq.has("curve"):
+        raise ProtocolError("this libzmq has no CURVE support")
+    try:
+        for sock in sockets:
+            sock.curve_serverkey = keys[KEY_SERVER_PUBLIC].encode()
+            sock.curve_publickey = keys[KEY_PUBLIC].encode()
+            sock.curve_secretkey = keys[KEY_SECRET].encode()
+    except (KeyError, AttributeError, zmq.ZMQError) as e:
+        raise ProtocolError(f"CURVE key file {key_file}: expected {KEY_SERVER_PUBLIC}, "
+                            f"{KEY_PUBLIC}, {KEY_SECRET} as 40-character Z85 keys ({e})") from None
 
 
 _SNDMORE = int(zmq.SNDMORE)
