@@ -55,6 +55,14 @@ int cpl_spawn(cpl_child *c, const char *name, int argc, const char *const *argv,
     setenv("COSIM_LAUNCHED", "1", 1);
     if (curve_file) setenv(PROTO_ENV_CURVE, curve_file, 1);
     else unsetenv(PROTO_ENV_CURVE);
+    /* The coupler itself: `$COSIM_EXE roles --json` is the role table of the
+     * very binary that runs the scene (the Python package reads it). */
+    char self[CPL_PATH_LEN];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n > 0) {
+      self[n] = 0;
+      setenv("COSIM_EXE", self, 1);
+    }
     /* Participants take turns on shared cores (serial scheme): OpenMP
      * threads that spin after each parallel region steal the cores of the
      * process computing next (paper-scale tyre, 2 cores, 2 threads each:

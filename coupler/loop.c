@@ -162,13 +162,16 @@ static void traction(const cpl_runner *r, double t, double *row) {
   memcpy(row, vals, sizeof vals);
 }
 
+/* A row of the coupler's own series on the bus, its column names in the
+ * header (as coupler.timing) so that a monitor can name what it plots. */
 static void publish(cpl_runner *r, const char *topic, const char *type, int64_t k,
-                    double t, const char *array, int n, const double *row) {
+                    double t, int n, const double *row, const char *const *cols) {
   void *pub = cpl_bus_pub(r->bus);
   if (!pub) return;
   proto_msg m = {0};
   proto_msg_reset(&m, topic, type, k, t);
-  proto_msg_add_f8(&m, array, n, 0, row);
+  proto_msg_add_f8(&m, PROTO_A_SERIES, n, 0, row);
+  cJSON_AddItemToObject(proto_msg_header(&m), "columns", cJSON_CreateStringArray(cols, n));
   proto_publish(pub, &m);
   proto_msg_free(&m);
 }
@@ -241,12 +244,13 @@ static int record(cpl_runner *r, int64_t k, int output) {
                        r->residual[IF_X], r->residual[IF_F], r->residual[IF_ROAD]};
   if (cpl_output_coupler_row(r->out, PROTO_A_SERIES, N_CS, coupler_cols, crow, &r->err) < 0)
     return -1;
-  publish(r, "coupler.series", "series", k, t, PROTO_A_SERIES, N_CS, crow);
+  publish(r, "coupler.series", "series", k, t, N_CS, crow, coupler_cols);
   if (r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL) {
     double row[N_TR];
     traction(r, t, row);
     if (cpl_output_coupler_row(r->out, "traction", N_TR, traction_cols, row, &r->err) < 0)
       return -1;
+    publish(r, "coupler.traction", "series", k, t, N_TR, row, traction_cols);
   }
   /* at output steps everything so far goes to the disk: a run that fails
    * later keeps it */

@@ -1,0 +1,175 @@
+"""Running scenes from Python: ``cosim run`` with its exit codes as
+exceptions (README "What runs": 0 ok, 1 bad scene or usage, 3 a participant
+failed, 4 output error, 130 interrupted).
+
+    r = cosim.run("configs/tread_block.json", set={"time.end": 1e-3})
+    r.series("block")["force"]
+"""
+import concurrent.futures
+import itertools
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+
+from .errors import EXIT_ERRORS, RunError
+from .results import Results
+from .roles import cosim_executable
+
+STOP_WAIT_S = 60  # after SIGINT, cosim stops every participant and closes the file
+FAILED_RE = re.compile(r"^cosim: run '.*?' failed: (.*?)(?=^cosim: |\Z)", re.S | re.M)
+PARTICIPANT_RE = re.compile(r"^cosim: failed participant: (\S+)", re.M)
+RESULTS_RE = re.compile(r"^results: (.*)/results\.h5", re.M)
+KIND = {1: "bad scene or usage", 3: "a participant failed", 4: "output error",
+        130: "interrupted"}
+
+
+def _scene_file(scene):
+    """(path, dict or None) of the scene: a dict is written to a temp file."""
+    if isinstance(scene, dict):
+        path = os.path.join(tempfile.mkdtemp(prefix="cosim-scene-"), "scene.json")
+        with open(path, "w") as f:
+            json.dump(scene, f, indent=1)
+        return path, scene
+    try:
+        with open(scene) as f:
+            return scene, json.load(f)
+    except (OSError, ValueError):
+        return scene, None  # cosim names what is wrong
+
+
+def _output_dir(data, sets):
+    if "output.dir" in sets:
+        return str(sets["output.dir"])
+    try:
+        return data["output"]["dir"]
+    except (KeyError, TypeError):
+        return None
+
+
+def _pump(stream, keep, echo):
+    for line in stream:
+        keep.append(line)
+        if echo:
+            echo.write(line)
+            echo.flush()
+
+
+def _wait(p, timeout):
+    """Waits for cosim; on Ctrl-C or timeout it is interrupted the way the
+    terminal would (SIGINT: it stops the participants, keeps the results)."""
+    try:
+        p.wait(timeout)
+        return None
+    except KeyboardInterrupt:
+        why = "interrupted (KeyboardInterrupt)"
+    except subprocess.TimeoutExpired:
+        why = f"did not finish within {timeout:g} s"
+    p.send_signal(signal.SIGINT)
+    try:
+        p.wait(STOP_WAIT_S)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.wait()
+    return why
+
+
+def _error(path, rc, out, err, output_dir, why):
+    m = FAILED_RE.search(err)
+    reason = (m.group(1).strip() if m else
+              "\n".join(l for l in err.strip().splitlines()[-3:])) or f"exit code {rc}"
+    pm = PARTICIPANT_RE.search(err)
+    who = pm.group(1) if pm else None
+    kind = KIND.get(rc, f"exit code {rc}")
+    if who:
+        kind = f"participant '{who}' failed"
+    if why:
+        kind = f"{why}; {kind}"
+    cls = EXIT_ERRORS.get(rc, RunError)
+    return cls(f"cosim run {path}: {kind}: {reason}", returncode=rc, stdout=out, stderr=err,
+               output_dir=output_dir, participant=who, reason=reason)
+
+
+def run(scene, set=None, output_dir=None, cosim=None, quiet=True, timeout=None,
+        args=(), cwd=None):
+    """Runs a scene (a JSON file or a dict) with ``cosim run``.
+
+    set         {key.path: value} overrides (``--set``), values as JSON
+    output_dir  shorthand for set={"output.dir": ...}
+    cosim       the cosim binary (default $COSIM_EXE, then PATH)
+    quiet       capture cosim's output; False also prints it as it comes
+    timeout     seconds; then the run is interrupted (Interrupted)
+    args        further arguments to ``cosim run`` (e.g. ["--attach"])
+
+    Returns :class:`Results` of the run's results.h5 (with ``.stdout`` and
+    ``.stderr``); raises SceneError (exit 1), ParticipantError (3, with
+    ``.participant``), OutputError (4), Interrupted (130) or RunError."""
+    sets = dict(set or {})
+    if output_dir is not None:
+        sets["output.dir"] = output_dir
+    path, data = _scene_file(scene)
+    cmd = [cosim_executable(cosim), "run", path]
+    for key, value in sets.items():
+        cmd += ["--set", f"{key}={json.dumps(value)}"]
+    cmd += list(args)
+    out, err = [], []
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         cwd=cwd)
+    pumps = [threading.Thread(target=_pump, args=(p.stdout, out, None if quiet else sys.stdout)),
+             threading.Thread(target=_pump, args=(p.stderr, err, None if quiet else sys.stderr))]
+    for t in pumps:
+        t.start()
+    why = _wait(p, timeout)
+    for t in pumps:
+        t.join()
+    out, err = "".join(out), "".join(err)
+    where = RESULTS_RE.search(out)
+    outdir = where.group(1) if where else _output_dir(data, sets)
+    if outdir and cwd and not os.path.isabs(outdir):
+        outdir = os.path.join(cwd, outdir)
+    if p.returncode != 0 or why:
+        raise _error(path, p.returncode, out, err, outdir, why)
+    r = Results(outdir)
+    r.stdout, r.stderr = out, err
+    return r
+
+
+def _dir_name(point):
+    text = ",".join(f"{k}={json.dumps(v) if not isinstance(v, str) else v}"
+                    for k, v in point.items())
+    return re.sub(r"[^A-Za-z0-9_.,=+-]", "_", text)
+
+
+def sweep(scene, values, out, set=None, jobs=1, keep_going=False, **run_args):
+    """One run per combination of ``values`` ({key.path: [v0, v1, ...]},
+    several keys: every combination), each into its own ``out/<key>=<value>``
+    (ports are chosen free by each run). ``jobs`` runs at once.
+
+    Returns [(point, Results)] in the order of the combinations, ``point``
+    the {key.path: value} of the run. A failed run raises its RunError
+    (naming the point) once the runs under way have ended; with
+    ``keep_going`` the error takes the place of the Results instead.
+
+    This loops over :func:`run` (``cosim sweep`` of the full-scale tyre
+    issue, with its summary.csv, does not exist yet)."""
+    keys = list(values)
+    points = [dict(zip(keys, combo)) for combo in itertools.product(*(values[k] for k in keys))]
+
+    def one(point):
+        sets = dict(set or {}, **point)
+        sets["output.dir"] = os.path.join(out, _dir_name(point))
+        try:
+            return run(scene, set=sets, **run_args)
+        except RunError as e:
+            e.args = (f"{_dir_name(point)}: {e}",)
+            if keep_going:
+                return e
+            raise
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        results = list(pool.map(one, points))
+    return list(zip(points, results))
