@@ -1,0 +1,319 @@
+/* liggghts_dem — LIGGGHTS as cosim's DEM participant (role "dem",
+ * proto/PROTOCOL.md), reading dem_server's config section. Under MPI
+ * (`mpirun -np N liggghts_dem --endpoint EP --name NAME`) rank 0 alone talks to
+ * the coupler: each callback broadcasts what it received to the other ranks,
+ * which wait in worker_loop(), and then every rank does the same collective
+ * work (do_*). `--check-config` runs without MPI.
+ *
+ * This file is the only one that knows the participant API (proto.h). */
+#include "liggghts_dem/lgd.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+enum { OP_CONFIGURE = 1, OP_INIT, OP_STEP, OP_FINISH, OP_QUIT };
+
+typedef struct op_msg {
+  int op, output;
+  int64_t n_nodes, n_tri, len;
+  double dt;
+} op_msg;
+
+typedef struct app {
+  int mpi, rank, clean;
+  char name[PROTO_NAME_LEN], key_path[PROTO_NAME_LEN + 16], screen[1024];
+  dem_model model;
+  int have_model;
+  lgd_sim *sim;
+  double run_dt;
+  int64_t n_nodes;
+  double *x, *v;                    /* surface nodes of the step (every rank) */
+  double *wall_row;                 /* t, then Fx Fy Fz per wall */
+  double *snap_x, *snap_v, *snap_w, *snap_r;
+} app;
+
+static app g_app; /* one per process; the exit handler reads it */
+
+/* ------------------------------------------------ collective work (all ranks) */
+
+static int do_configure(app *a, const char *json, double dt, proto_err *err) {
+  if (a->have_model) dem_model_free(&a->model);
+  a->have_model = 0;
+  cJSON *section = proto_json_parse(json, a->key_path, err);
+  int rc = section ? dem_model_from_json(&a->model, section, a->key_path, err) : -1;
+  cJSON_Delete(section);
+  a->have_model = rc == 0;
+  if (!rc) rc = lgd_check_model(&a->model, err);
+  if (!rc && a->rank == 0) { /* dem_server's initial checks: overlaps, grains outside */
+    dem_state probe;
+    rc = dem_state_init(&a->model, &probe, err);
+    if (!rc) dem_state_free(&probe);
+  }
+  if (!rc && dt > 0) rc = dem_model_set_dt(&a->model, dt, err);
+  a->run_dt = dt;
+  return rc;
+}
+
+static int do_init(app *a, int64_t n_nodes, const double *x0, int64_t n_tri, const int32_t *tri,
+                   proto_err *err) {
+  dem_model *m = &a->model;
+  int rc = 0;
+  a->n_nodes = n_nodes;
+  if (n_nodes > 0) {
+    a->x = malloc(sizeof(double) * 3 * (size_t)n_nodes);
+    a->v = malloc(sizeof(double) * 3 * (size_t)n_nodes);
+    rc = a->x && a->v ? dem_model_set_surface(m, (int)n_nodes, x0, (int)n_tri, tri, err)
+                      : proto_fail(err, "out of memory");
+  }
+  int bad = rc, any;
+  MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+  if (any < 0) return -1; /* deterministic: every rank failed alike */
+  lgd_options o = {.screen = a->rank == 0 ? a->screen : NULL};
+  if (lgd_open(&a->sim, MPI_COMM_WORLD, m, &o, err)) return -1;
+  if (a->rank != 0) return 0;
+  const size_t n = (size_t)m->n_grains;
+  a->wall_row = calloc(1 + 3 * (size_t)m->n_walls, sizeof(double));
+  a->snap_x = malloc(3 * n * sizeof(double));
+  a->snap_v = malloc(3 * n * sizeof(double));
+  a->snap_w = malloc(3 * n * sizeof(double));
+  a->snap_r = malloc(n * sizeof(double));
+  if (!a->wall_row || !a->snap_x || !a->snap_v || !a->snap_w || !a->snap_r)
+    return proto_fail(err, "out of memory");
+  memcpy(a->snap_r, m->radius, n * sizeof(double));
+  return 0;
+}
+
+static int do_step(app *a, double dt, int output, proto_err *err) {
+  if (lgd_step(a->sim, dt, a->x, a->v, err)) return -1;
+  return output ? lgd_gather(a->sim, a->snap_x, a->snap_v, a->snap_w, err) : 0;
+}
+
+static void do_finish(app *a) {
+  lgd_close(a->sim);
+  a->sim = NULL;
+  if (a->have_model) dem_model_free(&a->model);
+  a->have_model = 0;
+  free(a->x); free(a->v); free(a->wall_row);
+  free(a->snap_x); free(a->snap_v); free(a->snap_w); free(a->snap_r);
+  a->x = a->v = a->wall_row = a->snap_x = a->snap_v = a->snap_w = a->snap_r = NULL;
+}
+
+/* Ranks other than 0 wait for the next operation without spinning (the
+ * cores are shared with the FEM), and leave if the launcher is gone. */
+static void bcast_op(op_msg *op) {
+  MPI_Request req;
+  MPI_Ibcast(op, (int)sizeof *op, MPI_BYTE, 0, MPI_COMM_WORLD, &req);
+  for (int done = 0;;) {
+    MPI_Test(&req, &done, MPI_STATUS_IGNORE);
+    if (done) return;
+    if (getppid() == 1) _exit(1);
+    nanosleep(&(struct timespec){0, 50000}, NULL);
+  }
+}
+
+static int worker_loop(app *a) {
+  proto_err err = {{0}};
+  char *text = NULL;
+  int32_t *tri = NULL;
+  double *x0 = NULL;
+  for (;;) {
+    op_msg op = {0};
+    bcast_op(&op);
+    switch (op.op) {
+    case OP_CONFIGURE:
+      text = malloc((size_t)op.len + 1);
+      MPI_Bcast(text, (int)op.len + 1, MPI_CHAR, 0, MPI_COMM_WORLD);
+      MPI_Bcast(a->key_path, sizeof a->key_path, MPI_CHAR, 0, MPI_COMM_WORLD);
+      do_configure(a, text, op.dt, &err); /* rank 0 reports failures */
+      free(text);
+      break;
+    case OP_INIT:
+      x0 = malloc(sizeof(double) * 3 * (size_t)(op.n_nodes + 1));
+      tri = malloc(sizeof(int32_t) * 3 * (size_t)(op.n_tri + 1));
+      if (op.n_nodes > 0) {
+        MPI_Bcast(x0, 3 * (int)op.n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+        MPI_Bcast(tri, 3 * (int)op.n_tri, MPI_INT32_T, 0, MPI_COMM_WORLD);
+      }
+      do_init(a, op.n_nodes, x0, op.n_tri, tri, &err);
+      free(x0);
+      free(tri);
+      break;
+    case OP_STEP:
+      if (a->n_nodes > 0) {
+        MPI_Bcast(a->x, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+        MPI_Bcast(a->v, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+      }
+      if (a->sim) do_step(a, op.dt, op.output, &err);
+      break;
+    case OP_FINISH:
+      do_finish(a);
+      break;
+    default:
+      return 0;
+    }
+  }
+}
+
+/* ------------------------------------------- rank 0: the participant callbacks */
+
+static int configure(void *user, const proto_run_info *info, const cJSON *section, proto_err *err) {
+  app *a = user;
+  snprintf(a->name, sizeof a->name, "%s", info->name ? info->name : "dem");
+  snprintf(a->key_path, sizeof a->key_path, "%s", info->key_path);
+  char *json = cJSON_PrintUnformatted(section);
+  if (!json) return proto_fail(err, "out of memory");
+  int rc;
+  if (!a->mpi) {
+    rc = do_configure(a, json, info->dt, err);
+  } else {
+    /* LIGGGHTS' screen: next to the process logs when the output folder is here */
+    const char *dir = info->output_dir ? info->output_dir : ".";
+    char logs[900];
+    snprintf(logs, sizeof logs, "%s/logs", dir);
+    const char *where = access(logs, W_OK) == 0 ? logs : access(dir, W_OK) == 0 ? dir : NULL;
+    if (where) snprintf(a->screen, sizeof a->screen, "%s/%s.liggghts.log", where, a->name);
+    else snprintf(a->screen, sizeof a->screen, "/tmp/cosim-%s-liggghts-%d.log", a->name, (int)getpid());
+    op_msg op = {.op = OP_CONFIGURE, .len = (int64_t)strlen(json), .dt = info->dt};
+    bcast_op(&op);
+    MPI_Bcast(json, (int)op.len + 1, MPI_CHAR, 0, MPI_COMM_WORLD);
+    MPI_Bcast(a->key_path, sizeof a->key_path, MPI_CHAR, 0, MPI_COMM_WORLD);
+    rc = do_configure(a, json, info->dt, err);
+  }
+  cJSON_free(json);
+  return rc;
+}
+
+static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_err *err) {
+  app *a = user;
+  const proto_array *xa = proto_msg_find(welcome, "surface_x0");
+  const double *x0 = NULL;
+  const proto_array *tri = NULL;
+  if (xa) {
+    const int64_t tshape[2] = {-1, 3};
+    x0 = proto_msg_get_f8(welcome, "surface_x0", -1, 3, err);
+    tri = proto_msg_get(welcome, "surface_tri", PROTO_I4, 2, tshape, err);
+    if (!x0 || !tri) xa = NULL, x0 = NULL;
+  }
+  op_msg op = {.op = OP_INIT, .n_nodes = xa ? xa->shape[0] : 0, .n_tri = tri && xa ? tri->shape[0] : 0};
+  bcast_op(&op);
+  if (op.n_nodes > 0) {
+    MPI_Bcast((void *)x0, 3 * (int)op.n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    MPI_Bcast((void *)tri->data, 3 * (int)op.n_tri, MPI_INT32_T, 0, MPI_COMM_WORLD);
+  }
+  if (do_init(a, op.n_nodes, x0, op.n_tri, op.n_tri ? (const int32_t *)tri->data : NULL, err)) return -1;
+  const dem_model *m = &a->model;
+  const char *attrs[] = {"v", "omega", "r"};
+  if (proto_ready_series(ready, "series", LGD_SERIES_COLS, LGD_SERIES) < 0 ||
+      proto_ready_snapshot(ready, "points", "x", NULL, 3, attrs) < 0)
+    return proto_fail(err, "out of memory");
+  cJSON *h = proto_msg_header(ready);
+  cJSON *wf = cJSON_AddArrayToObject(cJSON_GetObjectItemCaseSensitive(h, "series"), "wall_forces");
+  cJSON_AddItemToArray(wf, cJSON_CreateString("t"));
+  for (int w = 0; w < m->n_walls; w++)
+    for (int k = 0; k < 3; k++) {
+      char col[32];
+      snprintf(col, sizeof col, "wall%d_F%c", w, "xyz"[k]);
+      cJSON_AddItemToArray(wf, cJSON_CreateString(col));
+    }
+  int ranks;
+  MPI_Comm_size(MPI_COMM_WORLD, &ranks);
+  cJSON_AddNumberToObject(h, "dem_dt", m->dt);
+  cJSON_AddNumberToObject(h, "rayleigh_time", m->rayleigh_time);
+  cJSON_AddNumberToObject(h, "grains", m->n_grains);
+  cJSON_AddNumberToObject(h, "mpi_ranks", ranks);
+  fprintf(stderr, "liggghts_dem: %d grains, %d walls, dt = %.4g s = %.3g Rayleigh times, %d MPI rank%s, "
+          "LIGGGHTS screen in %s\n", m->n_grains, m->n_walls, m->dt, m->dt / m->rayleigh_time, ranks,
+          ranks > 1 ? "s" : "", a->screen);
+  return 0;
+}
+
+static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *reply, proto_err *err) {
+  (void)peer;
+  app *a = user;
+  const cJSON *hdt = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "dt") : NULL;
+  const cJSON *hout = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "output") : NULL;
+  op_msg op = {.op = OP_STEP, .dt = cJSON_IsNumber(hdt) ? hdt->valuedouble : a->run_dt,
+               .output = cJSON_IsTrue(hout)};
+  const double *x = NULL, *v = NULL;
+  if (a->n_nodes > 0) {
+    x = proto_msg_get_f8(req, "x", a->n_nodes, 3, err);
+    v = x ? proto_msg_get_f8(req, "v", a->n_nodes, 3, err) : NULL;
+    if (!x || !v) return -1;
+    memcpy(a->x, x, sizeof(double) * 3 * (size_t)a->n_nodes);
+    memcpy(a->v, v, sizeof(double) * 3 * (size_t)a->n_nodes);
+  }
+  bcast_op(&op);
+  if (a->n_nodes > 0) {
+    MPI_Bcast(a->x, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    MPI_Bcast(a->v, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  }
+  if (do_step(a, op.dt, op.output, err)) return -1;
+  const lgd_out *o = lgd_result(a->sim);
+  const dem_model *m = &a->model;
+  a->wall_row[0] = o->series[0];
+  memcpy(a->wall_row + 1, o->wall_force, sizeof(double) * 3 * (size_t)m->n_walls);
+  if (proto_msg_add_f8(reply, "series", LGD_SERIES_COLS, 0, o->series) ||
+      proto_msg_add_f8(reply, "series.wall_forces", 1 + 3 * m->n_walls, 0, a->wall_row) ||
+      (a->n_nodes > 0 && proto_msg_add_f8(reply, "nodal_force", a->n_nodes, 3, o->nodal_force)))
+    return proto_fail(err, "reply full");
+  if (op.output) {
+    const int n = m->n_grains;
+    if (proto_msg_add_f8(reply, "snap.x", n, 3, a->snap_x) || proto_msg_add_f8(reply, "snap.v", n, 3, a->snap_v) ||
+        proto_msg_add_f8(reply, "snap.omega", n, 3, a->snap_w) || proto_msg_add_f8(reply, "snap.r", n, 0, a->snap_r))
+      return proto_fail(err, "reply full");
+  }
+  return 0;
+}
+
+static void finish(void *user) {
+  app *a = user;
+  if (a->mpi) {
+    op_msg op = {.op = OP_FINISH};
+    bcast_op(&op);
+  }
+  do_finish(a);
+}
+
+/* LIGGGHTS reports its input errors on its screen and then exits: show the
+ * end of that screen in our log, where the coupler looks. */
+static void show_screen_tail(void) {
+  if (g_app.clean || g_app.rank != 0 || !g_app.screen[0]) return;
+  FILE *f = fopen(g_app.screen, "r");
+  if (!f) return;
+  char buf[2048];
+  fseek(f, 0, SEEK_END);
+  long size = ftell(f), from = size > (long)sizeof buf - 1 ? size - (long)sizeof buf + 1 : 0;
+  fseek(f, from, SEEK_SET);
+  size_t n = fread(buf, 1, sizeof buf - 1, f);
+  fclose(f);
+  buf[n] = 0;
+  fprintf(stderr, "liggghts_dem: LIGGGHTS stopped the run; the end of its screen (%s):\n%s\n",
+          g_app.screen, buf);
+}
+
+int main(int argc, char **argv) {
+  int mpi = 1;
+  for (int i = 1; i < argc; i++)
+    if (!strcmp(argv[i], "--check-config") || !strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) mpi = 0;
+  const proto_participant_ops ops = {"dem", configure, init, step, finish};
+  app *a = &g_app;
+  if (!mpi) return proto_participant_main(argc, argv, &ops, a);
+  MPI_Init(&argc, &argv);
+  a->mpi = 1;
+  MPI_Comm_rank(MPI_COMM_WORLD, &a->rank);
+  int rc = 0;
+  if (a->rank == 0) {
+    atexit(show_screen_tail);
+    rc = proto_participant_main(argc, argv, &ops, a);
+    op_msg quit = {.op = OP_QUIT};
+    bcast_op(&quit);
+  } else {
+    rc = worker_loop(a);
+  }
+  a->clean = 1;
+  MPI_Finalize();
+  return rc;
+}
