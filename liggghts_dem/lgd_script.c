@@ -189,10 +189,35 @@ static int write_mesh(const dem_mesh *me, const char *path, proto_err *err) {
 
 /* -------------------------------------------------------------- commands */
 
+/* LIGGGHTS' tolerance (`precision`, m) for a contact point just outside a
+ * triangle to still count as a face contact. Between faces that LIGGGHTS
+ * takes as coplanar (bent by less than θc = acos(curvature) = 0.26°) the
+ * shared edge and corners are inactive, and a grain whose centre lies over
+ * that band (at most r θc/2 wide) has no contact at all: it sinks until the
+ * band has narrowed below its offset. A tolerance of r_max θc covers the band
+ * (the projection distance is about half the tolerance for usual triangles).
+ * It is also LIGGGHTS' distance below which two nodes are the same: kept
+ * below a tenth of the shortest mesh edge. LIGGGHTS caps it at 1 mm; its
+ * default is 1e-8 m. */
+static double face_tolerance(const dem_model *m) {
+  double rmax = 0, edge = 1e-3 * 10;
+  for (int i = 0; i < m->n_grains; i++) rmax = fmax(rmax, m->radius[i]);
+  for (int k = 0; k < m->n_meshes; k++)
+    for (int s = 0; s < 3 * m->meshes[k].n_tri; s++) {
+      const double *a = &m->meshes[k].x0[3 * m->meshes[k].tri[s]];
+      const double *b = &m->meshes[k].x0[3 * m->meshes[k].tri[3 * (s / 3) + (s % 3 + 1) % 3]];
+      edge = fmin(edge, sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                             (a[2] - b[2]) * (a[2] - b[2])));
+    }
+  const double p = fmin(rmax * acos(LGD_CURVATURE), 0.1 * edge);
+  return p < 1e-8 ? 1e-8 : p;
+}
+
 static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const char *model,
                      proto_err *err) {
   static const char *const plane_kw[3] = {"xplane", "yplane", "zplane"};
   int rc = 0;
+  const double tol = face_tolerance(m);
   for (int p = 0; p < m->n_planes && !rc; p++) {
     const dem_plane *pl = &m->planes[p];
     const int d = lgd_plane_axis(pl);
@@ -207,8 +232,8 @@ static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const c
     snprintf(id, sizeof id, LGD_FIX_MESH, k);
     snprintf(path, sizeof path, "%s/mesh%d.stl", dir, k);
     if (write_mesh(me, path, err)) return -1;
-    rc = add(s, "fix %s all mesh/surface/stress file %s type %d curvature_tolerant yes\n", id, path,
-             lgd_type(m, me->material, 0));
+    rc = add(s, "fix %s all mesh/surface/stress file %s type %d precision %.6g curvature_tolerant yes\n", id, path,
+             lgd_type(m, me->material, 0), tol);
     const double *u = me->velocity;
     if (!rc && !me->coupled && (u[0] != 0 || u[1] != 0 || u[2] != 0))
       rc = add(s, "fix %s_move all move/mesh mesh %s linear %.17g %.17g %.17g\n", id, id, u[0], u[1], u[2]);
