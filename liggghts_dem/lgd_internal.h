@@ -13,7 +13,11 @@ extern "C" {
 #endif
 
 /* ---- names shared by the script and the sim ---- */
-#define LGD_FIX_PLANE "lgd_plane%d"  /* primitive wall of model plane %d */
+/* primitive wall of model plane %d; at most 9 characters: LIGGGHTS 3.8's
+ * `store_force` names its per-grain fix "force_<id>" in a buffer sized by the
+ * style name "wall/gran" (FixWallGran::post_create), so a longer id overflows
+ * it (found by AddressSanitizer) */
+#define LGD_FIX_PLANE "lgdw%d"
 #define LGD_FIX_MESH "lgd_mesh%d"    /* fix mesh/surface/stress of model mesh %d */
 #define LGD_FIX_MESHWALL "lgd_meshwall"
 #define LGD_ID_LEN 32
