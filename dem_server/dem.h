@@ -161,6 +161,21 @@ void dem_gather(const dem_state *s, const double *slot_data, int cols, double *o
 /* Mean coordination number (contacts per grain, grain–grain only). */
 double dem_coordination(const dem_model *m, const dem_state *s);
 
+/* ---- state export / import (rollback, checkpoints) ----
+ * export adds arrays named "state.<x>" to `out` that hold everything that
+ * changes during a run (grains in slot order with their permutation `id`,
+ * neighbour list with springs and rebuild reference, wall and mesh contact
+ * springs with their keys, mesh nodes, clock, last forces, counters with a
+ * fingerprint of the model). The arrays point into the state (or scratch it
+ * owns; allocated on the first call only): send or copy them before the next
+ * dem_step. import restores such a set into a state made by dem_state_init()
+ * from the same model; stepping on is then bitwise identical to never having
+ * stopped. It checks every array (name, dtype, shape, contents that index
+ * other arrays) and the model fingerprint before changing anything, and fails
+ * with a message naming the array. */
+int dem_state_export(const dem_model *m, const dem_state *s, proto_msg *out, proto_err *err);
+int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, proto_err *err);
+
 /* ---- beds ---- */
 typedef struct dem_bed_layer {
   double diameter, spread; /* uniform in diameter ± spread */

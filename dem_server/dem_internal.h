@@ -68,6 +68,10 @@ struct dem_work {
   /* per-grain diagnostics */
   int *pair_contacts; /* [n] */
   double *ratio;      /* [n] max overlap ratio of i's contacts */
+  /* dem_state_export/import scratch (dem_state_io.c) */
+  int64_t io_counters[8];
+  double io_scalars[8];
+  double *io_mesh; /* [3][all mesh nodes][3]: x, v, force */
 };
 
 /* Spring of grain slot i on plane p. */
@@ -163,6 +167,12 @@ static inline void dem_rolling(const dem_pair_law *l, double Fn, double rstar,
 int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_neigh_free(struct dem_work *w);
 int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err);
+/* Room for npairs pairs in the list (keeps its contents). */
+int dem_neigh_reserve(const dem_model *m, dem_state *s, int npairs, proto_err *err);
+/* The reverse pair index (rev_start, rev_k) of the current list. */
+void dem_neigh_reverse(dem_state *s);
+/* dem_state.c: slot i holds model grain g: radius, mass, inertia, material. */
+void dem_grain_constants(const dem_model *m, dem_state *s, int i, int g);
 /* dem_mesh.c */
 int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_mesh_free(const dem_model *m, dem_state *s);

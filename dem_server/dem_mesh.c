@@ -283,6 +283,19 @@ static int share_node(const int32_t *a, const int32_t *b) {
   return 0;
 }
 
+/* Candidates are kept sorted by (mesh, triangle), the MAX_CAND first ones if
+ * there are more: the order (and so the force sums) does not depend on the
+ * BVH's shape, which differs after a rebuild or a state import. */
+static int insert_cand(cand *out, int nc, const cand *c) {
+  int k = nc < MAX_CAND ? nc : MAX_CAND - 1;
+  if (nc == MAX_CAND && (out[k].mesh < c->mesh || (out[k].mesh == c->mesh && out[k].tri < c->tri)))
+    return nc; /* full, and c comes after every kept one */
+  for (; k > 0 && (out[k - 1].mesh > c->mesh || (out[k - 1].mesh == c->mesh && out[k - 1].tri > c->tri)); k--)
+    out[k] = out[k - 1];
+  out[k] = *c;
+  return nc < MAX_CAND ? nc + 1 : nc;
+}
+
 static int collect(const dem_model *m, const dem_state *s, int i, cand *out) {
   int nc = 0;
   const double *p = &s->x[3 * i];
@@ -307,9 +320,9 @@ static int collect(const dem_model *m, const dem_state *s, int i, cand *out) {
       dem_closest_on_triangle(p, &x[3 * tn[0]], &x[3 * tn[1]], &x[3 * tn[2]], c.q, c.zeta);
       double d[3] = {p[0] - c.q[0], p[1] - c.q[1], p[2] - c.q[2]};
       c.d2 = dem_dot(d, d);
-      if (c.d2 >= r * r || c.d2 == 0 || nc >= MAX_CAND) continue;
+      if (c.d2 >= r * r || c.d2 == 0) continue;
       classify(&c, tn);
-      out[nc++] = c;
+      nc = insert_cand(out, nc, &c);
     }
   }
   return nc;

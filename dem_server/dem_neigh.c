@@ -194,7 +194,8 @@ static void carry_history(const struct dem_work *w, int i, int j, double *shear)
     }
 }
 
-static int ensure_cap(const dem_model *m, struct dem_work *w, int need, proto_err *err) {
+int dem_neigh_reserve(const dem_model *m, dem_state *s, int need, proto_err *err) {
+  struct dem_work *w = s->work;
   if (need <= w->cap) return 0;
   int cap = need + need / 4 + 64; /* rare: only when the list outgrows its capacity */
   if (!GROW(w->nl_j, cap, int) || !GROW(w->rev_k, cap, int) || !GROW(w->nl_shear, 3 * cap, double) ||
@@ -203,6 +204,18 @@ static int ensure_cap(const dem_model *m, struct dem_work *w, int need, proto_er
     return proto_fail(err, "out of memory for %d neighbour pairs", need);
   w->cap = cap;
   return 0;
+}
+
+/* For each slot, the pairs where it is the partner j, in list order. */
+void dem_neigh_reverse(dem_state *s) {
+  struct dem_work *w = s->work;
+  const int n = s->n;
+  memset(w->rev_start, 0, sizeof(int) * (size_t)(n + 1));
+  for (int k = 0; k < w->nl_start[n]; k++) w->rev_start[w->nl_j[k] + 1]++;
+  for (int i = 0; i < n; i++) w->rev_start[i + 1] += w->rev_start[i];
+  memcpy(w->rev_fill, w->rev_start, sizeof(int) * (size_t)n);
+  for (int i = 0; i < n; i++)
+    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) w->rev_k[w->rev_fill[w->nl_j[k]]++] = k;
 }
 
 int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
@@ -227,7 +240,7 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
   for (int i = 0; i < n; i++) w->nl_start[i + 1] = list_row(m, s, i, NULL);
   w->nl_start[0] = 0;
   for (int i = 0; i < n; i++) w->nl_start[i + 1] += w->nl_start[i];
-  if (ensure_cap(m, w, w->nl_start[n], err)) return -1;
+  if (dem_neigh_reserve(m, s, w->nl_start[n], err)) return -1;
 #pragma omp parallel for schedule(dynamic, 256) num_threads(w->nthreads)
   for (int i = 0; i < n; i++) {
     list_row(m, s, i, &w->nl_j[w->nl_start[i]]);
@@ -238,13 +251,7 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
     }
   }
   w->have_old = 1;
-  /* reverse index: for each slot, the pairs where it is the partner */
-  memset(w->rev_start, 0, sizeof(int) * (size_t)(n + 1));
-  for (int k = 0; k < w->nl_start[n]; k++) w->rev_start[w->nl_j[k] + 1]++;
-  for (int i = 0; i < n; i++) w->rev_start[i + 1] += w->rev_start[i];
-  memcpy(w->rev_fill, w->rev_start, sizeof(int) * (size_t)n);
-  for (int i = 0; i < n; i++)
-    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) w->rev_k[w->rev_fill[w->nl_j[k]]++] = k;
+  dem_neigh_reverse(s);
   /* planes a grain can touch before the next rebuild (it moves < skin/2);
    * the springs of the others are cleared */
   for (int i = 0; i < n; i++) {

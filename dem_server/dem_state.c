@@ -82,27 +82,31 @@ static int check_initial(const dem_model *m, const dem_state *s, proto_err *err)
   return 0;
 }
 
+void dem_grain_constants(const dem_model *m, dem_state *s, int i, int g) {
+  const dem_material *mt = &m->mat[m->material[g]];
+  const double r = m->radius[g];
+  const double mass = mt->density * (4.0 / 3.0) * M_PI * r * r * r;
+  s->radius[i] = r;
+  s->inv_mass[i] = 1.0 / mass;
+  s->inv_inertia[i] = m->fix_rotation[g] ? 0.0 : 1.0 / (0.4 * mass * r * r); /* solid sphere */
+  s->work->mass[i] = mass;
+  s->work->inertia[i] = m->fix_rotation[g] ? 0.0 : 0.4 * mass * r * r;
+  s->material[i] = m->material[g];
+  s->id[i] = g;
+  s->fix_rotation[i] = m->fix_rotation[g];
+}
+
 int dem_state_init(const dem_model *m, dem_state *s, proto_err *err) {
   memset(s, 0, sizeof *s);
   if (m->dt <= 0) return proto_fail(err, "dem: time step not set");
   if (alloc_state(m, s, err)) goto fail;
   for (int i = 0; i < s->n; i++) {
-    const dem_material *mt = &m->mat[m->material[i]];
-    const double r = m->radius[i];
-    const double mass = mt->density * (4.0 / 3.0) * M_PI * r * r * r;
     memcpy(&s->x[3 * i], &m->x0[3 * i], 3 * sizeof(double));
     memcpy(&s->v[3 * i], &m->v0[3 * i], 3 * sizeof(double));
     memcpy(&s->omega[3 * i], &m->omega0[3 * i], 3 * sizeof(double));
     s->q[4 * i] = 1; s->q[4 * i + 1] = s->q[4 * i + 2] = s->q[4 * i + 3] = 0;
-    s->radius[i] = r;
-    s->inv_mass[i] = 1.0 / mass;
-    s->inv_inertia[i] = m->fix_rotation[i] ? 0.0 : 1.0 / (0.4 * mass * r * r); /* solid sphere */
-    s->work->mass[i] = mass;
-    s->work->inertia[i] = m->fix_rotation[i] ? 0.0 : 0.4 * mass * r * r;
+    dem_grain_constants(m, s, i, i);
     if (m->fix_rotation[i]) memset(&s->omega[3 * i], 0, 3 * sizeof(double));
-    s->material[i] = m->material[i];
-    s->id[i] = i;
-    s->fix_rotation[i] = m->fix_rotation[i];
   }
   if (dem_neigh_alloc(m, s, err) || dem_mesh_alloc(m, s, err) || dem_neigh_rebuild(m, s, err) ||
       check_initial(m, s, err))
@@ -125,7 +129,7 @@ void dem_state_free(dem_state *s) {
     dem_neigh_free(w);
     dem_mesh_free(NULL, s);
     free(w->wall_shear); free(w->wall_part); free(w->ke_part); free(w->mass); free(w->inertia); free(w->wall_u); free(w->wall_contacts);
-    free(w->tmp); free(w->itmp);
+    free(w->tmp); free(w->itmp); free(w->io_mesh);
     free(w);
   }
   free(s->x); free(s->v); free(s->omega); free(s->q); free(s->force); free(s->torque);

@@ -1,0 +1,295 @@
+/* dem_state_io.c — the whole dynamic state of a run as named arrays
+ * ("state.<x>"), and back: for implicit-coupling rollback (export at the start
+ * of a coupling step, import to redo it) and for checkpoint/restart files.
+ * Importing into a state made by dem_state_init() from the same model and
+ * stepping on is bitwise identical to never having stopped: the arrays hold
+ * the grains in slot order with their permutation (`id`), the neighbour list
+ * with its springs and the reference positions that decide the next rebuild,
+ * the plane and mesh contact springs with their keys, the mesh nodes, the
+ * clock and the last forces (the next half kick uses them). Everything else in
+ * the work struct is scratch or recomputed each step. */
+#include "dem_server/dem_internal.h"
+
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+
+_Static_assert(sizeof(int) == 4, "neighbour-list indices travel as i4");
+
+#define IO_FORMAT 1 /* bump when the set or meaning of the arrays changes */
+enum { IO_C_FORMAT, IO_C_MODEL, IO_C_STEP, IO_C_REBUILDS, IO_C_CONTACTS, IO_NCOUNTERS };
+enum { IO_S_T, IO_S_KE, IO_S_ELASTIC, IO_S_OVERLAP, IO_NSCALARS };
+#define IO_MAX 32 /* the arrays of one export (PROTO_MAX_ARRAYS) */
+
+typedef struct io_entry {
+  const char *name;
+  proto_dtype dtype;
+  int ndim;
+  int64_t shape[PROTO_MAX_NDIM];
+  void *data;
+} io_entry;
+
+static const size_t io_size[] = {[PROTO_F8] = 8, [PROTO_I4] = 4, [PROTO_I8] = 8, [PROTO_U1] = 1};
+
+static void add(io_entry *e, int *n, const char *name, proto_dtype dt, void *data, int ndim,
+                int64_t a, int64_t b, int64_t c) {
+  e[*n] = (io_entry){name, dt, ndim, {a, b, c}, data};
+  (*n)++;
+}
+
+static size_t entry_bytes(const io_entry *e) {
+  size_t k = io_size[e->dtype];
+  for (int d = 0; d < e->ndim; d++) k *= (size_t)e->shape[d];
+  return k;
+}
+
+static int64_t total_nodes(const dem_model *m) {
+  int64_t t = 0;
+  for (int mi = 0; mi < m->n_meshes; mi++) t += m->meshes[mi].n_nodes;
+  return t;
+}
+
+/* The arrays of a state whose neighbour list holds npairs pairs. */
+static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e) {
+  struct dem_work *w = s->work;
+  const int64_t n = s->n, K = DEM_MESH_SLOTS, nodes = total_nodes(m);
+  int c = 0;
+  add(e, &c, "state.counters", PROTO_I8, w->io_counters, 1, IO_NCOUNTERS, 0, 0);
+  add(e, &c, "state.scalars", PROTO_F8, w->io_scalars, 1, IO_NSCALARS, 0, 0);
+  add(e, &c, "state.id", PROTO_I4, s->id, 1, n, 0, 0);
+  add(e, &c, "state.x", PROTO_F8, s->x, 2, n, 3, 0);
+  add(e, &c, "state.v", PROTO_F8, s->v, 2, n, 3, 0);
+  add(e, &c, "state.omega", PROTO_F8, s->omega, 2, n, 3, 0);
+  add(e, &c, "state.q", PROTO_F8, s->q, 2, n, 4, 0);
+  add(e, &c, "state.force", PROTO_F8, s->force, 2, n, 3, 0);
+  add(e, &c, "state.torque", PROTO_F8, s->torque, 2, n, 3, 0);
+  add(e, &c, "state.x_ref", PROTO_F8, w->x_ref, 2, n, 3, 0);
+  add(e, &c, "state.nl_start", PROTO_I4, w->nl_start, 1, n + 1, 0, 0);
+  add(e, &c, "state.nl_j", PROTO_I4, w->nl_j, 1, npairs, 0, 0);
+  add(e, &c, "state.nl_shear", PROTO_F8, w->nl_shear, 2, npairs, 3, 0);
+  add(e, &c, "state.pair_touch", PROTO_U1, w->pair_touch, 1, npairs, 0, 0);
+  add(e, &c, "state.wall_force", PROTO_F8, s->wall_force, 2, m->n_walls, 3, 0);
+  if (m->n_planes > 0) {
+    add(e, &c, "state.plane_mask", PROTO_I8, w->plane_mask, 1, n, 0, 0);
+    add(e, &c, "state.plane_touch", PROTO_I8, w->plane_touch, 1, n, 0, 0);
+    add(e, &c, "state.wall_shear", PROTO_F8, w->wall_shear, 3, m->n_planes, n, 3);
+  }
+  if (m->n_meshes > 0) {
+    add(e, &c, "state.mc_key", PROTO_I8, w->mc_key, 2, n, K, 0);
+    add(e, &c, "state.mc_mesh", PROTO_U1, w->mc_mesh, 2, n, K, 0);
+    add(e, &c, "state.mc_shear", PROTO_F8, w->mc_shear, 3, n, K, 3);
+    add(e, &c, "state.mc_normal", PROTO_F8, w->mc_normal, 3, n, K, 3);
+    /* all meshes' nodes one after the other (config order, then the surface) */
+    add(e, &c, "state.mesh_x", PROTO_F8, w->io_mesh, 2, nodes, 3, 0);
+    add(e, &c, "state.mesh_v", PROTO_F8, w->io_mesh + 3 * nodes, 2, nodes, 3, 0);
+    add(e, &c, "state.mesh_force", PROTO_F8, w->io_mesh + 6 * nodes, 2, nodes, 3, 0);
+  }
+  return c;
+}
+
+/* FNV-1a over what a state's arrays depend on: grains, materials, walls,
+ * mesh topology, skin (the list's validity). Not dt nor gravity (a restart
+ * may change them). */
+static uint64_t fnv(uint64_t h, const void *p, size_t n) {
+  const unsigned char *b = p;
+  for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 0x100000001b3ull;
+  return h;
+}
+
+static int64_t model_fingerprint(const dem_model *m) {
+  uint64_t h = 0xcbf29ce484222325ull;
+  const size_t n = (size_t)m->n_grains;
+  h = fnv(h, &m->n_grains, sizeof m->n_grains);
+  h = fnv(h, m->radius, n * sizeof *m->radius);
+  h = fnv(h, m->material, n * sizeof *m->material);
+  h = fnv(h, m->fix_rotation, n);
+  h = fnv(h, &m->n_materials, sizeof m->n_materials);
+  h = fnv(h, m->mat, (size_t)m->n_materials * sizeof m->mat[0]);
+  h = fnv(h, &m->n_planes, sizeof m->n_planes);
+  for (int p = 0; p < m->n_planes; p++) {
+    h = fnv(h, m->planes[p].point, sizeof m->planes[p].point);
+    h = fnv(h, m->planes[p].normal, sizeof m->planes[p].normal);
+    h = fnv(h, &m->planes[p].material, sizeof m->planes[p].material);
+  }
+  h = fnv(h, &m->n_walls, sizeof m->n_walls);
+  h = fnv(h, &m->n_meshes, sizeof m->n_meshes);
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    const dem_mesh *me = &m->meshes[mi];
+    h = fnv(h, &me->n_nodes, sizeof me->n_nodes);
+    h = fnv(h, &me->n_tri, sizeof me->n_tri);
+    h = fnv(h, me->tri, 3 * (size_t)me->n_tri * sizeof *me->tri);
+    h = fnv(h, &me->material, sizeof me->material);
+  }
+  h = fnv(h, &m->skin, sizeof m->skin);
+  return (int64_t)h;
+}
+
+/* Scratch for the mesh nodes, allocated once. */
+static int io_scratch(const dem_model *m, dem_state *s, proto_err *err) {
+  struct dem_work *w = s->work;
+  if (m->n_meshes == 0 || w->io_mesh) return 0;
+  w->io_mesh = malloc(sizeof(double) * 9 * (size_t)total_nodes(m) + 1);
+  return w->io_mesh ? 0 : proto_fail(err, "out of memory for the state export");
+}
+
+int dem_state_export(const dem_model *m, const dem_state *cs, proto_msg *out, proto_err *err) {
+  dem_state *s = (dem_state *)cs; /* only the export scratch is written */
+  struct dem_work *w = s->work;
+  if (io_scratch(m, s, err)) return -1;
+  w->io_counters[IO_C_FORMAT] = IO_FORMAT;
+  w->io_counters[IO_C_MODEL] = model_fingerprint(m);
+  w->io_counters[IO_C_STEP] = s->step;
+  w->io_counters[IO_C_REBUILDS] = s->rebuilds;
+  w->io_counters[IO_C_CONTACTS] = s->contacts;
+  w->io_scalars[IO_S_T] = s->t;
+  w->io_scalars[IO_S_KE] = s->kinetic_energy;
+  w->io_scalars[IO_S_ELASTIC] = s->elastic_energy;
+  w->io_scalars[IO_S_OVERLAP] = s->max_overlap_ratio;
+  const int64_t nodes = total_nodes(m);
+  int64_t off = 0;
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    const size_t b = sizeof(double) * 3 * (size_t)m->meshes[mi].n_nodes;
+    memcpy(w->io_mesh + 3 * off, s->mesh_x[mi], b);
+    memcpy(w->io_mesh + 3 * (nodes + off), s->mesh_v[mi], b);
+    memcpy(w->io_mesh + 3 * (2 * nodes + off), s->mesh_force[mi], b);
+    off += m->meshes[mi].n_nodes;
+  }
+  io_entry e[IO_MAX];
+  const int ne = layout(m, s, w->nl_start[s->n], e);
+  for (int k = 0; k < ne; k++)
+    if (proto_msg_add(out, e[k].name, e[k].dtype, e[k].ndim, e[k].shape, e[k].data))
+      return proto_fail(err, "state export: message full at '%s' (%d arrays of at most %d)", e[k].name,
+                        ne, PROTO_MAX_ARRAYS);
+  return 0;
+}
+
+/* ------------------------------------------------------------------ import */
+
+static const void *get(const proto_msg *in, const io_entry *e, proto_err *err) {
+  const proto_array *a = proto_msg_get(in, e->name, e->dtype, e->ndim, e->shape, err);
+  if (!a) return NULL;
+  if (a->nbytes != entry_bytes(e)) {
+    proto_fail(err, "state import: array '%s' has %zu bytes, expected %zu", e->name, a->nbytes,
+               entry_bytes(e));
+    return NULL;
+  }
+  return a->data;
+}
+
+/* Contents that later steps index with: a bad file must not crash a run. */
+static int check_contents(const dem_model *m, dem_state *s, const void *const *src, const io_entry *e,
+                          int ne, proto_err *err) {
+  const int n = s->n;
+  const int32_t *id = NULL, *start = NULL, *nj = NULL;
+  const uint8_t *touch = NULL, *mesh = NULL;
+  const int64_t *key = NULL, *mask = NULL, *ptouch = NULL, *cnt = NULL;
+  int64_t npairs = 0;
+  for (int k = 0; k < ne; k++) {
+    const char *nm = e[k].name;
+    if (!strcmp(nm, "state.id")) id = src[k];
+    else if (!strcmp(nm, "state.nl_start")) start = src[k];
+    else if (!strcmp(nm, "state.nl_j")) { nj = src[k]; npairs = e[k].shape[0]; }
+    else if (!strcmp(nm, "state.pair_touch")) touch = src[k];
+    else if (!strcmp(nm, "state.mc_mesh")) mesh = src[k];
+    else if (!strcmp(nm, "state.mc_key")) key = src[k];
+    else if (!strcmp(nm, "state.plane_mask")) mask = src[k];
+    else if (!strcmp(nm, "state.plane_touch")) ptouch = src[k];
+    else if (!strcmp(nm, "state.counters")) cnt = src[k];
+  }
+  int *seen = s->work->old_of; /* scratch outside a rebuild */
+  memset(seen, 0, sizeof(int) * (size_t)n);
+  for (int i = 0; i < n; i++) {
+    if (id[i] < 0 || id[i] >= n || seen[id[i]]++)
+      return proto_fail(err, "state import: 'state.id' is not a permutation of 0..%d (slot %d: %d)", n - 1, i,
+                        (int)id[i]);
+  }
+  if (start[0] != 0)
+    return proto_fail(err, "state import: 'state.nl_start'[0] = %d, expected 0", (int)start[0]);
+  for (int i = 0; i < n; i++) {
+    if (start[i + 1] < start[i] || start[i + 1] > npairs)
+      return proto_fail(err, "state import: 'state.nl_start' is not a non-decreasing list up to %lld at %d",
+                        (long long)npairs, i + 1);
+    for (int32_t k = start[i]; k < start[i + 1]; k++)
+      if (nj[k] <= i || nj[k] >= n)
+        return proto_fail(err, "state import: 'state.nl_j'[%d] = %d outside (%d, %d)", (int)k, (int)nj[k], i, n);
+  }
+  for (int64_t k = 0; k < npairs; k++)
+    if (touch[k] > 1) return proto_fail(err, "state import: 'state.pair_touch'[%lld] is not 0/1", (long long)k);
+  const uint64_t planes = m->n_planes >= 64 ? ~0ull : (1ull << m->n_planes) - 1;
+  for (int i = 0; mask && i < n; i++)
+    if (((uint64_t)mask[i] & ~planes) || ((uint64_t)ptouch[i] & ~planes))
+      return proto_fail(err, "state import: 'state.plane_mask'/'state.plane_touch'[%d] names a plane >= %d", i,
+                        m->n_planes);
+  for (int64_t k = 0; key && k < (int64_t)n * DEM_MESH_SLOTS; k++)
+    if (key[k] != 0 && mesh[k] >= m->n_meshes)
+      return proto_fail(err, "state import: 'state.mc_mesh'[%lld] = %d, only %d meshes", (long long)k,
+                        (int)mesh[k], m->n_meshes);
+  if (cnt[IO_C_STEP] < 0 || cnt[IO_C_REBUILDS] < 0)
+    return proto_fail(err, "state import: 'state.counters' has a negative step or rebuild count");
+  return 0;
+}
+
+int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, proto_err *err) {
+  struct dem_work *w = s->work;
+  const int n = s->n;
+  if (n != m->n_grains) return proto_fail(err, "state import: the state does not belong to this model");
+  /* the model first: the other shapes mean nothing for another model */
+  const io_entry counters = {"state.counters", PROTO_I8, 1, {IO_NCOUNTERS}, NULL};
+  const int64_t *cnt = get(in, &counters, err);
+  if (!cnt) return -1;
+  if (cnt[IO_C_FORMAT] != IO_FORMAT)
+    return proto_fail(err, "state import: 'state.counters' has format %lld, this dem_server reads %d",
+                      (long long)cnt[IO_C_FORMAT], IO_FORMAT);
+  if (cnt[IO_C_MODEL] != model_fingerprint(m))
+    return proto_fail(err, "state import: 'state.counters' comes from another model (fingerprint %016llx, "
+                      "this model %016llx: grains, materials, walls, meshes or skin differ)",
+                      (unsigned long long)cnt[IO_C_MODEL], (unsigned long long)model_fingerprint(m));
+  const io_entry start = {"state.nl_start", PROTO_I4, 1, {n + 1}, NULL};
+  const int32_t *st = get(in, &start, err);
+  if (!st) return -1;
+  const int64_t npairs = st[n];
+  if (npairs < 0 || npairs > INT_MAX / 8)
+    return proto_fail(err, "state import: 'state.nl_start'[%d] = %lld pairs", n, (long long)npairs);
+  if (io_scratch(m, s, err)) return -1;
+  io_entry e[IO_MAX];
+  const void *src[IO_MAX];
+  const int ne = layout(m, s, npairs, e);
+  for (int k = 0; k < ne; k++)
+    if (!(src[k] = get(in, &e[k], err))) return proto_wrap(err, "state import");
+  for (int a = 0; a < in->narrays; a++) {
+    const char *nm = in->arrays[a].name;
+    int known = strncmp(nm, "state.", 6) != 0;
+    for (int k = 0; k < ne && !known; k++) known = !strcmp(nm, e[k].name);
+    if (!known) return proto_fail(err, "state import: unexpected array '%s' (not part of this model's state)", nm);
+  }
+  if (check_contents(m, s, src, e, ne, err)) return -1;
+  /* valid: make room, then copy (the layout again: buffers may have moved) */
+  if (dem_neigh_reserve(m, s, (int)npairs, err)) return -1;
+  layout(m, s, npairs, e);
+  for (int k = 0; k < ne; k++) memcpy(e[k].data, src[k], entry_bytes(&e[k]));
+  s->step = cnt[IO_C_STEP];
+  s->rebuilds = cnt[IO_C_REBUILDS];
+  s->contacts = cnt[IO_C_CONTACTS];
+  s->t = w->io_scalars[IO_S_T];
+  s->kinetic_energy = w->io_scalars[IO_S_KE];
+  s->elastic_energy = w->io_scalars[IO_S_ELASTIC];
+  s->max_overlap_ratio = w->io_scalars[IO_S_OVERLAP];
+  /* what follows from the slot order: the grains' constants and the reverse
+   * pair index; the meshes' BVH (contact order does not depend on its shape) */
+  for (int i = 0; i < n; i++) dem_grain_constants(m, s, i, s->id[i]);
+  dem_neigh_reverse(s);
+  w->have_old = 1;
+  const int64_t nodes = total_nodes(m);
+  int64_t off = 0;
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    const dem_mesh *me = &m->meshes[mi];
+    const size_t b = sizeof(double) * 3 * (size_t)me->n_nodes;
+    memcpy(s->mesh_x[mi], w->io_mesh + 3 * off, b);
+    memcpy(s->mesh_v[mi], w->io_mesh + 3 * (nodes + off), b);
+    memcpy(s->mesh_force[mi], w->io_mesh + 3 * (2 * nodes + off), b);
+    off += me->n_nodes;
+    if (dem_bvh_build(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri))
+      return proto_fail(err, "state import: out of memory for the BVH of mesh %d", mi);
+  }
+  return 0;
+}

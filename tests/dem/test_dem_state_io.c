@@ -1,0 +1,226 @@
+/* dem_state_export/import: a settling bed in a box, ploughed by a rigid
+ * moving plate (mesh wall) and pressed by a coupled mesh whose nodes are set
+ * every coupling step, with sliding contacts: N steps straight == N/2, export,
+ * import into a fresh state (also one with another thread count), N/2 —
+ * bitwise. A state of another model, and damaged arrays, are refused with a
+ * message naming the array. */
+#include "dem_test.h"
+#include "dem_server/dem_internal.h"
+#include <string.h>
+
+static const char *JSON =
+    "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.6}],"
+    "\"threads\":%d,\"dt\":5e-5,"
+    "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[0.1414213562,0.1414213562,1],\"open_top\":true},"
+    /* a vertical plate in x = 0 ploughing along +x */
+    "{\"type\":\"mesh\",\"nodes\":[[0,0.01,0.015],[0,0.13,0.015],[0,0.13,0.12],[0,0.01,0.12]],"
+    "\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[0.4,0,0]}],"
+    "\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":%d}}";
+
+/* The coupled "foot": a 4 x 4 grid of squares, 6 cm wide, coming down. */
+#define FOOT_N 4
+#define FOOT_NODES ((FOOT_N + 1) * (FOOT_N + 1))
+static const double FOOT_Z0 = 0.07, FOOT_VZ = -0.15, FOOT_VX = 0.1;
+static const int COUPLING = 10; /* DEM steps per coupling step */
+
+static void foot(double t, double *x, double *v) {
+  for (int j = 0; j <= FOOT_N; j++)
+    for (int i = 0; i <= FOOT_N; i++) {
+      double *p = &x[3 * (j * (FOOT_N + 1) + i)], *u = &v[3 * (j * (FOOT_N + 1) + i)];
+      /* a slightly bent sheet: edge and vertex contacts too */
+      p[0] = 0.04 + 0.015 * i + FOOT_VX * t;
+      p[1] = 0.04 + 0.015 * j;
+      p[2] = FOOT_Z0 + FOOT_VZ * t + 0.002 * ((i + j) % 2);
+      u[0] = FOOT_VX; u[1] = 0; u[2] = FOOT_VZ;
+    }
+}
+
+static void make(int threads, int seed, dem_model *m, dem_state *s) {
+  char json[2048];
+  snprintf(json, sizeof json, JSON, threads, seed);
+  proto_err err = {{0}};
+  cJSON *j = cJSON_Parse(json);
+  int32_t tri[6 * FOOT_N * FOOT_N];
+  for (int b = 0; b < FOOT_N; b++)
+    for (int a = 0; a < FOOT_N; a++) {
+      int32_t *t = &tri[6 * (b * FOOT_N + a)], n0 = b * (FOOT_N + 1) + a;
+      t[0] = n0; t[1] = n0 + 1; t[2] = n0 + FOOT_N + 2;
+      t[3] = n0; t[4] = n0 + FOOT_N + 2; t[5] = n0 + FOOT_N + 1;
+    }
+  double x[3 * FOOT_NODES], v[3 * FOOT_NODES];
+  foot(0, x, v);
+  if (!j || dem_model_from_json(m, j, "processes.dem", &err) ||
+      dem_model_set_surface(m, FOOT_NODES, x, 2 * FOOT_N * FOOT_N, tri, &err) || dem_state_init(m, s, &err)) {
+    fprintf(stderr, "setup: %s\n", err.msg);
+    exit(2);
+  }
+  cJSON_Delete(j);
+}
+
+/* Steps k0..k1−1; the coupled nodes are set at each coupling step. */
+static void run(const dem_model *m, dem_state *s, int k0, int k1) {
+  proto_err err;
+  double x[3 * FOOT_NODES], v[3 * FOOT_NODES];
+  for (int k = k0; k < k1; k++) {
+    if (k % COUPLING == 0) {
+      foot(k * m->dt, x, v);
+      dem_mesh_set_nodes(m, s, m->n_meshes - 1, x, v);
+    }
+    if (dem_step(m, s, &err)) { fprintf(stderr, "step %d: %s\n", k, err.msg); exit(1); }
+  }
+}
+
+/* Grain–grain contacts at the Coulomb limit (|k_t s| ≥ 0.9 μ k_n δ: sliding
+ * or about to), plane and mesh contacts holding a spring. */
+static void count_contacts(const dem_model *m, const dem_state *s, int *slide, int *plane, int *mesh) {
+  const struct dem_work *w = s->work;
+  const dem_pair_law *l = &m->law[0][0];
+  *slide = *plane = *mesh = 0;
+  for (int i = 0; i < s->n; i++)
+    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) {
+      const int j = w->nl_j[k];
+      double d[3] = {s->x[3 * i] - s->x[3 * j], s->x[3 * i + 1] - s->x[3 * j + 1], s->x[3 * i + 2] - s->x[3 * j + 2]};
+      const double delta = s->radius[i] + s->radius[j] - sqrt(dem_dot(d, d));
+      if (delta <= 0) continue;
+      const double rs = s->radius[i] * s->radius[j] / (s->radius[i] + s->radius[j]);
+      const double kn = 4.0 / 3.0 * l->Estar * sqrt(rs * delta), kt = 8 * l->Gstar * sqrt(rs * delta);
+      const double *sh = &w->nl_shear[3 * k];
+      *slide += kt * sqrt(dem_dot(sh, sh)) >= 0.9 * l->mu * kn * delta;
+    }
+  for (size_t k = 0; k < (size_t)m->n_planes * s->n * 3; k++) *plane += w->wall_shear[k] != 0;
+  for (size_t k = 0; k < (size_t)s->n * DEM_MESH_SLOTS; k++) *mesh += w->mc_key[k] != 0;
+}
+
+/* A deep copy of the exported arrays (as a checkpoint file would hold them). */
+static void copy_msg(const proto_msg *in, proto_msg *out, void **bufs) {
+  proto_msg_reset(out, "state", "state", 0, 0);
+  for (int a = 0; a < in->narrays; a++) {
+    const proto_array *x = &in->arrays[a];
+    bufs[a] = malloc(x->nbytes + 1);
+    memcpy(bufs[a], x->data, x->nbytes);
+    proto_msg_add(out, x->name, x->dtype, x->ndim, x->shape, bufs[a]);
+  }
+}
+
+static void expect_refused(const dem_model *m, dem_state *s, const proto_msg *msg, const char *what,
+                           const char *want) {
+  proto_err err = {{0}};
+  int rc = dem_state_import(m, s, msg, &err);
+  printf("%-36s -> %s\n", what, rc ? err.msg : "(accepted)");
+  CHECK(rc != 0, "%s: accepted", what);
+  CHECK(rc == 0 || strstr(err.msg, want), "%s: message lacks '%s'", what, want);
+}
+
+static proto_array *find(proto_msg *m, const char *name) {
+  for (int a = 0; a < m->narrays; a++)
+    if (!strcmp(m->arrays[a].name, name)) return &m->arrays[a];
+  fprintf(stderr, "no array %s\n", name);
+  exit(2);
+}
+
+int main(void) {
+  const int N = 3000, H = N / 2;
+  dem_model m;
+  dem_state a;
+  make(1, 7, &m, &a);
+  const int n = m.n_grains, nodes = FOOT_NODES;
+  run(&m, &a, 0, N);
+  double *xa = malloc(sizeof(double) * 9 * n);
+  dem_gather(&a, a.x, 3, xa);
+  dem_gather(&a, a.v, 3, xa + 3 * n);
+  dem_gather(&a, a.omega, 3, xa + 6 * n);
+
+  /* half, export (deep copy), a fresh state imports it, the other half */
+  dem_state b;
+  dem_model mb;
+  make(1, 7, &mb, &b);
+  run(&mb, &b, 0, H);
+  int slide, plane, mesh;
+  count_contacts(&mb, &b, &slide, &plane, &mesh);
+  printf("%d grains; at the export (step %d): %lld contacts, %d grain pairs at the Coulomb limit, "
+         "%d plane and %d mesh springs, %lld rebuilds\n",
+         n, H, (long long)b.contacts, slide, plane, mesh, (long long)b.rebuilds);
+  CHECK(slide > 10 && plane > 10 && mesh > 5, "scene does not exercise sliding, wall and mesh contacts");
+  proto_err err = {{0}};
+  proto_msg ex = {0}, cp = {0};
+  void *bufs[PROTO_MAX_ARRAYS];
+  proto_msg_reset(&ex, "state", "state", 0, 0);
+  CHECK(dem_state_export(&mb, &b, &ex, &err) == 0, "export: %s", err.msg);
+  copy_msg(&ex, &cp, bufs);
+  printf("exported %d arrays\n", ex.narrays);
+  /* exporting again allocates nothing new and gives the same buffers */
+  proto_msg ex2 = {0};
+  proto_msg_reset(&ex2, "state", "state", 0, 0);
+  dem_state_export(&mb, &b, &ex2, &err);
+  for (int k = 0; k < ex.narrays; k++) CHECK(ex2.arrays[k].data == ex.arrays[k].data, "export buffers moved");
+  proto_msg_free(&ex2);
+  proto_msg_free(&ex);
+  dem_state_free(&b);
+  for (int threads = 1; threads <= 2; threads++) {
+    dem_model mc;
+    dem_state c;
+    make(threads, 7, &mc, &c);
+    CHECK(dem_state_import(&mc, &c, &cp, &err) == 0, "import: %s", err.msg);
+    run(&mc, &c, H, N);
+    double *xc = malloc(sizeof(double) * 9 * n);
+    dem_gather(&c, c.x, 3, xc);
+    dem_gather(&c, c.v, 3, xc + 3 * n);
+    dem_gather(&c, c.omega, 3, xc + 6 * n);
+    printf("%d thread(s) after import: KE %.17g (straight %.17g), step %lld, t %.17g\n", threads,
+           c.kinetic_energy, a.kinetic_energy, (long long)c.step, c.t);
+    CHECK(memcmp(xa, xc, sizeof(double) * 9 * n) == 0, "x, v, ω differ after export/import (%d threads)", threads);
+    CHECK(c.kinetic_energy == a.kinetic_energy && c.t == a.t && c.step == a.step && c.rebuilds == a.rebuilds,
+          "KE, t, step or rebuilds differ after export/import");
+    CHECK(memcmp(c.wall_force, a.wall_force, sizeof(double) * 3 * m.n_walls) == 0, "wall forces differ");
+    CHECK(memcmp(c.mesh_force[1], a.mesh_force[1], sizeof(double) * 3 * nodes) == 0 &&
+              memcmp(c.mesh_x[0], a.mesh_x[0], sizeof(double) * 3 * 4) == 0,
+          "mesh nodal forces or plate position differ");
+    free(xc);
+    dem_state_free(&c);
+    dem_model_free(&mc);
+  }
+
+  /* refusals: another model; damaged arrays (the state stays usable) */
+  {
+    dem_model mo;
+    dem_state so;
+    make(1, 8, &mo, &so); /* same counts, other radii */
+    expect_refused(&mo, &so, &cp, "state of another model", "another model");
+    dem_state_free(&so);
+    dem_model_free(&mo);
+  }
+  dem_state d;
+  dem_model md;
+  make(1, 7, &md, &d);
+  proto_array *nlj = find(&cp, "state.nl_j");
+  int32_t *js = (int32_t *)nlj->data, save = js[0];
+  js[0] = -5;
+  expect_refused(&md, &d, &cp, "neighbour index out of range", "state.nl_j");
+  js[0] = save;
+  proto_array *v = find(&cp, "state.v");
+  v->shape[0]--;
+  expect_refused(&md, &d, &cp, "wrong shape", "state.v");
+  v->shape[0]++;
+  proto_array *id = find(&cp, "state.id");
+  int32_t *ids = (int32_t *)id->data, id0 = ids[0];
+  ids[0] = ids[1];
+  expect_refused(&md, &d, &cp, "id not a permutation", "state.id");
+  ids[0] = id0;
+  v->dtype = PROTO_I8;
+  expect_refused(&md, &d, &cp, "wrong dtype", "state.v");
+  v->dtype = PROTO_F8;
+  snprintf(find(&cp, "state.mc_key")->name, PROTO_NAME_LEN, "state.mc_keys");
+  expect_refused(&md, &d, &cp, "missing array", "state.mc_key");
+  snprintf(find(&cp, "state.mc_keys")->name, PROTO_NAME_LEN, "state.mc_key");
+  CHECK(dem_state_import(&md, &d, &cp, &err) == 0, "the repaired message is refused: %s", err.msg);
+  dem_state_free(&d);
+  dem_model_free(&md);
+
+  for (int k = 0; k < cp.narrays; k++) free(bufs[k]);
+  proto_msg_free(&cp);
+  free(xa);
+  dem_state_free(&a);
+  dem_model_free(&m);
+  dem_model_free(&mb);
+  return finish("test_dem_state_io");
+}
