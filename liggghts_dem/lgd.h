@@ -32,6 +32,8 @@ typedef struct lgd_options {
   const char *tmp_dir; /* where rank 0 writes the input files (NULL: $TMPDIR or /tmp) */
   int frozen_activity; /* 1: keep LIGGGHTS' own edge/corner activity of the initial
                           shape (its behaviour; for measuring the trap, lgd_topo) */
+  double face_tolerance; /* LIGGGHTS mesh `precision` (m); 0: from the grain size
+                            (lgd_script.c); for measuring its effect */
 } lgd_options;
 
 /* Per-step results, valid on rank 0 after lgd_step. Forces are averages over
@@ -44,6 +46,22 @@ typedef struct lgd_out {
                           node (N); NULL without a coupled surface */
   int64_t substeps;    /* DEM steps in the last coupling step */
 } lgd_out;
+
+/* Where the time goes on rank 0 (seconds, summed over lgd_step calls). */
+enum { LGD_LIG_LOOP, LGD_LIG_PAIR, LGD_LIG_NEIGH, LGD_LIG_COMM, LGD_LIG_MODIFY, LGD_LIG_OUTPUT,
+       LGD_LIG_TIMERS };
+typedef struct lgd_timing {
+  int64_t steps, substeps;
+  double total;   /* inside lgd_step */
+  double run;     /* LIGGGHTS `run 1` calls (its loop and the call's own set-up) */
+  double surface; /* node positions, activity rule, copying them into LIGGGHTS */
+  double forces;  /* contacts onto the nodes, wall forces */
+  double summary; /* series values, checks, reductions */
+  double lig[LGD_LIG_TIMERS]; /* LIGGGHTS' own timer inside the runs: loop, pair,
+                                 neighbour lists, communication, fixes (LIGGGHTS 3.8
+                                 leaves it 0: walls, meshes and integration are the
+                                 loop minus the others), output */
+} lgd_timing;
 
 typedef struct lgd_sim lgd_sim;
 
@@ -68,6 +86,7 @@ const lgd_out *lgd_result(const lgd_sim *s);
 /* Grain positions, velocities, angular velocities in config order, on rank 0
  * (arrays [n_grains*3]; NULL allowed on other ranks). */
 int lgd_gather(lgd_sim *s, double *x, double *v, double *omega, proto_err *err);
+const lgd_timing *lgd_time(const lgd_sim *s);
 /* Triangles LIGGGHTS holds for model mesh k (after lgd_open). */
 int lgd_mesh_triangles(const lgd_sim *s, int mesh);
 /* The edge/corner activity LIGGGHTS uses now for mesh k ([n_tri*3] each, on

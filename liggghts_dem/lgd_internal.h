@@ -58,6 +58,10 @@ int lgd_shim_mesh_force(void *lmp, const char *fix_id, double *f);
 /* Grain–grain contacts of this rank from the pair neighbour list; estar is
  * [ntypes*ntypes] by (type-1). */
 void lgd_shim_pair_stats(void *lmp, const double *estar, int ntypes, lgd_stats *st);
+/* Adds LIGGGHTS' timer of the last run to acc[LGD_SHIM_TIMERS]: loop, pair,
+ * neigh, comm, modify, output (the order of lgd_timing.lig). */
+#define LGD_SHIM_TIMERS 6
+void lgd_shim_timer_add(void *lmp, double *acc);
 /* Empties LIGGGHTS' screen file when it grew beyond max_bytes (rank 0). */
 void lgd_shim_screen_trim(void *lmp, long max_bytes);
 /* Grows rows to hold n more; -1 when out of memory. */
@@ -95,7 +99,9 @@ typedef struct lgd_script {
   char *text;
   size_t len, cap;
 } lgd_script;
-int lgd_script_build(const dem_model *m, const char *dir, lgd_script *s, proto_err *err);
+/* face_tolerance: LIGGGHTS mesh `precision`, 0 = chosen from the grain size. */
+int lgd_script_build(const dem_model *m, const char *dir, double face_tolerance, lgd_script *s,
+                     proto_err *err);
 void lgd_script_free(lgd_script *s);
 /* Y* per type pair [ntypes*ntypes] (caller frees). */
 double *lgd_estar_table(const dem_model *m);

@@ -214,10 +214,9 @@ static double face_tolerance(const dem_model *m) {
 }
 
 static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const char *model,
-                     proto_err *err) {
+                     double tol, proto_err *err) {
   static const char *const plane_kw[3] = {"xplane", "yplane", "zplane"};
   int rc = 0;
-  const double tol = face_tolerance(m);
   for (int p = 0; p < m->n_planes && !rc; p++) {
     const dem_plane *pl = &m->planes[p];
     const int d = lgd_plane_axis(pl);
@@ -246,7 +245,7 @@ static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const c
   return rc ? proto_fail(err, "LIGGGHTS input: out of memory") : 0;
 }
 
-int lgd_script_build(const dem_model *m, const char *dir, lgd_script *s, proto_err *err) {
+int lgd_script_build(const dem_model *m, const char *dir, double tol, lgd_script *s, proto_err *err) {
   memset(s, 0, sizeof *s);
   if (lgd_check_model(m, err)) return -1;
   char data[600];
@@ -274,7 +273,7 @@ int lgd_script_build(const dem_model *m, const char *dir, lgd_script *s, proto_e
   const double *g = m->gravity, gm = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
   if (gm > 0) rc = rc || add(s, "fix lgd_gravity all gravity %.17g vector %.17g %.17g %.17g\n", gm, g[0], g[1], g[2]);
   if (rc) return proto_fail(err, "LIGGGHTS input: out of memory");
-  if (add_walls(s, m, dir, model, err)) return -1;
+  if (add_walls(s, m, dir, model, tol > 0 ? tol : face_tolerance(m), err)) return -1;
   if (nt > m->n_materials) /* grains that do not rotate: translation only */
     rc = add(s, "group lgd_rot type 1:%d\ngroup lgd_fixed type %d:%d\nfix lgd_nve lgd_rot nve/sphere\n"
                 "fix lgd_nve_fixed lgd_fixed nve\n", m->n_materials, m->n_materials + 1, nt);

@@ -17,6 +17,7 @@
 #include "modify.h"
 #include "neigh_list.h"
 #include "pair.h"
+#include "timer.h"
 #include "tri_mesh.h"
 
 #include "liggghts_dem/lgd_internal.h"
@@ -169,6 +170,12 @@ extern "C" void lgd_shim_pair_stats(void *lmp, const double *estar, int ntypes, 
       st->pair_contacts += weight;
     }
   }
+}
+
+extern "C" void lgd_shim_timer_add(void *lmp, double *acc) {
+  const double *t = static_cast<LAMMPS *>(lmp)->timer->array; /* reset by every run */
+  const int order[LGD_SHIM_TIMERS] = {TIME_LOOP, TIME_PAIR, TIME_NEIGHBOR, TIME_COMM, TIME_MODIFY, TIME_OUTPUT};
+  for (int k = 0; k < LGD_SHIM_TIMERS; k++) acc[k] += t[order[k]];
 }
 
 extern "C" void lgd_shim_screen_trim(void *lmp, long max_bytes) {

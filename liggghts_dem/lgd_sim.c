@@ -16,6 +16,7 @@
 #define LGD_SETTLE_MIN 100        /* dem_settle's minimum before the check counts */
 #define LGD_SNAP_COLS 10          /* gathered per grain: tag, x, v, omega */
 static const char RUN_ONE[] = "run 1 pre no post no";
+_Static_assert(LGD_SHIM_TIMERS == LGD_LIG_TIMERS, "the shim's timer order is lgd_timing.lig's");
 
 struct lgd_sim {
   dem_model *m;
@@ -36,6 +37,7 @@ struct lgd_sim {
   int mesh_tri[DEM_MAX_MESHES];
   int plane_axis[DEM_MAX_PLANES];
   int frozen_activity;
+  lgd_timing time;
   double *gsend, *grecv;
   int gsend_cap, *counts, *displs;
 };
@@ -53,6 +55,7 @@ static int agree(MPI_Comm comm, int rc, proto_err *err) {
 }
 
 const lgd_out *lgd_result(const lgd_sim *s) { return &s->out; }
+const lgd_timing *lgd_time(const lgd_sim *s) { return &s->time; }
 
 int lgd_mesh_triangles(const lgd_sim *s, int mesh) {
   return mesh >= 0 && mesh < s->m->n_meshes ? s->mesh_tri[mesh] : -1;
@@ -106,7 +109,7 @@ static int make_script(lgd_sim *s, const lgd_options *o, char *dir, size_t dirca
       rc = proto_fail(err, "%s: cannot create a directory for the LIGGGHTS input", dir);
       dir[0] = 0;
     } else {
-      rc = lgd_script_build(s->m, dir, &sc, err);
+      rc = lgd_script_build(s->m, dir, o ? o->face_tolerance : 0, &sc, err);
       len = rc ? 0 : (long)sc.len;
     }
   }
@@ -391,6 +394,9 @@ static int change_dt(lgd_sim *s, double dt, proto_err *err) {
 
 int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err *err) {
   dem_model *m = s->m;
+  lgd_timing *tm = &s->time;
+  const double t_start = MPI_Wtime();
+  double t0;
   int rc = 0;
   if (!(dt > 0)) rc = proto_fail(err, "coupling dt must be > 0 (got %g)", dt);
   else if (fabs(dt - s->coupling_dt) > 1e-12 * dt) rc = change_dt(s, dt, err);
@@ -408,6 +414,7 @@ int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err 
   }
   lgd_stats st = {0};
   for (long long k = 0; k < nsub && !rc; k++) {
+    t0 = MPI_Wtime();
     if (s->surface >= 0) {
       /* the surface moves with its node velocities through the step, and the
        * forces of each sub-step see it where it is (dem_mesh_move) */
@@ -419,14 +426,21 @@ int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err 
                             s->frozen_activity ? NULL : s->edge_on, s->frozen_activity ? NULL : s->corner_on))
         rc = proto_fail(err, "LIGGGHTS mesh %s not found", sid);
     }
+    tm->surface += MPI_Wtime() - t0;
+    t0 = MPI_Wtime();
     lammps_command(s->lmp, RUN_ONE);
+    tm->run += MPI_Wtime() - t0;
+    lgd_shim_timer_add(s->lmp, tm->lig);
+    t0 = MPI_Wtime();
     if (!rc && s->surface >= 0) rc = add_nodal(s, err);
     if (!rc) {
       memset(&st, 0, sizeof st); /* statistics: the last sub-step's */
       rc = add_planes(s, &st, err);
       if (!rc) rc = add_meshes(s, err);
     }
+    tm->forces += MPI_Wtime() - t0;
   }
+  t0 = MPI_Wtime();
   s->t += dt;
   if (!rc) rc = mesh_stats(s, &st, err);
   if (!rc) lgd_shim_pair_stats(s->lmp, s->estar, s->ntypes, &st);
@@ -452,6 +466,10 @@ int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err 
     for (int a = 0; a < 3 * s->n_nodes; a++) s->out.nodal_force[a] = s->nodal_local[a] / (double)nsub;
     lgd_shim_screen_trim(s->lmp, LGD_SCREEN_MAX);
   }
+  tm->summary += MPI_Wtime() - t0;
+  tm->total += MPI_Wtime() - t_start;
+  tm->steps++;
+  tm->substeps += nsub;
   if (!isfinite(tot[0]))
     rc = proto_fail(err, "t = %.6g s: non-finite kinetic energy", s->t);
   else if (ratio > m->max_overlap_ratio)

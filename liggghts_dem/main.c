@@ -33,6 +33,7 @@ typedef struct app {
   double *x, *v;                    /* surface nodes of the step (every rank) */
   double *wall_row;                 /* t, then Fx Fy Fz per wall */
   double *snap_x, *snap_v, *snap_w, *snap_r;
+  double t_step, t_bcast;           /* rank 0: in step(), broadcasting to the ranks */
 } app;
 
 static app g_app; /* one per process; the exit handler reads it */
@@ -230,9 +231,27 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   return 0;
 }
 
+/* Where the time went, per coupling step, in the log (rank 0). */
+static void log_timing(const app *a) {
+  const lgd_timing *t = a->sim ? lgd_time(a->sim) : NULL;
+  if (!t || t->steps == 0) return;
+  const double k = 1e3 / (double)t->steps;
+  const double *l = t->lig;
+  fprintf(stderr, "liggghts_dem: %lld coupling steps (%lld DEM steps) on rank 0, ms per coupling step: "
+          "participant %.3f = LIGGGHTS runs %.3f [its loop %.3f: pair %.3f, neighbour lists %.3f, "
+          "communication %.3f, output %.3f, the rest (walls, meshes, integration) %.3f] + surface %.3f + nodal/wall forces %.3f + "
+          "summary %.3f + broadcast to the ranks %.3f + reply %.3f\n",
+          (long long)t->steps, (long long)t->substeps, a->t_step * k, t->run * k, l[LGD_LIG_LOOP] * k,
+          l[LGD_LIG_PAIR] * k, l[LGD_LIG_NEIGH] * k, l[LGD_LIG_COMM] * k, l[LGD_LIG_OUTPUT] * k,
+          (l[LGD_LIG_LOOP] - l[LGD_LIG_PAIR] - l[LGD_LIG_NEIGH] - l[LGD_LIG_COMM] - l[LGD_LIG_OUTPUT]) * k,
+          t->surface * k, t->forces * k, t->summary * k, a->t_bcast * k,
+          (a->t_step - t->total - a->t_bcast) * k);
+}
+
 static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *reply, proto_err *err) {
   (void)peer;
   app *a = user;
+  const double t0 = MPI_Wtime();
   const cJSON *hdt = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "dt") : NULL;
   const cJSON *hout = req->header ? cJSON_GetObjectItemCaseSensitive(req->header, "output") : NULL;
   op_msg op = {.op = OP_STEP, .dt = cJSON_IsNumber(hdt) ? hdt->valuedouble : a->run_dt,
@@ -245,11 +264,13 @@ static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *r
     memcpy(a->x, x, sizeof(double) * 3 * (size_t)a->n_nodes);
     memcpy(a->v, v, sizeof(double) * 3 * (size_t)a->n_nodes);
   }
+  const double tb = MPI_Wtime();
   bcast_op(&op);
   if (a->n_nodes > 0) {
     MPI_Bcast(a->x, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
     MPI_Bcast(a->v, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
   }
+  a->t_bcast += MPI_Wtime() - tb;
   if (do_step(a, op.dt, op.output, err)) return -1;
   const lgd_out *o = lgd_result(a->sim);
   const dem_model *m = &a->model;
@@ -265,11 +286,13 @@ static int step(void *user, proto_peer *peer, const proto_msg *req, proto_msg *r
         proto_msg_add_f8(reply, "snap.omega", n, 3, a->snap_w) || proto_msg_add_f8(reply, "snap.r", n, 0, a->snap_r))
       return proto_fail(err, "reply full");
   }
+  a->t_step += MPI_Wtime() - t0;
   return 0;
 }
 
 static void finish(void *user) {
   app *a = user;
+  log_timing(a);
   if (a->mpi) {
     op_msg op = {.op = OP_FINISH};
     bcast_op(&op);
