@@ -173,12 +173,6 @@ void lgd_topo_free(lgd_topo *t) {
 
 static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
-static void unit_diff(const double *p, const double *q, double *out) {
-  for (int k = 0; k < 3; k++) out[k] = q[k] - p[k];
-  const double l = sqrt(dot3(out, out));
-  for (int k = 0; k < 3; k++) out[k] = l > 0 ? out[k] / l : 0;
-}
-
 /* LIGGGHTS' coplanarNeighsOverlap: the third nodes of both triangles lie on
  * the same side of the shared edge (a fold), which counts as not coplanar. */
 static int folded(const lgd_topo *t, const double *x, int ta, int tb, int e) {
@@ -202,18 +196,28 @@ static int folded(const lgd_topo *t, const double *x, int ta, int tb, int e) {
 
 void lgd_topo_activity(lgd_topo *t, const double *x, uint8_t *edge_active, uint8_t *corner_active) {
   const double curv = LGD_CURVATURE;
+  /* unit edge vectors: differences, then one branch-free pass that the
+   * compiler vectorises (LIGGGHTS refuses zero-length edges: lgd_open) */
   for (int e = 0; e < t->n_edges; e++)
-    unit_diff(&x[3 * t->edge_node[2 * e]], &x[3 * t->edge_node[2 * e + 1]], &t->dir[3 * e]);
+    for (int k = 0; k < 3; k++)
+      t->dir[3 * e + k] = x[3 * t->edge_node[2 * e + 1] + k] - x[3 * t->edge_node[2 * e] + k];
+  for (int e = 0; e < t->n_edges; e++) {
+    double *d = &t->dir[3 * e];
+    const double il = 1.0 / sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    d[0] *= il; d[1] *= il; d[2] *= il;
+  }
   for (int i = 0; i < t->n_tri; i++) { /* LIGGGHTS: unit edge 0 × unit edge 1 */
     const int32_t *n = &t->tri[3 * i];
-    double a[3], b[3], *c = &t->normal[3 * i];
-    unit_diff(&x[3 * n[0]], &x[3 * n[1]], a);
-    unit_diff(&x[3 * n[1]], &x[3 * n[2]], b);
-    c[0] = a[1] * b[2] - a[2] * b[1];
-    c[1] = a[2] * b[0] - a[0] * b[2];
-    c[2] = a[0] * b[1] - a[1] * b[0];
-    const double l = sqrt(dot3(c, c));
-    for (int k = 0; k < 3; k++) c[k] = l > 0 ? c[k] / l : 0;
+    const int e0 = t->tri_edge[3 * i], e1 = t->tri_edge[3 * i + 1];
+    /* the edges are stored from the lower node: flip to the triangle's sense */
+    const double s = (n[0] == t->edge_node[2 * e0] ? 1.0 : -1.0) * (n[1] == t->edge_node[2 * e1] ? 1.0 : -1.0);
+    const double *a = &t->dir[3 * e0], *b = &t->dir[3 * e1];
+    double *c = &t->normal[3 * i];
+    c[0] = s * (a[1] * b[2] - a[2] * b[1]);
+    c[1] = s * (a[2] * b[0] - a[0] * b[2]);
+    c[2] = s * (a[0] * b[1] - a[1] * b[0]);
+    const double il = 1.0 / sqrt(dot3(c, c)); /* degenerate triangles: refused (lgd_open) */
+    for (int k = 0; k < 3; k++) c[k] *= il;
   }
   memset(edge_active, 1, 3 * (size_t)t->n_tri);
   for (int e = 0; e < t->n_edges; e++) {

@@ -61,6 +61,25 @@ static inline void model_from_json(const char *json, dem_model *m) {
   cJSON_Delete(j);
 }
 
+/* An n × n grid of squares over [-L, L]² (each split along the same
+ * diagonal), heights z = h(x) with slope s·|x| folded at x = 0 (s = 0: flat
+ * at z0). x0 [3(n+1)²], tri [6n²]. */
+static inline void lgd_grid(int n, double L, double z0, double s, double *x0, int32_t *tri) {
+  for (int j = 0; j <= n; j++)
+    for (int i = 0; i <= n; i++) {
+      double *p = &x0[3 * (j * (n + 1) + i)];
+      p[0] = -L + 2 * L * i / n;
+      p[1] = -L + 2 * L * j / n;
+      p[2] = z0 - s * fabs(p[0]);
+    }
+  for (int j = 0; j < n; j++)
+    for (int i = 0; i < n; i++) {
+      const int32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+      const int32_t tt[6] = {a, b, d, a, d, c};
+      memcpy(&tri[6 * (j * n + i)], tt, sizeof tt);
+    }
+}
+
 /* The coupled surface's motion: positions at time t and velocities over the
  * step that starts there (x(t + dt) = x(t) + v dt exactly, as both engines
  * move a surface within a step). */
@@ -78,8 +97,9 @@ typedef struct twin {
   double last_nodal_diff, last_nodal_max; /* the same, last step only */
 } twin;
 
-static inline void twin_open(twin *w, const char *json, int nn, const double *x0, int nt,
-                             const int32_t *tri, double coupling_dt, int frozen) {
+/* tolerance: LIGGGHTS' face tolerance (0 = liggghts_dem's choice). */
+static inline void twin_open_tol(twin *w, const char *json, int nn, const double *x0, int nt,
+                                 const int32_t *tri, double coupling_dt, int frozen, double tolerance) {
   proto_err err = {{0}};
   memset(w, 0, sizeof *w);
   model_from_json(json, &w->ml);
@@ -94,7 +114,7 @@ static inline void twin_open(twin *w, const char *json, int nn, const double *x0
   if (dem_model_set_dt(&w->ml, coupling_dt, &err) || dem_model_set_dt(&w->md, coupling_dt, &err))
     die("dt", &err);
   if (dem_state_init(&w->md, &w->sd, &err)) die("dem_server state", &err);
-  lgd_options o = {.frozen_activity = frozen};
+  lgd_options o = {.frozen_activity = frozen, .face_tolerance = tolerance};
   if (lgd_open(&w->sim, MPI_COMM_WORLD, &w->ml, &o, &err)) die("liggghts", &err);
   w->nn = nn;
   w->coupling_dt = coupling_dt;
@@ -104,6 +124,11 @@ static inline void twin_open(twin *w, const char *json, int nn, const double *x0
   w->dem_nodal = calloc(n3, sizeof(double));
   w->dem_wall = calloc(3 * (size_t)w->md.n_walls + 3, sizeof(double));
   w->lx = calloc(3 * (size_t)w->md.n_grains, sizeof(double));
+}
+
+static inline void twin_open(twin *w, const char *json, int nn, const double *x0, int nt,
+                             const int32_t *tri, double coupling_dt, int frozen) {
+  twin_open_tol(w, json, nn, x0, nt, tri, coupling_dt, frozen, 0);
 }
 
 /* One coupling step in both engines; dem_server's forces are averaged over

@@ -19,23 +19,7 @@ static const double L = 0.02, R = 0.004, RISE = 0.002, T1 = 0.05, DROP = 0.001;
 static double g_x0[3 * NN];
 static int32_t g_tri[3 * 2 * N * N];
 
-static void plate(void) {
-  for (int j = 0; j <= N; j++)
-    for (int i = 0; i <= N; i++) {
-      double *p = &g_x0[3 * (j * (N + 1) + i)];
-      p[0] = -L + 2 * L * i / N;
-      p[1] = -L + 2 * L * j / N;
-      p[2] = 0;
-    }
-  int32_t *t = g_tri;
-  for (int j = 0; j < N; j++)
-    for (int i = 0; i < N; i++) {
-      const int32_t a = j * (N + 1) + i, b = a + 1, c = a + N + 1, d = c + 1;
-      const int32_t tt[6] = {a, b, d, a, d, c};
-      memcpy(t, tt, sizeof tt);
-      t += 6;
-    }
-}
+static void plate(void) { lgd_grid(N, L, 0, 0, g_x0, g_tri); }
 
 typedef struct bend { int ridge; double dt; } bend;
 

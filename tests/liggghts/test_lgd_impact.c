@@ -30,23 +30,7 @@ static const double L = 0.02, H = -0.001, S = 0.3;
 static double g_x0[3 * (N + 1) * (N + 1)];
 static int32_t g_tri[3 * 2 * N * N];
 
-static void roof(void) {
-  for (int j = 0; j <= N; j++)
-    for (int i = 0; i <= N; i++) {
-      double *p = &g_x0[3 * (j * (N + 1) + i)];
-      p[0] = -L + 2 * L * i / N;
-      p[1] = -L + 2 * L * j / N;
-      p[2] = H - S * fabs(p[0]);
-    }
-  int32_t *t = g_tri;
-  for (int j = 0; j < N; j++)
-    for (int i = 0; i < N; i++) {
-      const int32_t a = j * (N + 1) + i, b = a + 1, c = a + N + 1, d = c + 1;
-      const int32_t tt[6] = {a, b, d, a, d, c};
-      memcpy(t, tt, sizeof tt);
-      t += 6;
-    }
-}
+static void roof(void) { lgd_grid(N, L, H, S, g_x0, g_tri); }
 
 /* Moves at u while the slopes steepen (v_z ∝ −x²): the ridge bends. */
 static void moving_roof(double t, int nn, const double *x0, double *x, double *v, void *ctx) {
