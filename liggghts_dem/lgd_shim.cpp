@@ -160,8 +160,9 @@ extern "C" void lgd_shim_pair_stats(void *lmp, const double *estar, int ntypes, 
     for (int jj = 0; jj < list->numneigh[i]; jj++) {
       const int j = jl[jj] & NEIGHMASK;
       const double dx = x[i][0] - x[j][0], dy = x[i][1] - x[j][1], dz = x[i][2] - x[j][2];
-      const double overlap = r[i] + r[j] - std::sqrt(dx * dx + dy * dy + dz * dz);
-      if (overlap <= 0) continue;
+      const double d2 = dx * dx + dy * dy + dz * dz, rs = r[i] + r[j];
+      if (d2 >= rs * rs) continue; /* most listed pairs do not touch */
+      const double overlap = rs - std::sqrt(d2);
       /* newton off: a pair with a ghost is listed on both ranks */
       const double weight = j < nlocal ? 1.0 : 0.5;
       const double rmin = r[i] < r[j] ? r[i] : r[j];

@@ -36,6 +36,8 @@ struct lgd_sim {
   double t, coupling_dt, lig_dt; /* lig_dt: the step LIGGGHTS integrates with */
   int mesh_tri[DEM_MAX_MESHES];
   int plane_axis[DEM_MAX_PLANES];
+  int32_t *near;          /* (grain index, plane) pairs within r + skin of a plane */
+  int near_n, near_cap, near_valid;
   int frozen_activity;
   lgd_timing time;
   double *gsend, *grecv;
@@ -256,7 +258,7 @@ void lgd_close(lgd_sim *s) {
   free(s->estar); free(s->wall_local); free(s->mesh_acc); free(s->out.wall_force);
   free(s->out.nodal_force); free(s->node_x); free(s->node_v); free(s->nodal_local);
   free(s->edge_on); free(s->corner_on); free(s->rows.v); free(s->gsend); free(s->grecv);
-  free(s->counts); free(s->displs);
+  free(s->counts); free(s->displs); free(s->near);
   if (s->comm != MPI_COMM_NULL && s->comm) MPI_Comm_free(&s->comm);
   free(s);
 }
@@ -301,9 +303,35 @@ static int add_nodal(lgd_sim *s, proto_err *err) {
   return 0;
 }
 
+/* The grains within r + skin of each plane, listed again whenever LIGGGHTS
+ * rebuilt its neighbour lists (only then do grain indices change, and until
+ * then no grain moves more than skin/2). */
+static int list_near_planes(lgd_sim *s, proto_err *err) {
+  const dem_model *m = s->m;
+  const int n = *(int *)lammps_extract_global(s->lmp, "nlocal");
+  double **x = lammps_extract_atom(s->lmp, "x"), *r = lammps_extract_atom(s->lmp, "radius");
+  s->near_n = 0;
+  for (int i = 0; i < n; i++)
+    for (int p = 0; p < m->n_planes; p++) {
+      const int d = s->plane_axis[p];
+      if (fabs(x[i][d] - m->planes[p].point[d]) - r[i] >= m->skin) continue;
+      if (s->near_n == s->near_cap) {
+        const int cap = s->near_cap ? 2 * s->near_cap : 4096;
+        int32_t *t = realloc(s->near, sizeof(int32_t) * 2 * (size_t)cap);
+        if (!t) return proto_fail(err, "out of memory");
+        s->near = t;
+        s->near_cap = cap;
+      }
+      s->near[2 * s->near_n] = i;
+      s->near[2 * s->near_n++ + 1] = p;
+    }
+  s->near_valid = 1;
+  return 0;
+}
+
 /* Plane walls of this sub-step: the force each puts on this rank's grains
- * (`store_force`, a per-grain array), and the contact statistics. One sweep
- * over the grains for all planes (LIGGGHTS' planes act on both sides). */
+ * (`store_force`, a per-grain array), and the contact statistics (LIGGGHTS'
+ * planes act on both sides). */
 static int add_planes(lgd_sim *s, lgd_stats *st, proto_err *err) {
   const dem_model *m = s->m;
   if (m->n_planes == 0) return 0;
@@ -313,19 +341,18 @@ static int add_planes(lgd_sim *s, lgd_stats *st, proto_err *err) {
     snprintf(id, sizeof id, "force_" LGD_FIX_PLANE, p);
     if (!(f[p] = lammps_extract_fix(s->lmp, id, 1, 2, 0, 0))) return proto_fail(err, "LIGGGHTS fix %s not found", id);
   }
-  const int n = *(int *)lammps_extract_global(s->lmp, "nlocal");
+  if ((!s->near_valid || *(int *)lammps_extract_global(s->lmp, "ago") == 0) && list_near_planes(s, err)) return -1;
   double **x = lammps_extract_atom(s->lmp, "x"), *r = lammps_extract_atom(s->lmp, "radius");
   int *type = lammps_extract_atom(s->lmp, "type");
-  for (int i = 0; i < n; i++)
-    for (int p = 0; p < m->n_planes; p++) {
-      const int d = s->plane_axis[p];
-      const double gap = fabs(x[i][d] - m->planes[p].point[d]) - r[i];
-      if (gap >= 0) continue;
-      double *wf = &s->wall_local[3 * m->planes[p].wall];
-      for (int k = 0; k < 3; k++) wf[k] -= f[p][i][k];
-      const int wt = lgd_type(m, m->planes[p].material, 0);
-      lgd_stats_add(st, -gap, r[i], r[i], s->estar[(wt - 1) * s->ntypes + type[i] - 1], 1.0);
-    }
+  for (int k = 0; k < s->near_n; k++) {
+    const int i = s->near[2 * k], p = s->near[2 * k + 1], d = s->plane_axis[p];
+    const double gap = fabs(x[i][d] - m->planes[p].point[d]) - r[i];
+    if (gap >= 0) continue;
+    double *wf = &s->wall_local[3 * m->planes[p].wall];
+    for (int c = 0; c < 3; c++) wf[c] -= f[p][i][c];
+    const int wt = lgd_type(m, m->planes[p].material, 0);
+    lgd_stats_add(st, -gap, r[i], r[i], s->estar[(wt - 1) * s->ntypes + type[i] - 1], 1.0);
+  }
   return 0;
 }
 
@@ -366,14 +393,17 @@ static int check_grains(lgd_sim *s, proto_err *err) {
   double **x = lammps_extract_atom(s->lmp, "x"), **v = lammps_extract_atom(s->lmp, "v");
   double *r = lammps_extract_atom(s->lmp, "radius");
   int *tag = lammps_extract_atom(s->lmp, "id");
+  const double dt2 = m->dt * m->dt;
   for (int i = 0; i < n; i++) {
-    const double *p = x[i], *u = v[i], speed = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-    if (!isfinite(p[0] + p[1] + p[2] + speed))
-      return proto_fail(err, "t = %.6g s: grain %d has a non-finite position or velocity", s->t, tag[i] - 1);
-    if (speed * m->dt > r[i])
+    const double *p = x[i], *u = v[i], v2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    if (__builtin_expect(!(v2 * dt2 <= r[i] * r[i]) || !isfinite(p[0] + p[1] + p[2]), 0)) {
+      const double speed = sqrt(v2);
+      if (!isfinite(p[0] + p[1] + p[2] + speed))
+        return proto_fail(err, "t = %.6g s: grain %d has a non-finite position or velocity", s->t, tag[i] - 1);
       return proto_fail(err, "t = %.6g s: grain %d at (%g, %g, %g) moves %.3g m per step, more than its "
                         "radius: unstable (dt = %.3g s = %.3g Rayleigh times)", s->t, tag[i] - 1, p[0], p[1],
                         p[2], speed * m->dt, m->dt, m->dt / m->rayleigh_time);
+    }
   }
   return 0;
 }
