@@ -65,13 +65,21 @@ typedef struct lgd_timing {
 
 typedef struct lgd_sim lgd_sim;
 
+/* dem_server's reader (dem_model_from_json) on every rank of comm, but only
+ * rank 0 keeps the grains: the others hold one stand-in grain and rank 0's
+ * grain-dependent values (Rayleigh time, dt, skin, settling settings). Such a
+ * model is only for lgd_open (which takes the grain count from rank 0).
+ * Collective; errors agreed (rank 0's message). */
+int lgd_model_from_json(dem_model *m, const cJSON *section, const char *path, MPI_Comm comm,
+                        proto_err *err);
+
 /* What LIGGGHTS cannot express, refused with the key path (a material's own
  * G, walls that are not axis-aligned planes, more types than LIGGGHTS takes).
  * Pure: no MPI, no LIGGGHTS. */
 int lgd_check_model(const dem_model *m, proto_err *err);
 
-/* Starts LIGGGHTS on comm with the model (every rank passes the same model;
- * only rank 0's grain arrays are read), computes the initial forces and, when
+/* Starts LIGGGHTS on comm with the model (every rank passes the same scene;
+ * only rank 0's grains are read: lgd_model_from_json), computes the initial forces and, when
  * the model asks for it (generated bed, settle_max_steps > 0), settles the bed
  * and then restarts the clock at t = 0 (and saves the bed if asked). The model
  * must outlive the sim; lgd_step may change its dt (dem_model_set_dt). */

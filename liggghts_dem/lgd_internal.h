@@ -89,7 +89,7 @@ static inline void lgd_stats_add(lgd_stats *st, double overlap, double r, double
 static inline int lgd_type(const dem_model *m, int material, int fixed_rotation) {
   return material + 1 + (fixed_rotation ? m->n_materials : 0);
 }
-int lgd_n_types(const dem_model *m);
+int lgd_n_types(const dem_model *m); /* reads the grains: rank 0 */
 /* Axis (0, 1, 2) of a plane wall's normal; -1 if it is not along one. */
 int lgd_plane_axis(const dem_plane *p);
 
@@ -104,7 +104,7 @@ int lgd_script_build(const dem_model *m, const char *dir, double face_tolerance,
                      proto_err *err);
 void lgd_script_free(lgd_script *s);
 /* Y* per type pair [ntypes*ntypes] (caller frees). */
-double *lgd_estar_table(const dem_model *m);
+double *lgd_estar_table(const dem_model *m, int ntypes);
 #endif
 
 #endif

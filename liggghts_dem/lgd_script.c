@@ -57,8 +57,7 @@ int lgd_check_model(const dem_model *m, proto_err *err) {
   return 0;
 }
 
-double *lgd_estar_table(const dem_model *m) {
-  const int nt = lgd_n_types(m);
+double *lgd_estar_table(const dem_model *m, int nt) {
   double *e = malloc(sizeof(double) * (size_t)(nt * nt));
   if (!e) return NULL;
   for (int a = 1; a <= nt; a++)

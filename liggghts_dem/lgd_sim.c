@@ -23,7 +23,7 @@ struct lgd_sim {
   MPI_Comm comm;
   int rank, nproc;
   void *lmp;
-  int ntypes;
+  int ntypes, n_grains;   /* rank 0's: only rank 0 has the grains */
   double *estar;          /* Y* per type pair */
   int surface;            /* coupled mesh, -1 if none */
   int n_nodes;
@@ -70,9 +70,14 @@ static int alloc_sim(lgd_sim *s, proto_err *err) {
   s->surface = -1;
   for (int k = 0; k < m->n_meshes; k++)
     if (m->meshes[k].coupled) s->surface = k;
-  s->ntypes = lgd_n_types(m);
+  if (s->rank == 0) {
+    s->ntypes = lgd_n_types(m);
+    s->n_grains = m->n_grains;
+  }
+  MPI_Bcast(&s->ntypes, 1, MPI_INT, 0, s->comm);
+  MPI_Bcast(&s->n_grains, 1, MPI_INT, 0, s->comm);
   for (int p = 0; p < m->n_planes; p++) s->plane_axis[p] = lgd_plane_axis(&m->planes[p]);
-  s->estar = lgd_estar_table(m);
+  s->estar = lgd_estar_table(m, s->ntypes);
   s->wall_local = calloc(3 * (size_t)m->n_walls + 1, sizeof(double));
   s->mesh_acc = calloc(3 * (size_t)m->n_meshes + 1, sizeof(double));
   s->out.wall_force = calloc(3 * (size_t)m->n_walls + 1, sizeof(double));
@@ -165,24 +170,24 @@ static void settle(lgd_sim *s) {
     done += chunk;
     const double mine = local_kinetic_energy(s);
     MPI_Allreduce(&mine, &ke, 1, MPI_DOUBLE, MPI_SUM, s->comm);
-    if (done > LGD_SETTLE_MIN && ke < m->cfg.settle_ke * m->n_grains) break;
+    if (done > LGD_SETTLE_MIN && ke < m->cfg.settle_ke * s->n_grains) break;
   }
   if (s->rank == 0)
     fprintf(stderr, "liggghts_dem: bed of %d grains settled in %lld steps (%.1f s), KE %.3g J\n",
-            m->n_grains, (long long)done, MPI_Wtime() - t0, ke);
+            s->n_grains, (long long)done, MPI_Wtime() - t0, ke);
 }
 
 /* The settled bed through dem_server's writer (one owner of the bed format). */
 static int save_bed(lgd_sim *s, proto_err *err) {
   const dem_model *m = s->m;
-  const size_t n = (size_t)m->n_grains;
+  const size_t n = (size_t)s->n_grains;
   double *buf = s->rank == 0 ? malloc(sizeof(double) * 9 * n) : NULL;
   int32_t *id = s->rank == 0 ? malloc(sizeof(int32_t) * n) : NULL;
   int rc = agree(s->comm, s->rank == 0 && (!buf || !id) ? proto_fail(err, "out of memory") : 0, err);
   if (!rc) rc = lgd_gather(s, buf, buf ? buf + 3 * n : NULL, buf ? buf + 6 * n : NULL, err);
   if (!rc && s->rank == 0) {
     for (size_t i = 0; i < n; i++) id[i] = (int32_t)i;
-    dem_state st = {.n = m->n_grains, .x = buf, .v = buf + 3 * n, .omega = buf + 6 * n,
+    dem_state st = {.n = s->n_grains, .x = buf, .v = buf + 3 * n, .omega = buf + 6 * n,
                     .radius = m->radius, .material = m->material, .id = id};
     rc = dem_bed_save(m, &st, m->cfg.save_bed, err);
     if (rc) proto_wrap(err, "%s.particles.save", m->key_path);
@@ -238,9 +243,9 @@ int lgd_open(lgd_sim **out, MPI_Comm comm, dem_model *m, const lgd_options *o, p
                       m->key_path, s->mesh_tri[k], m->meshes[k].n_tri, k);
   }
   const int64_t natoms = *(int64_t *)lammps_extract_global(s->lmp, "natoms");
-  if (!rc && natoms != m->n_grains)
+  if (!rc && natoms != s->n_grains)
     rc = proto_fail(err, "%s.particles: LIGGGHTS holds %lld of the %d grains", m->key_path,
-                    (long long)natoms, m->n_grains);
+                    (long long)natoms, s->n_grains);
   if (!rc && m->cfg.settle_steps > 0) settle(s);
   if (!rc && m->cfg.save_bed[0]) rc = save_bed(s, err);
   if (agree(s->comm, rc, err)) {
@@ -481,7 +486,7 @@ int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err 
   MPI_Allreduce(sums, tot, 4, MPI_DOUBLE, MPI_SUM, s->comm);
   MPI_Allreduce(&st.max_ratio, &ratio, 1, MPI_DOUBLE, MPI_MAX, s->comm);
   const double row[LGD_SERIES_COLS] = {s->t, tot[0], round(tot[1]), ratio, tot[2],
-                                       2.0 * round(tot[3]) / m->n_grains};
+                                       2.0 * round(tot[3]) / s->n_grains};
   memcpy(s->out.series, row, sizeof row);
   s->out.substeps = nsub;
   MPI_Reduce(s->rank == 0 ? MPI_IN_PLACE : s->wall_local, s->wall_local, 3 * m->n_walls, MPI_DOUBLE,
@@ -538,7 +543,7 @@ int lgd_gather(lgd_sim *s, double *x, double *v, double *omega, proto_err *err) 
     s->gsend = malloc(sizeof(double) * (size_t)s->gsend_cap);
     if (!s->gsend) { s->gsend_cap = 0; rc = proto_fail(err, "out of memory"); }
   }
-  const size_t ng = (size_t)s->m->n_grains;
+  const size_t ng = (size_t)s->n_grains;
   if (s->rank == 0 && !s->grecv && !(s->grecv = malloc(sizeof(double) * LGD_SNAP_COLS * ng)))
     rc = proto_fail(err, "out of memory for %zu grains", ng);
   if (agree(s->comm, rc, err)) return -1;

@@ -44,7 +44,11 @@ static int do_configure(app *a, const char *json, double dt, proto_err *err) {
   if (a->have_model) dem_model_free(&a->model);
   a->have_model = 0;
   cJSON *section = proto_json_parse(json, a->key_path, err);
-  int rc = section ? dem_model_from_json(&a->model, section, a->key_path, err) : -1;
+  int rc;
+  if (a->mpi) /* collective: only rank 0 keeps the bed */
+    rc = lgd_model_from_json(&a->model, section, a->key_path, MPI_COMM_WORLD, err);
+  else
+    rc = section ? dem_model_from_json(&a->model, section, a->key_path, err) : -1;
   cJSON_Delete(section);
   a->have_model = rc == 0;
   if (!rc) rc = lgd_check_model(&a->model, err);
@@ -102,16 +106,25 @@ static void do_finish(app *a) {
   a->x = a->v = a->wall_row = a->snap_x = a->snap_v = a->snap_w = a->snap_r = NULL;
 }
 
-/* Ranks other than 0 wait for the next operation without spinning (the
- * cores are shared with the FEM), and leave if the launcher is gone. */
+/* Rank 0 sends the next operation; the others wait for it without spinning
+ * for long (the cores are shared with the FEM, which runs meanwhile): a short
+ * busy poll for the quick case, then sleeps, leaving if the launcher is gone. */
+#define OP_SPIN_S 1e-4  /* busy polling before sleeping */
+#define OP_SLEEP_NS 50000
 static void bcast_op(op_msg *op) {
   MPI_Request req;
   MPI_Ibcast(op, (int)sizeof *op, MPI_BYTE, 0, MPI_COMM_WORLD, &req);
+  if (g_app.rank == 0) {
+    MPI_Wait(&req, MPI_STATUS_IGNORE);
+    return;
+  }
+  const double spin_until = MPI_Wtime() + OP_SPIN_S;
   for (int done = 0;;) {
     MPI_Test(&req, &done, MPI_STATUS_IGNORE);
     if (done) return;
+    if (MPI_Wtime() < spin_until) continue;
     if (getppid() == 1) _exit(1);
-    nanosleep(&(struct timespec){0, 50000}, NULL);
+    nanosleep(&(struct timespec){0, OP_SLEEP_NS}, NULL);
   }
 }
 

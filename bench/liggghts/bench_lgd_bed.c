@@ -50,8 +50,8 @@ int main(int argc, char **argv) {
   const double mem0 = rss_sum();
   double t0 = MPI_Wtime();
   cJSON *j = cJSON_Parse(json);
-  dem_model m;
-  if (dem_model_from_json(&m, j, "processes.dem", &err)) {
+  dem_model m; /* as liggghts_dem reads it: the bed on rank 0 only */
+  if (lgd_model_from_json(&m, j, "processes.dem", MPI_COMM_WORLD, &err)) {
     fprintf(stderr, "rank %d: %s\n", rank, err.msg);
     MPI_Abort(MPI_COMM_WORLD, 2);
   }

@@ -22,7 +22,11 @@ import sys
 import time
 from contextlib import contextmanager
 
-import h5py
+# the coupler's results.h5 descriptor is inherited by its children, and the
+# daemon a one-rank MPI start leaves behind can hold the file's lock a moment
+# after cosim has exited: read without taking the lock
+os.environ.setdefault("HDF5_USE_FILE_LOCKING", "FALSE")
+import h5py  # noqa: E402
 import numpy as np
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
@@ -35,6 +39,9 @@ WINDOW = (100, None)  # coupled steps timed: from the 100th to the end
 
 @contextmanager
 def bench_lock():
+    if os.environ.get("SCALE_OUT_END"):  # smoke tests of this script time nothing
+        yield
+        return
     with open("/tmp/cosim-bench.lock", "w") as f:
         fcntl.flock(f, fcntl.LOCK_EX)
         try:
