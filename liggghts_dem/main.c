@@ -32,7 +32,8 @@ typedef struct app {
   int64_t n_nodes;
   double *x, *v;                    /* surface nodes of the step (every rank) */
   double *wall_row;                 /* t, then Fx Fy Fz per wall */
-  double *snap_x, *snap_v, *snap_w, *snap_r;
+  double *snap;                     /* rank 0: x, v, omega [n*3] each, then r [n] */
+  double *snap_x, *snap_v, *snap_w, *snap_r; /* into snap */
   double t_step, t_bcast;           /* rank 0: in step(), broadcasting to the ranks */
 } app;
 
@@ -81,12 +82,12 @@ static int do_init(app *a, int64_t n_nodes, const double *x0, int64_t n_tri, con
   if (a->rank != 0) return 0;
   const size_t n = (size_t)m->n_grains;
   a->wall_row = calloc(1 + 3 * (size_t)m->n_walls, sizeof(double));
-  a->snap_x = malloc(3 * n * sizeof(double));
-  a->snap_v = malloc(3 * n * sizeof(double));
-  a->snap_w = malloc(3 * n * sizeof(double));
-  a->snap_r = malloc(n * sizeof(double));
-  if (!a->wall_row || !a->snap_x || !a->snap_v || !a->snap_w || !a->snap_r)
-    return proto_fail(err, "out of memory");
+  a->snap = malloc(10 * n * sizeof(double));
+  if (!a->wall_row || !a->snap) return proto_fail(err, "out of memory");
+  a->snap_x = a->snap;
+  a->snap_v = a->snap + 3 * n;
+  a->snap_w = a->snap + 6 * n;
+  a->snap_r = a->snap + 9 * n;
   memcpy(a->snap_r, m->radius, n * sizeof(double));
   return 0;
 }
@@ -101,16 +102,19 @@ static void do_finish(app *a) {
   a->sim = NULL;
   if (a->have_model) dem_model_free(&a->model);
   a->have_model = 0;
-  free(a->x); free(a->v); free(a->wall_row);
-  free(a->snap_x); free(a->snap_v); free(a->snap_w); free(a->snap_r);
-  a->x = a->v = a->wall_row = a->snap_x = a->snap_v = a->snap_w = a->snap_r = NULL;
+  free(a->x); free(a->v); free(a->wall_row); free(a->snap);
+  a->x = a->v = a->wall_row = a->snap = a->snap_x = a->snap_v = a->snap_w = a->snap_r = NULL;
 }
 
-/* Rank 0 sends the next operation; the others wait for it without spinning
- * for long (the cores are shared with the FEM, which runs meanwhile): a short
- * busy poll for the quick case, then sleeps, leaving if the launcher is gone. */
-#define OP_SPIN_S 1e-4  /* busy polling before sleeping */
-#define OP_SLEEP_NS 50000
+/* Rank 0 sends the next operation; the others wait for it. A sleeping rank
+ * wakes too late (measured: ~0.1 ms per step on an idle machine, 1–2 ms on a
+ * loaded one, every step; yielding the core costs a scheduler tick when
+ * anything else is runnable), so they poll for OP_POLL_S — longer than a
+ * coupling step's FEM and coupler time, during which each such rank keeps a
+ * core busy — and only then sleep (long pauses: start-up, output), leaving if
+ * the launcher is gone. */
+#define OP_POLL_S 0.02
+#define OP_SLEEP_NS 1000000
 static void bcast_op(op_msg *op) {
   MPI_Request req;
   MPI_Ibcast(op, (int)sizeof *op, MPI_BYTE, 0, MPI_COMM_WORLD, &req);
@@ -118,11 +122,11 @@ static void bcast_op(op_msg *op) {
     MPI_Wait(&req, MPI_STATUS_IGNORE);
     return;
   }
-  const double spin_until = MPI_Wtime() + OP_SPIN_S;
+  const double poll_until = MPI_Wtime() + OP_POLL_S;
   for (int done = 0;;) {
     MPI_Test(&req, &done, MPI_STATUS_IGNORE);
     if (done) return;
-    if (MPI_Wtime() < spin_until) continue;
+    if (MPI_Wtime() < poll_until) continue;
     if (getppid() == 1) _exit(1);
     nanosleep(&(struct timespec){0, OP_SLEEP_NS}, NULL);
   }
