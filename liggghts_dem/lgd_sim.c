@@ -98,6 +98,19 @@ static int alloc_sim(lgd_sim *s, proto_err *err) {
   if (!s->node_x || !s->node_v || !s->nodal_local || !s->out.nodal_force || !s->edge_on || !s->corner_on)
     return proto_fail(err, "out of memory for the surface (%d nodes)", me->n_nodes);
   memcpy(s->node_x, me->x0, sizeof(double) * n3);
+  /* LIGGGHTS drops or mangles flat triangles, and the activity rule needs
+   * their normals: refuse them by index */
+  for (int t = 0; t < me->n_tri; t++) {
+    const double *a = &me->x0[3 * me->tri[3 * t]], *b = &me->x0[3 * me->tri[3 * t + 1]],
+                 *c = &me->x0[3 * me->tri[3 * t + 2]];
+    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    const double area2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+    const double scale = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    if (!(area2 > 1e-24 * scale) || scale == 0)
+      return proto_fail(err, "surface_tri[%d]: the triangle (nodes %d, %d, %d) has no area", t, (int)me->tri[3 * t],
+                        (int)me->tri[3 * t + 1], (int)me->tri[3 * t + 2]);
+  }
   return lgd_topo_build(&s->topo, me->n_nodes, me->n_tri, me->tri, err);
 }
 
@@ -434,6 +447,7 @@ int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err 
   double t0;
   int rc = 0;
   if (!(dt > 0)) rc = proto_fail(err, "coupling dt must be > 0 (got %g)", dt);
+  else if (s->surface >= 0 && (!x || !v)) rc = proto_fail(err, "the coupled surface needs node positions and velocities");
   else if (fabs(dt - s->coupling_dt) > 1e-12 * dt) rc = change_dt(s, dt, err);
   if (agree(s->comm, rc, err)) return -1;
   const long long nsub = llround(dt / m->dt) < 1 ? 1 : llround(dt / m->dt);

@@ -113,6 +113,22 @@ for key in ("np1", "np2"):
         check(e < 1e-6, f"squeeze {key}: {ds} equals dem_server's to 1e-6 ({e:.3g})")
 
 
+# A surface with a flat triangle (LIGGGHTS would drop it, and the nodal forces
+# need every triangle) is refused by name, and the run stops cleanly.
+bad = scene("lgd_degenerate", {
+    "fem": {"exec": "fem_stub", "surface": {"nodes": [[0, 0, -0.27], [0.02, 0, -0.27], [0, 0.02, -0.27],
+                                                       [0.04, 0, -0.27]],
+                                             "triangles": [[0, 1, 2], [0, 1, 3]]}},
+    "dem": {"exec": "liggghts_dem", "materials": [GRAIN], "gravity": [0, 0, -9.81],
+            "particles": [{"x": [0.005, 0.005, 0.02], "r": 0.0035}]}},
+    scenario={"kind": "tire_travel", "rim_center": [0, 0, 0.3], "sinkage_velocity": 0.1, "sinkage_force": 1,
+              "slip": 0.05, "omega": 1.8, "radius": 0.272})
+rc, _, err = run(bad, timeout=120, env=MPI_ENV)
+check(rc == 3 and "surface_tri[1]: the triangle (nodes 0, 1, 3) has no area" in err,
+      f"degenerate surface triangle refused by name ({rc}: {err[-400:]})")
+no_orphans(bad, "degenerate surface")
+
+
 # ------------------------------------------------- 2. and 3. the tyre scenes
 def conservation(f, mesh_wall, name):
     """Nodal-force sum (what the FEM side received) against the DEM's mesh
