@@ -39,23 +39,36 @@ int main(int argc, char **argv) {
   const double n = argc > 1 ? atof(argv[1]) : 1e6;
   const int settle = argc > 2 ? atoi(argv[2]) : 400, timed = argc > 3 ? atoi(argv[3]) : 100;
   const double scale = n / 21812.0, side = sqrt(scale);
+  /* the scene as liggghts_dem reads it (the bed on rank 0 only); the bed is
+   * placed by dem_server's generator through its API, as the reader caps the
+   * `scale` key at 10 */
   char json[1024];
   snprintf(json, sizeof json,
            "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.6}],"
-           "\"gravity\":[0,0,-9.81],\"dt\":5e-5,\"skin\":0.002,"
-           "\"particles\":{\"generate\":\"bed\",\"scale\":%.17g,\"size\":[%.17g,%.17g]},"
+           "\"gravity\":[0,0,-9.81],\"dt\":5e-5,\"skin\":0.002,\"particles\":[{\"x\":[0.01,0.01,0.01],\"r\":0.00345}],"
            "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,1],\"open_top\":true}]}",
-           scale, side, side, side, side);
+           side, side);
   proto_err err = {{0}};
   const double mem0 = rss_sum();
   double t0 = MPI_Wtime();
   cJSON *j = cJSON_Parse(json);
-  dem_model m; /* as liggghts_dem reads it: the bed on rank 0 only */
+  dem_model m;
   if (lgd_model_from_json(&m, j, "processes.dem", MPI_COMM_WORLD, &err)) {
     fprintf(stderr, "rank %d: %s\n", rank, err.msg);
     MPI_Abort(MPI_COMM_WORLD, 2);
   }
   cJSON_Delete(j);
+  if (rank == 0) {
+    dem_bed_spec b;
+    dem_bed_paper(&b, scale);
+    b.size[0] = b.size[1] = side;
+    if (dem_bed_place(&m, &b, &err)) {
+      fprintf(stderr, "bed: %s\n", err.msg);
+      MPI_Abort(MPI_COMM_WORLD, 2);
+    }
+    m.rayleigh_time = dem_model_rayleigh(&m);
+  }
+  MPI_Bcast(&m.rayleigh_time, 1, MPI_DOUBLE, 0, MPI_COMM_WORLD);
   const double t_model = MPI_Wtime() - t0, mem_model = rss_sum();
   lgd_sim *sim;
   char tmp[64];
