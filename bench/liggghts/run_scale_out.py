@@ -33,6 +33,7 @@ import numpy as np
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 WORK = os.path.join(ROOT, "runs", "scale_out")
 RESULTS = os.path.join(ROOT, "bench", "results", "scale_out.json")
+SAMPLES = os.path.join(WORK, "samples.jsonl")  # every run, appended: runs can be split and resumed
 MPI_ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_rmaps_base_oversubscribe="1")
 WINDOW = (100, None)  # coupled steps timed: from the 100th to the end
@@ -147,14 +148,30 @@ def analyse(s):
             "T_H_mean": float(trac[lo:, 1].mean()), "T_P_mean": float(trac[lo:, 3].mean())}
 
 
+def record(part, key, r):
+    with open(SAMPLES, "a") as f:
+        f.write(json.dumps({"part": part, "key": key, "result": r}) + "\n")
+
+
+def samples():
+    out = {}
+    if os.path.exists(SAMPLES):
+        for line in open(SAMPLES):
+            d = json.loads(line)
+            out.setdefault(d["part"], {}).setdefault(d["key"], []).append(d["result"])
+    return out
+
+
 def tyre(bin_dir, repeats):
     paper_bed(bin_dir)
+    have = samples().get("tyre", {})
     configs = [("dem_server_1t", ("dem_server", 1), 0), ("dem_server_2t", ("dem_server", 2), 0),
                ("liggghts_dem_np1", ("liggghts_dem",), 1), ("liggghts_dem_np2", ("liggghts_dem",), 2),
                ("dem_stub", "dem_stub", 0)]
-    out = {}
     for rep in range(repeats):
         for tag, dem, ranks in configs:
+            if len(have.get(tag, [])) > rep:
+                continue
             s = tyre_scene(f"{tag}_{rep}", dem)
             with bench_lock():
                 la = load()
@@ -162,18 +179,19 @@ def tyre(bin_dir, repeats):
             r = analyse(s)
             r.update({"run_s": total, "load_avg": la, "timing": parse_timing(log)})
             print(tag, rep, json.dumps(r), flush=True)
-            out.setdefault(tag, []).append(r)
-    return out
+            record("tyre", tag, r)
 
 
 def bed(bin_dir, repeats):
-    out = {}
+    have = samples().get("bed", {})
     big = int(os.environ.get("SCALE_OUT_BIG", "1000000"))
     runs = [(1, 100000, 300, 60), (2, 100000, 300, 60), (2, big, 300, 60)]
     for rep in range(repeats):
         for ranks, n, settle, timed in runs:
             if n == big and rep > 1:
                 continue  # twice: minutes each
+            if len(have.get(f"np{ranks}_n{n}", [])) > rep:
+                continue
             with bench_lock():
                 la = load()
                 p = subprocess.run(["mpirun", "-np", str(ranks), os.path.join(bin_dir, "bench_lgd_bed"), str(n),
@@ -184,8 +202,7 @@ def bed(bin_dir, repeats):
             r = json.loads(line[-1])
             r["load_avg"] = la
             print("bed", ranks, n, json.dumps(r), flush=True)
-            out.setdefault(f"np{ranks}_n{n}", []).append(r)
-    return out
+            record("bed", f"np{ranks}_n{n}", r)
 
 
 # ------------------------------------------------------------------ report
@@ -338,12 +355,12 @@ def main():
     parts = [a for a in sys.argv[2:] if not a.startswith("--") and not a.isdigit()] or ["tyre", "bed"]
     repeats = int(sys.argv[sys.argv.index("--repeats") + 1]) if "--repeats" in sys.argv else 4
     os.makedirs(WORK, exist_ok=True)
-    res = json.load(open(RESULTS)) if os.path.exists(RESULTS) else {}
-    res["machine"] = {"cpus": os.cpu_count(), "uname": " ".join(os.uname()[2:5])}
     if "tyre" in parts:
-        res["tyre"] = tyre(bin_dir, repeats)
+        tyre(bin_dir, repeats)
     if "bed" in parts:
-        res["bed"] = bed(bin_dir, repeats)
+        bed(bin_dir, repeats)
+    res = samples()
+    res["machine"] = {"cpus": os.cpu_count(), "uname": " ".join(os.uname()[2:5])}
     with open(RESULTS, "w") as f:
         json.dump(res, f, indent=1)
     print("wrote", RESULTS)
