@@ -73,10 +73,11 @@ def section(R):
         mx, mz = sum(a[0] for a in aw) / 3, sum(a[2] for a in aw) / 3
         sl = sc["best"]["sleep"]["extra"]
         md += ["", "Mean of the three awake runs: F_x %.4g N (runs spread %.1f %%), F_z %.4g N (spread %.1f %%); "
-               "`sleep` (defaults): F_x %+.1f %%, F_z %+.1f %% from that mean; rolling CPU time %.2f× less." % (
+               "`sleep` (defaults): F_x %+.1f %%, F_z %+.1f %% from that mean; rolling CPU time of `sleep` "
+               "over `awake 10`: %.2f× (below 1: sleeping pays)." % (
                    mx, 100 * (max(a[0] for a in aw) - min(a[0] for a in aw)) / mx, mz,
                    100 * (max(a[2] for a in aw) - min(a[2] for a in aw)) / mz, 100 * (sl[0] / mx - 1),
-                   100 * (sl[2] / mz - 1), sc["best"]["awake_10"]["extra"][5] / sl[5]), ""]
+                   100 * (sl[2] / mz - 1), sl[5] / sc["best"]["awake_10"]["extra"][5]), ""]
     if "threads" in R:
         sc = R["threads"]["best"]
         md += ["### Threads against bed size (dem_server, 2000 settling steps)", "",
