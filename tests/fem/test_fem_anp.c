@@ -180,5 +180,5 @@ int main(void) {
   anp_patch();
   anp_locking();
   anp_energy();
-  return fem_test_done("test_fem_anp");
+  return cosim_test_done("test_fem_anp");
 }

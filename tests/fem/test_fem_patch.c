@@ -175,5 +175,5 @@ int main(void) {
     variant_b(t);
     rigid_body(t);
   }
-  return fem_test_done("test_fem_patch");
+  return cosim_test_done("test_fem_patch");
 }

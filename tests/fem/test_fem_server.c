@@ -227,5 +227,5 @@ int main(int argc, char **argv) {
   zmq_close(router);
   zmq_ctx_term(ctx);
   unlink(endpoint + 6);
-  return fem_test_done("test_fem_server");
+  return cosim_test_done("test_fem_server");
 }

@@ -11,7 +11,7 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "../proto/check.h"
+#include "cosim_test.h"
 #include "proto/proto.h"
 
 static const cJSON *at(const cJSON *o, const char *a, const char *b) {
@@ -275,5 +275,5 @@ int main(void) {
   test_header();
   test_names();
   test_series();
-  CHECK_DONE();
+  return cosim_test_done("test_input_proto");
 }

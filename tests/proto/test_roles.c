@@ -4,7 +4,7 @@
  * the array, the expected shape and its meaning; "with a surface" arrays
  * only when the conversation has a surface; the JSON form lists them. */
 #include "proto/proto.h"
-#include "tests/proto/check.h"
+#include "cosim_test.h"
 
 int main(void) {
   proto_err err = {{0}};
@@ -88,5 +88,5 @@ int main(void) {
   CHECK(proto_state_get(&m, "w", PROTO_F8, 3, back, &err) < 0);
   CHECK_MSG(err, "missing array 'state.w'");
   proto_msg_free(&m);
-  CHECK_DONE();
+  return cosim_test_done("test_roles");
 }
