@@ -75,7 +75,8 @@ static int run(const char *exe, const char *mode, const char *element) {
   send_msg(&m);
   recv_msg(&m, "ready");
   proto_err err;
-  const proto_array *xa = proto_msg_find(&m, "surface_x0"), *ta = proto_msg_find(&m, "surface_tri");
+  const proto_array *xa = proto_msg_find(&m, PROTO_A_SURFACE_X0),
+                    *ta = proto_msg_find(&m, PROTO_A_SURFACE_TRI);
   CHECK(xa && ta && xa->ndim == 2 && xa->shape[1] == 3 && ta->shape[1] == 3, "ready lacks the surface mesh");
   int64_t n = xa->shape[0], nt = ta->shape[0];
   double *x0 = malloc(sizeof *x0 * 3 * n);
@@ -133,15 +134,16 @@ static int run(const char *exe, const char *mode, const char *element) {
     proto_msg_reset(&m, "fem", "step", k, (k - 1) * dt);
     cJSON_AddNumberToObject(proto_msg_header(&m), "dt", dt);
     cJSON_AddBoolToObject(proto_msg_header(&m), "output", k % 2 == 0);
-    proto_msg_add_f8(&m, "nodal_force", n, 3, force);
-    proto_msg_add_f8(&m, "rim_R", 3, 3, R);
-    proto_msg_add_f8(&m, "rim_c", 3, 0, c);
-    proto_msg_add_f8(&m, "rim_omega", 3, 0, w);
-    proto_msg_add_f8(&m, "rim_v", 3, 0, vc);
+    proto_msg_add_f8(&m, PROTO_A_NODAL_FORCE, n, 3, force);
+    proto_msg_add_f8(&m, PROTO_A_RIM_R, 3, 3, R);
+    proto_msg_add_f8(&m, PROTO_A_RIM_C, 3, 0, c);
+    proto_msg_add_f8(&m, PROTO_A_RIM_OMEGA, 3, 0, w);
+    proto_msg_add_f8(&m, PROTO_A_RIM_V, 3, 0, vc);
     send_msg(&m);
     recv_msg(&m, "done");
-    const double *x = proto_msg_get_f8(&m, "x", n, 3, &err), *v = proto_msg_get_f8(&m, "v", n, 3, &err);
-    const double *row = proto_msg_get_f8(&m, "series", 5, 0, &err);
+    const double *x = proto_msg_get_f8(&m, PROTO_A_X, n, 3, &err),
+                 *v = proto_msg_get_f8(&m, PROTO_A_V, n, 3, &err);
+    const double *row = proto_msg_get_f8(&m, PROTO_A_SERIES, 5, 0, &err);
     CHECK(x && v && row, "done lacks x, v or series: %s", err.msg);
     if (!x || !v || !row) break;
     double ex = 0, ev = 0;

@@ -73,7 +73,7 @@ int main(void) {
   const cJSON *roles = cJSON_GetObjectItem(j, "roles");
   const cJSON *dem_done = cJSON_GetObjectItem(cJSON_GetObjectItem(roles, "dem"), "done");
   const cJSON *nf = cJSON_GetArrayItem(dem_done, 0);
-  CHECK(nf && strcmp(cJSON_GetObjectItem(nf, "name")->valuestring, "nodal_force") == 0);
+  CHECK(nf && strcmp(cJSON_GetObjectItem(nf, "name")->valuestring, PROTO_A_NODAL_FORCE) == 0);
   CHECK(strcmp(cJSON_GetArrayItem(cJSON_GetObjectItem(nf, "shape"), 0)->valuestring, "n") == 0);
   CHECK(strcmp(cJSON_GetObjectItem(nf, "when")->valuestring, "with_surface") == 0);
   cJSON_Delete(j);
