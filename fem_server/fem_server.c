@@ -257,7 +257,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
     memcpy(s->u_prev, s->st.u, sizeof *s->u_prev * (size_t)md->n_dof);
     if (fem_static_solve(md, s->cfg.solver, 1e-10, b, s->st.u, NULL, err)) return -1;
     for (int32_t i = 0; i < md->n_dof; i++) s->st.v[i] = (s->st.u[i] - s->u_prev[i]) / span;
-    fem_internal_force(md, s->st.u, s->st.fint);
+    fem_internal_force(md, &s->st.work, s->st.u, s->st.fint);
     double se = 0, ke = 0;
     for (int32_t i = 0; i < md->n_dof; i++) {
       se += 0.5 * s->st.u[i] * s->st.fint[i];
@@ -283,12 +283,12 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
     const int32_t nn = md->mesh.n_nodes, ne = md->mesh.n_elems;
     for (int32_t n = 0; n < nn; n++)
       to_world(s, R, c, w, vc, n, s->snap_x + 3 * (size_t)n, s->snap_v + 3 * (size_t)n);
-    fem_element_strain_stress(md, s->st.u, s->voigt, NULL);
+    fem_element_strain_stress(md, &s->st.work, s->st.u, s->voigt, NULL);
     /* XDMF Tensor6 order: xx xy xz yy yz zz (ours: xx yy zz yz xz xy) */
     static const int perm[6] = {0, 5, 4, 1, 3, 2};
     for (int32_t e = 0; e < ne; e++)
       for (int k = 0; k < 6; k++) s->strain[6 * (size_t)e + k] = s->voigt[6 * (size_t)e + perm[k]];
-    fem_element_strain_stress(md, s->st.u, NULL, s->voigt);
+    fem_element_strain_stress(md, &s->st.work, s->st.u, NULL, s->voigt);
     for (int32_t e = 0; e < ne; e++)
       for (int k = 0; k < 6; k++) s->stress[6 * (size_t)e + k] = s->voigt[6 * (size_t)e + perm[k]];
     const double *snap[N_SNAP] = {s->snap_x, s->st.u, s->snap_v, s->strain, s->stress};
