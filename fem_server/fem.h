@@ -285,6 +285,17 @@ typedef struct fem_state {
   fem_work work;        /* the force kernel's scratch */
 } fem_state;
 
+/* Columns of fem_server's per-step summary, its "series" dataset (names:
+ * fem_server.c). */
+typedef enum fem_series_col {
+  FEM_SERIES_T,         /* s, end of the coupling step */
+  FEM_SERIES_STRAIN,    /* fem_state.strain, J */
+  FEM_SERIES_KINETIC,   /* fem_state.kinetic, J */
+  FEM_SERIES_DT_SUB,    /* fem_state.dt_sub, s */
+  FEM_SERIES_SUB_STEPS, /* sub-steps in the coupling step (quasi-static: 1) */
+  FEM_N_SERIES
+} fem_series_col;
+
 int fem_state_init(const fem_model *md, fem_state *st, proto_err *err);
 void fem_state_free(fem_state *st);
 /* Starts a run at rest in state u (v = 0), computing K u. */

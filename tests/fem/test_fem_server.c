@@ -145,7 +145,7 @@ static int run(const char *exe, const char *mode, const char *element) {
     recv_msg(&m, "done");
     const double *x = proto_msg_get_f8(&m, PROTO_A_X, n, 3, &err),
                  *v = proto_msg_get_f8(&m, PROTO_A_V, n, 3, &err);
-    const double *row = proto_msg_get_f8(&m, PROTO_A_SERIES, 5, 0, &err);
+    const double *row = proto_msg_get_f8(&m, PROTO_A_SERIES, FEM_N_SERIES, 0, &err);
     CHECK(x && v && row, "done lacks x, v or series: %s", err.msg);
     if (!x || !v || !row) break;
     double ex = 0, ev = 0;
@@ -161,9 +161,10 @@ static int run(const char *exe, const char *mode, const char *element) {
       }
     }
     printf("%s step %d: t %.4g, strain energy %.4g J, kinetic %.3g J, sub-step %.3g s x %g; "
-           "max |x - (R x0 + c)| %.2e m, max |v - rigid| %.2e m/s\n", mode, k, m.t, row[1], row[2],
-           row[3], row[4], ex, ev);
-    if (k == 1) e_first = row[1];
+           "max |x - (R x0 + c)| %.2e m, max |v - rigid| %.2e m/s\n", mode, k, m.t,
+           row[FEM_SERIES_STRAIN], row[FEM_SERIES_KINETIC], row[FEM_SERIES_DT_SUB],
+           row[FEM_SERIES_SUB_STEPS], ex, ev);
+    if (k == 1) e_first = row[FEM_SERIES_STRAIN];
     if (k <= 2) {
       /* The tread starts at rest relative to a rim spinning at |w| = 2 rad/s:
        * only the centrifugal force moves it off the rigid motion. Explicit:
@@ -173,7 +174,8 @@ static int run(const char *exe, const char *mode, const char *element) {
        * steady stretch stays below that of a free thin ring at r_max,
        * rho w^2 r^3/E (the rim nodes are held), and the velocity vanishes
        * once the lagged frame load has converged (step 2). */
-      const double a_cf = w[1] * w[1] * rmax, ns = k * row[4], dts = row[3];
+      const double a_cf = w[1] * w[1] * rmax, ns = k * row[FEM_SERIES_SUB_STEPS];
+      const double dts = row[FEM_SERIES_DT_SUB];
       const double x_free = 0.5 * a_cf * dts * dts * ns * (ns + 1), v_free = a_cf * dts * ns;
       const double x_ring = 1100 * w[1] * w[1] * rmax * rmax * rmax / 2e7;
       if (strcmp(mode, "explicit") == 0) {
@@ -191,7 +193,7 @@ static int run(const char *exe, const char *mode, const char *element) {
       CHECK(e_first > 0, "%s: inflation gives no strain energy", mode);
     } else {
       CHECK(ex > 1e-6, "%s: nodal forces did not deform the tread", mode);
-      CHECK(row[1] != e_first, "%s: strain energy unchanged", mode);
+      CHECK(row[FEM_SERIES_STRAIN] != e_first, "%s: strain energy unchanged", mode);
     }
     if (k % 2 == 0) {
       const double *su = proto_msg_get_f8(&m, "snap.u", n_nodes, 3, &err);
