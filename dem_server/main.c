@@ -137,7 +137,8 @@ static void publish_summary(dem_app *a, proto_peer *peer, int64_t step, double t
   char topic[PROTO_NAME_LEN + 8];
   snprintf(topic, sizeof topic, "%s.summary", a->name);
   proto_msg_reset(&m, topic, "summary", step, t);
-  cJSON_AddItemToObject(proto_msg_header(&m), "columns", cJSON_CreateStringArray(DEM_SERIES, DEM_N_SERIES));
+  cJSON_AddItemToObject(proto_msg_header(&m), "columns",
+                        cJSON_CreateStringArray(DEM_SERIES, DEM_N_SERIES));
   proto_msg_add_f8(&m, PROTO_A_SERIES, DEM_N_SERIES, 0, a->series);
   proto_peer_publish(peer, &m);
   proto_msg_free(&m);

@@ -147,7 +147,8 @@ elem_force_k(const fem_model *md, const double *restrict theta, int32_t e, const
     for (int d = 0; d < 3; d++) fe[3 * a + d] = f[a][d];
 }
 
-static void elem_force(const fem_model *md, const double *theta, int32_t e, const double *u, double *fe) {
+static void elem_force(const fem_model *md, const double *theta, int32_t e, const double *u,
+                       double *fe) {
   if (md->npe == 4) elem_force_k(md, theta, e, u, fe, 4, 1);
   else elem_force_k(md, theta, e, u, fe, 10, 4);
 }

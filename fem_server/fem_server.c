@@ -277,7 +277,8 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   s->series[FEM_SERIES_STRAIN] = s->st.strain;
   s->series[FEM_SERIES_KINETIC] = s->st.kinetic;
   s->series[FEM_SERIES_DT_SUB] = s->st.dt_sub;
-  s->series[FEM_SERIES_SUB_STEPS] = s->cfg.mode == FEM_EXPLICIT ? (double)(int64_t)(span / s->st.dt_sub + 0.5) : 1;
+  s->series[FEM_SERIES_SUB_STEPS] =
+      s->cfg.mode == FEM_EXPLICIT ? (double)(int64_t)(span / s->st.dt_sub + 0.5) : 1;
   if (proto_msg_add_f8(reply, PROTO_A_X, s->n_surf, 3, s->x_out) ||
       proto_msg_add_f8(reply, PROTO_A_V, s->n_surf, 3, s->v_out) ||
       proto_msg_add_f8(reply, PROTO_A_SERIES, FEM_N_SERIES, 0, s->series))
