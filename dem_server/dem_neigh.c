@@ -331,7 +331,8 @@ static int list_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi, v
       cell_candidates(w, s, rank, cc, &cs);
     }
     for (;;) {
-      int room = w->cbuf_cap[c] - used, got = list_row(m, s, i, &cs, w->cbuf[c] + used, room);
+      int *row = w->cbuf[c] ? w->cbuf[c] + used : NULL; /* no buffer yet: room 0 */
+      int room = w->cbuf_cap[c] - used, got = list_row(m, s, i, &cs, row, room);
       if (got >= 0) {
         w->nl_start[i + 1] = got;
         used += got;

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Reliability benchmark (issue 11): writes its sections of
 bench/results/reliability.md, keeping the others (Monitors: bench/proto/
-bench_monitor.py; Parsers fuzzed: the fuzzing harnesses).
+bench_monitor.py; Fuzzing: bench/reliability/run_fuzz.py).
 
     flock /tmp/cosim-bench.lock /usr/bin/python3 bench/reliability/run_bench.py \
         [--bin build/bin] [--parts faults,cost,soak] [--rounds 3]

@@ -102,9 +102,16 @@ squeeze = scene("lgd_squeeze", {
 squeeze["time"] = {"dt": 2e-5, "end": 0.03}
 squeeze["output"]["every"] = 500
 r = runs(squeeze)
+# launched through MPI: an argv exec with the launcher in front (the coupler
+# appends --endpoint/--name and supervises mpirun)
+v = variant(squeeze, "np2_launched", ["mpirun", "-np", "2", "liggghts_dem"])
+rc, _, err = run(v, timeout=600, env=MPI_ENV)
+check(rc == 0, f"{v['name']}: launched under mpirun -np 2 ok ({err[-500:]})")
+no_orphans(v, v["name"])
+r["np2_launched"] = v
 ref = h5(r["dem_server"])
 check(np.max(np.abs(ref["/fem/series"][:, 3])) > 0.3, "squeeze: the plate pressed the grain")
-for key in ("np1", "np2"):
+for key in ("np1", "np2", "np2_launched"):
     f = h5(r[key])
     for ds, cols in (("/dem/wall_forces", slice(1, None)), ("/fem/series", slice(1, 4)),
                      ("/coupler/traction", slice(1, None))):
