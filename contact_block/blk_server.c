@@ -13,7 +13,7 @@
  * slope: (F_n − F_{n−1}) / (d_n − d_{n−1}) between the last two steps (last,
  * so the earlier columns keep their places) */
 enum { COL_T, COL_D, COL_F, COL_NC, COL_IT, COL_K, COL_CONV, COL_RES, COL_SLOPE, NCOL };
-static const char *const columns[NCOL] = {"t", "d_road", "force", "contacts",
+static const char *const columns[NCOL] = {"t", PROTO_A_D_ROAD, PROTO_A_FORCE, "contacts",
                                           "iterations", "stiffness", "converged",
                                           "residual", "slope"};
 

@@ -195,6 +195,19 @@ void dem_gather(const dem_state *s, const double *slot_data, int cols, double *o
 /* Mean coordination number (contacts per grain, grain–grain only). */
 double dem_coordination(const dem_model *m, const dem_state *s);
 
+/* Columns of the per-step summary, the "series" dataset of dem_server and
+ * liggghts_dem (names: DEM_SERIES, dem_state.c). */
+typedef enum dem_series_col {
+  DEM_SERIES_T,            /* s, end of the coupling step */
+  DEM_SERIES_KINETIC,      /* dem_state.kinetic_energy */
+  DEM_SERIES_CONTACTS,     /* dem_state.contacts */
+  DEM_SERIES_MAX_OVERLAP,  /* dem_state.max_overlap_ratio */
+  DEM_SERIES_ELASTIC,      /* dem_state.elastic_energy */
+  DEM_SERIES_COORDINATION, /* dem_coordination */
+  DEM_N_SERIES
+} dem_series_col;
+extern const char *const DEM_SERIES[DEM_N_SERIES];
+
 /* ---- state export / import (rollback, checkpoints) ----
  * export adds arrays named "state.<x>" to `out` that hold everything that
  * changes during a run (grains in slot order with their permutation `id`,

@@ -251,6 +251,14 @@ void dem_gather(const dem_state *s, const double *slot_data, int cols, double *o
     for (int k = 0; k < cols; k++) out[(size_t)s->id[i] * cols + k] = slot_data[(size_t)i * cols + k];
 }
 
+const char *const DEM_SERIES[DEM_N_SERIES] = {
+    [DEM_SERIES_T] = "t",
+    [DEM_SERIES_KINETIC] = "kinetic_energy",
+    [DEM_SERIES_CONTACTS] = "contacts",
+    [DEM_SERIES_MAX_OVERLAP] = "max_overlap_ratio",
+    [DEM_SERIES_ELASTIC] = "elastic_energy",
+    [DEM_SERIES_COORDINATION] = "coordination"};
+
 double dem_coordination(const dem_model *m, const dem_state *s) {
   (void)m;
   return s->n ? 2.0 * (double)s->work->pair_contacts / s->n : 0;

@@ -57,41 +57,41 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
   struct dem_work *w = s->work;
   const int64_t n = s->n, K = DEM_MESH_SLOTS, nodes = total_nodes(m);
   int c = 0;
-  add(e, &c, "state.counters", PROTO_I8, w->io_counters, 1, IO_NCOUNTERS, 0, 0);
-  add(e, &c, "state.scalars", PROTO_F8, w->io_scalars, 1, IO_NSCALARS, 0, 0);
-  add(e, &c, "state.id", PROTO_I4, s->id, 1, n, 0, 0);
-  add(e, &c, "state.x", PROTO_F8, s->x, 2, n, 3, 0);
-  add(e, &c, "state.v", PROTO_F8, s->v, 2, n, 3, 0);
-  add(e, &c, "state.omega", PROTO_F8, s->omega, 2, n, 3, 0);
-  add(e, &c, "state.q", PROTO_F8, s->q, 2, n, 4, 0);
-  add(e, &c, "state.force", PROTO_F8, s->force, 2, n, 3, 0);
-  add(e, &c, "state.torque", PROTO_F8, s->torque, 2, n, 3, 0);
-  add(e, &c, "state.x_ref", PROTO_F8, w->x_ref, 2, n, 3, 0);
-  add(e, &c, "state.nl_start", PROTO_I4, w->nl_start, 1, n + 1, 0, 0);
-  add(e, &c, "state.nl_j", PROTO_I4, w->nl_j, 1, npairs, 0, 0);
-  add(e, &c, "state.nl_shear", PROTO_F8, w->nl_shear, 2, npairs, 3, 0);
-  add(e, &c, "state.pair_touch", PROTO_U1, w->pair_touch, 1, npairs, 0, 0);
-  add(e, &c, "state.wall_force", PROTO_F8, s->wall_force, 2, m->n_walls, 3, 0);
+  add(e, &c, PROTO_P_STATE "counters", PROTO_I8, w->io_counters, 1, IO_NCOUNTERS, 0, 0);
+  add(e, &c, PROTO_P_STATE "scalars", PROTO_F8, w->io_scalars, 1, IO_NSCALARS, 0, 0);
+  add(e, &c, PROTO_P_STATE "id", PROTO_I4, s->id, 1, n, 0, 0);
+  add(e, &c, PROTO_P_STATE "x", PROTO_F8, s->x, 2, n, 3, 0);
+  add(e, &c, PROTO_P_STATE "v", PROTO_F8, s->v, 2, n, 3, 0);
+  add(e, &c, PROTO_P_STATE "omega", PROTO_F8, s->omega, 2, n, 3, 0);
+  add(e, &c, PROTO_P_STATE "q", PROTO_F8, s->q, 2, n, 4, 0);
+  add(e, &c, PROTO_P_STATE "force", PROTO_F8, s->force, 2, n, 3, 0);
+  add(e, &c, PROTO_P_STATE "torque", PROTO_F8, s->torque, 2, n, 3, 0);
+  add(e, &c, PROTO_P_STATE "x_ref", PROTO_F8, w->x_ref, 2, n, 3, 0);
+  add(e, &c, PROTO_P_STATE "nl_start", PROTO_I4, w->nl_start, 1, n + 1, 0, 0);
+  add(e, &c, PROTO_P_STATE "nl_j", PROTO_I4, w->nl_j, 1, npairs, 0, 0);
+  add(e, &c, PROTO_P_STATE "nl_shear", PROTO_F8, w->nl_shear, 2, npairs, 3, 0);
+  add(e, &c, PROTO_P_STATE "pair_touch", PROTO_U1, w->pair_touch, 1, npairs, 0, 0);
+  add(e, &c, PROTO_P_STATE "wall_force", PROTO_F8, s->wall_force, 2, m->n_walls, 3, 0);
   if (m->n_planes > 0) {
-    add(e, &c, "state.plane_mask", PROTO_I8, w->plane_mask, 1, n, 0, 0);
-    add(e, &c, "state.plane_touch", PROTO_I8, w->plane_touch, 1, n, 0, 0);
-    add(e, &c, "state.wall_shear", PROTO_F8, w->wall_shear, 3, m->n_planes, n, 3);
+    add(e, &c, PROTO_P_STATE "plane_mask", PROTO_I8, w->plane_mask, 1, n, 0, 0);
+    add(e, &c, PROTO_P_STATE "plane_touch", PROTO_I8, w->plane_touch, 1, n, 0, 0);
+    add(e, &c, PROTO_P_STATE "wall_shear", PROTO_F8, w->wall_shear, 3, m->n_planes, n, 3);
   }
   if (m->n_meshes > 0) {
-    add(e, &c, "state.mc_key", PROTO_I8, w->mc_key, 2, n, K, 0);
-    add(e, &c, "state.mc_mesh", PROTO_U1, w->mc_mesh, 2, n, K, 0);
-    add(e, &c, "state.mc_shear", PROTO_F8, w->mc_shear, 3, n, K, 3);
-    add(e, &c, "state.mc_normal", PROTO_F8, w->mc_normal, 3, n, K, 3);
+    add(e, &c, PROTO_P_STATE "mc_key", PROTO_I8, w->mc_key, 2, n, K, 0);
+    add(e, &c, PROTO_P_STATE "mc_mesh", PROTO_U1, w->mc_mesh, 2, n, K, 0);
+    add(e, &c, PROTO_P_STATE "mc_shear", PROTO_F8, w->mc_shear, 3, n, K, 3);
+    add(e, &c, PROTO_P_STATE "mc_normal", PROTO_F8, w->mc_normal, 3, n, K, 3);
     /* all meshes' nodes one after the other (config order, then the surface) */
-    add(e, &c, "state.mesh_x", PROTO_F8, w->io_mesh, 2, nodes, 3, 0);
-    add(e, &c, "state.mesh_v", PROTO_F8, w->io_mesh + 3 * nodes, 2, nodes, 3, 0);
-    add(e, &c, "state.mesh_force", PROTO_F8, w->io_mesh + 6 * nodes, 2, nodes, 3, 0);
-    add(e, &c, "state.mesh_xref", PROTO_F8, w->io_mesh + 9 * nodes, 2, nodes, 3, 0);
+    add(e, &c, PROTO_P_STATE "mesh_x", PROTO_F8, w->io_mesh, 2, nodes, 3, 0);
+    add(e, &c, PROTO_P_STATE "mesh_v", PROTO_F8, w->io_mesh + 3 * nodes, 2, nodes, 3, 0);
+    add(e, &c, PROTO_P_STATE "mesh_force", PROTO_F8, w->io_mesh + 6 * nodes, 2, nodes, 3, 0);
+    add(e, &c, PROTO_P_STATE "mesh_xref", PROTO_F8, w->io_mesh + 9 * nodes, 2, nodes, 3, 0);
   }
   if (m->sleep.on) {
-    add(e, &c, "state.asleep", PROTO_U1, w->asleep, 1, n, 0, 0);
-    add(e, &c, "state.rest", PROTO_I4, w->rest, 1, n, 0, 0);
-    add(e, &c, "state.near", PROTO_U1, w->near, 1, n, 0, 0);
+    add(e, &c, PROTO_P_STATE "asleep", PROTO_U1, w->asleep, 1, n, 0, 0);
+    add(e, &c, PROTO_P_STATE "rest", PROTO_I4, w->rest, 1, n, 0, 0);
+    add(e, &c, PROTO_P_STATE "near", PROTO_U1, w->near, 1, n, 0, 0);
   }
   return c;
 }
@@ -202,18 +202,18 @@ static int check_contents(const dem_model *m, dem_state *s, const void *const *s
   int64_t npairs = 0;
   for (int k = 0; k < ne; k++) {
     const char *nm = e[k].name;
-    if (!strcmp(nm, "state.id")) id = src[k];
-    else if (!strcmp(nm, "state.nl_start")) start = src[k];
-    else if (!strcmp(nm, "state.nl_j")) { nj = src[k]; npairs = e[k].shape[0]; }
-    else if (!strcmp(nm, "state.pair_touch")) touch = src[k];
-    else if (!strcmp(nm, "state.mc_mesh")) mesh = src[k];
-    else if (!strcmp(nm, "state.mc_key")) key = src[k];
-    else if (!strcmp(nm, "state.plane_mask")) mask = src[k];
-    else if (!strcmp(nm, "state.plane_touch")) ptouch = src[k];
-    else if (!strcmp(nm, "state.counters")) cnt = src[k];
-    else if (!strcmp(nm, "state.asleep")) asleep = src[k];
-    else if (!strcmp(nm, "state.rest")) rest = src[k];
-    else if (!strcmp(nm, "state.near")) near = src[k];
+    if (!strcmp(nm, PROTO_P_STATE "id")) id = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "nl_start")) start = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "nl_j")) { nj = src[k]; npairs = e[k].shape[0]; }
+    else if (!strcmp(nm, PROTO_P_STATE "pair_touch")) touch = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "mc_mesh")) mesh = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "mc_key")) key = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "plane_mask")) mask = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "plane_touch")) ptouch = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "counters")) cnt = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "asleep")) asleep = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "rest")) rest = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "near")) near = src[k];
   }
   int *seen = s->work->old_of; /* scratch outside a rebuild */
   memset(seen, 0, sizeof(int) * (size_t)n);
@@ -257,7 +257,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   const int n = s->n;
   if (n != m->n_grains) return proto_fail(err, "state import: the state does not belong to this model");
   /* the model first: the other shapes mean nothing for another model */
-  const io_entry counters = {"state.counters", PROTO_I8, 1, {IO_NCOUNTERS}, NULL};
+  const io_entry counters = {PROTO_P_STATE "counters", PROTO_I8, 1, {IO_NCOUNTERS}, NULL};
   const int64_t *cnt = get(in, &counters, err);
   if (!cnt) return -1;
   if (cnt[IO_C_FORMAT] != IO_FORMAT)
@@ -267,7 +267,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
     return proto_fail(err, "state import: 'state.counters' comes from another model (fingerprint %016llx, "
                       "this model %016llx: grains, materials, walls, meshes or skin differ)",
                       (unsigned long long)cnt[IO_C_MODEL], (unsigned long long)model_fingerprint(m));
-  const io_entry start = {"state.nl_start", PROTO_I4, 1, {n + 1}, NULL};
+  const io_entry start = {PROTO_P_STATE "nl_start", PROTO_I4, 1, {n + 1}, NULL};
   const int32_t *st = get(in, &start, err);
   if (!st) return -1;
   const int64_t npairs = st[n];
@@ -281,7 +281,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
     if (!(src[k] = get(in, &e[k], err))) return proto_wrap(err, "state import");
   for (int a = 0; a < in->narrays; a++) {
     const char *nm = in->arrays[a].name;
-    int known = strncmp(nm, "state.", 6) != 0;
+    int known = strncmp(nm, PROTO_P_STATE, strlen(PROTO_P_STATE)) != 0;
     for (int k = 0; k < ne && !known; k++) known = !strcmp(nm, e[k].name);
     if (!known) return proto_fail(err, "state import: unexpected array '%s' (not part of this model's state)", nm);
   }

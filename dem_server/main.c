@@ -22,7 +22,7 @@ typedef struct dem_app {
   int64_t restart_step; /* > 0: a restart, whose state replaces the settled bed */
   int surface;         /* mesh index of the coupled FEM surface, -1 if none */
   int threads_logged;  /* thread count last written to the log */
-  double series[6];
+  double series[DEM_N_SERIES];
   double *wall_row;    /* t, then Fx Fy Fz per wall (means over the step) */
   double *surface_force; /* [n*3] nodal force, mean over the step's sub-steps */
   double *snap_x, *snap_v, *snap_w, *snap_r;
@@ -32,8 +32,6 @@ enum { SNAP_X, SNAP_V, SNAP_OMEGA, SNAP_R, N_SNAP };
 static const char *const SNAP[N_SNAP] = {"x", "v", "omega", "r"};
 static const char *const WALL_FORCES = "wall_forces";
 
-static const char *const SERIES[] = {"t", "kinetic_energy", "contacts", "max_overlap_ratio",
-                                     "elastic_energy", "coordination"};
 
 static int configure(void *user, const proto_run_info *info, const cJSON *section, proto_err *err) {
   dem_app *a = user;
@@ -110,7 +108,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   if (!a->wall_row || !a->snap_x || !a->snap_v || !a->snap_w || !a->snap_r)
     return proto_fail(err, "out of memory");
   dem_gather(&a->state, a->state.radius, 1, a->snap_r);
-  if (proto_ready_series(ready, PROTO_A_SERIES, 6, SERIES) < 0 ||
+  if (proto_ready_series(ready, PROTO_A_SERIES, DEM_N_SERIES, DEM_SERIES) < 0 ||
       proto_ready_snapshot(ready, "points", SNAP[SNAP_X], NULL, 3, SNAP + SNAP_V) < 0)
     return proto_fail(err, "out of memory");
   cJSON *h = proto_msg_header(ready);
@@ -139,8 +137,9 @@ static void publish_summary(dem_app *a, proto_peer *peer, int64_t step, double t
   char topic[PROTO_NAME_LEN + 8];
   snprintf(topic, sizeof topic, "%s.summary", a->name);
   proto_msg_reset(&m, topic, "summary", step, t);
-  cJSON_AddItemToObject(proto_msg_header(&m), "columns", cJSON_CreateStringArray(SERIES, 6));
-  proto_msg_add_f8(&m, PROTO_A_SERIES, 6, 0, a->series);
+  cJSON_AddItemToObject(proto_msg_header(&m), "columns",
+                        cJSON_CreateStringArray(DEM_SERIES, DEM_N_SERIES));
+  proto_msg_add_f8(&m, PROTO_A_SERIES, DEM_N_SERIES, 0, a->series);
   proto_peer_publish(peer, &m);
   proto_msg_free(&m);
 }
@@ -186,12 +185,15 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
   to_mean(a->wall_row + 1, nw3, nsub);
   log_threads(a);
   const double t = info->t_end;
-  double row[6] = {t, s->kinetic_energy, (double)s->contacts, s->max_overlap_ratio,
-                   s->elastic_energy, dem_coordination(m, s)};
-  memcpy(a->series, row, sizeof row);
+  a->series[DEM_SERIES_T] = t;
+  a->series[DEM_SERIES_KINETIC] = s->kinetic_energy;
+  a->series[DEM_SERIES_CONTACTS] = (double)s->contacts;
+  a->series[DEM_SERIES_MAX_OVERLAP] = s->max_overlap_ratio;
+  a->series[DEM_SERIES_ELASTIC] = s->elastic_energy;
+  a->series[DEM_SERIES_COORDINATION] = dem_coordination(m, s);
   publish_summary(a, peer, info->k, t);
   a->wall_row[0] = t;
-  if (proto_msg_add_f8(reply, PROTO_A_SERIES, 6, 0, a->series) ||
+  if (proto_msg_add_f8(reply, PROTO_A_SERIES, DEM_N_SERIES, 0, a->series) ||
       proto_msg_add_prefixed(reply, PROTO_P_SERIES, WALL_FORCES, PROTO_F8, 1 + (int64_t)nw3, 0,
                              a->wall_row))
     return proto_fail(err, "reply full");

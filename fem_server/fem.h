@@ -155,7 +155,6 @@ typedef struct fem_model {
                              -2mu/3 with ANP (volumetric part nodal) */
   int anp;                /* average nodal pressure TET4 (fem_model_set_anp) */
   double *node_vol;       /* [n_nodes] ANP: V_a = sum_e V_e/4 */
-  double *node_theta;     /* [n_nodes] ANP scratch: nodal dilatation */
   int npe;                /* nodes per element */
   int nq;                 /* quadrature points per element (1 or 4) */
   double *grad;           /* [n_elems][nq][npe][3] dN/dx at quad points */
@@ -172,7 +171,6 @@ typedef struct fem_model {
   double *kval;           /* [nnz] */
   int32_t *n2e_ptr;       /* [n_nodes+1] node -> (elem*npe+local) */
   int32_t *n2e;
-  double *elem_force;     /* [n_elems*npe*3] scratch of the force kernel */
   fem_factor *factor;     /* kept factorisation, NULL before the first solve */
   double omega_max;       /* sqrt(lambda_max(M^-1 K)), 0 until computed */
   double dt_crit;         /* 2/omega_max, s */
@@ -200,9 +198,20 @@ int fem_model_set_anp(fem_model *md, proto_err *err);
 /* Numbers the free DOFs and assembles K (CSC, upper). Drops a kept factor. */
 int fem_model_assemble(fem_model *md, proto_err *err);
 
+/* Scratch of the force kernel, so that the model stays const once built
+ * (one per concurrent user of a model: fem_state and the static solver's
+ * kept factor each own one). */
+typedef struct fem_work {
+  double *elem_force; /* [n_elems*npe*3] element forces before the node gather;
+                         ANP: V_e/4 theta_e per element first */
+  double *node_theta; /* [n_nodes] ANP: nodal dilatation of the last u */
+} fem_work;
+int fem_work_init(const fem_model *md, fem_work *w, proto_err *err);
+void fem_work_free(fem_work *w);
+
 /* Internal force f = K u, matrix-free (element kernel + node gather,
  * OpenMP). u and f are full DOF vectors; fixed DOFs are not special here. */
-void fem_internal_force(fem_model *md, const double *u, double *f);
+void fem_internal_force(const fem_model *md, fem_work *w, const double *u, double *f);
 /* Loads, added into the full DOF vector b. Pressure p (Pa) acts against the
  * outward normal of a group's faces; traction t (Pa, vector) on a group;
  * body acceleration g (m/s^2) with the lumped mass. Consistent nodal loads
@@ -215,9 +224,9 @@ void fem_load_gravity(const fem_model *md, const double g[3], double *b);
 
 /* Element-average strain and stress (Voigt: xx yy zz yz xz xy, engineering
  * shear NOT used: tensor components), [n_elems*6] each; either may be NULL. */
-void fem_element_strain_stress(const fem_model *md, const double *u,
+void fem_element_strain_stress(const fem_model *md, fem_work *w, const double *u,
                                double *strain, double *stress);
-double fem_strain_energy(const fem_model *md, const double *u); /* 1/2 u.Ku */
+double fem_strain_energy(const fem_model *md, fem_work *w, const double *u); /* 1/2 u.Ku */
 
 /* ---------------------------------------------------------- static solve */
 
@@ -273,12 +282,24 @@ typedef struct fem_state {
                            fem_state_init: inertial) */
   double rim_w_prev[3], rim_v_prev[3]; /* fem_frame_from_rim: last call's */
   int rim_has_prev;
+  fem_work work;        /* the force kernel's scratch */
 } fem_state;
+
+/* Columns of fem_server's per-step summary, its "series" dataset (names:
+ * fem_server.c). */
+typedef enum fem_series_col {
+  FEM_SERIES_T,         /* s, end of the coupling step */
+  FEM_SERIES_STRAIN,    /* fem_state.strain, J */
+  FEM_SERIES_KINETIC,   /* fem_state.kinetic, J */
+  FEM_SERIES_DT_SUB,    /* fem_state.dt_sub, s */
+  FEM_SERIES_SUB_STEPS, /* sub-steps in the coupling step (quasi-static: 1) */
+  FEM_N_SERIES
+} fem_series_col;
 
 int fem_state_init(const fem_model *md, fem_state *st, proto_err *err);
 void fem_state_free(fem_state *st);
 /* Starts a run at rest in state u (v = 0), computing K u. */
-void fem_state_reset(fem_model *md, fem_state *st, const double *u);
+void fem_state_reset(const fem_model *md, fem_state *st, const double *u);
 
 /* Largest eigenvalue of M^-1 K over the free DOFs by power iteration with a
  * Rayleigh quotient (converged to rel. 1e-6 or max_iter); sets
@@ -291,7 +312,7 @@ int fem_stable_dt(fem_model *md, int max_iter, proto_err *err);
  * n = ceil(span/(safety*dt_crit)) equal sub-steps, or a forced dt_sub > 0
  * (span/dt_sub rounded up). Stops with an error naming the limit when the
  * discrete energy exceeds 10x (energy0 + work_abs) or is not finite. */
-int fem_explicit_advance(fem_model *md, fem_state *st, double span,
+int fem_explicit_advance(const fem_model *md, fem_state *st, double span,
                          double safety, double dt_sub, proto_err *err);
 
 /* Sets st->frame for the coming step of length span from the rim's motion

@@ -19,10 +19,8 @@
 int fem_model_set_anp(fem_model *md, proto_err *err) {
   if (md->npe != 4) return proto_fail(err, "average nodal pressure is a TET4 formulation");
   free(md->node_vol);
-  free(md->node_theta);
   md->node_vol = calloc((size_t)md->mesh.n_nodes, sizeof *md->node_vol);
-  md->node_theta = calloc((size_t)md->mesh.n_nodes, sizeof *md->node_theta);
-  if (!md->node_vol || !md->node_theta) return proto_fail(err, "out of memory (ANP)");
+  if (!md->node_vol) return proto_fail(err, "out of memory (ANP)");
   for (int32_t e = 0; e < md->mesh.n_elems; e++)
     for (int a = 0; a < 4; a++) md->node_vol[md->mesh.conn[4 * (size_t)e + a]] += 0.25 * md->wdet[e];
   md->anp = 1;
@@ -39,9 +37,9 @@ static double elem_dilatation(const fem_model *md, int32_t e, const double *u) {
   return th;
 }
 
-void fem_anp_prepare(fem_model *md, const double *u) {
+void fem_anp_prepare(const fem_model *md, fem_work *w, const double *u) {
   const int32_t nn = md->mesh.n_nodes, ne = md->mesh.n_elems;
-  double *ew = md->elem_force; /* scratch: V_e/4 theta_e per element */
+  double *ew = w->elem_force; /* scratch: V_e/4 theta_e per element */
 #pragma omp parallel if (ne > FEM_OMP_MIN_ELEMS)
   {
 #pragma omp for schedule(static)
@@ -50,7 +48,7 @@ void fem_anp_prepare(fem_model *md, const double *u) {
     for (int32_t n = 0; n < nn; n++) {
       double s = 0;
       for (int32_t p = md->n2e_ptr[n]; p < md->n2e_ptr[n + 1]; p++) s += ew[md->n2e[p] / 4];
-      md->node_theta[n] = s / md->node_vol[n];
+      w->node_theta[n] = s / md->node_vol[n];
     }
   }
 }

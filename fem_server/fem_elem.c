@@ -116,8 +116,8 @@ static void hooke(double lambda, double mu, const double H[3][3], double S[3][3]
 /* Element force for a fixed element kind: with npe and nq compile-time
  * constants (always inlined below) the loops unroll. */
 static inline __attribute__((always_inline)) void
-elem_force_k(const fem_model *md, int32_t e, const double *restrict u, double *restrict fe,
-             const int npe, const int nq) {
+elem_force_k(const fem_model *md, const double *restrict theta, int32_t e, const double *restrict u,
+             double *restrict fe, const int npe, const int nq) {
   const int32_t *c = md->mesh.conn + (size_t)e * npe;
   double ue[10][3], f[10][3];
   for (int a = 0; a < npe; a++)
@@ -136,7 +136,7 @@ elem_force_k(const fem_model *md, int32_t e, const double *restrict u, double *r
     const double mw = md->mu * w;
     if (npe == 4 && md->anp) /* ANP: + kappa * mean nodal dilatation */
       lw += w * (md->lambda + 2 * md->mu / 3) * 0.25 *
-            (md->node_theta[c[0]] + md->node_theta[c[1]] + md->node_theta[c[2]] + md->node_theta[c[3]]);
+            (theta[c[0]] + theta[c[1]] + theta[c[2]] + theta[c[3]]);
     for (int i = 0; i < 3; i++) /* w sigma, eq. 29 */
       for (int j = 0; j < 3; j++) S[i][j] = mw * (H[i][j] + H[j][i]) + (i == j ? lw : 0);
     for (int a = 0; a < npe; a++)
@@ -147,24 +147,44 @@ elem_force_k(const fem_model *md, int32_t e, const double *restrict u, double *r
     for (int d = 0; d < 3; d++) fe[3 * a + d] = f[a][d];
 }
 
-static void elem_force(const fem_model *md, int32_t e, const double *u, double *fe) {
-  if (md->npe == 4) elem_force_k(md, e, u, fe, 4, 1);
-  else elem_force_k(md, e, u, fe, 10, 4);
+static void elem_force(const fem_model *md, const double *theta, int32_t e, const double *u,
+                       double *fe) {
+  if (md->npe == 4) elem_force_k(md, theta, e, u, fe, 4, 1);
+  else elem_force_k(md, theta, e, u, fe, 10, 4);
 }
 
-void fem_internal_force(fem_model *md, const double *u, double *f) {
-  if (md->anp) fem_anp_prepare(md, u); /* nodal dilatation first */
+int fem_work_init(const fem_model *md, fem_work *w, proto_err *err) {
+  memset(w, 0, sizeof *w);
+  w->elem_force = malloc(sizeof *w->elem_force * (size_t)md->mesh.n_elems * md->mesh.nodes_per_elem * 3);
+  w->node_theta = calloc((size_t)md->mesh.n_nodes, sizeof *w->node_theta);
+  if (!w->elem_force || !w->node_theta) {
+    fem_work_free(w);
+    return proto_fail(err, "out of memory (force kernel scratch, %d elements)", (int)md->mesh.n_elems);
+  }
+  return 0;
+}
+
+void fem_work_free(fem_work *w) {
+  if (!w) return;
+  free(w->elem_force);
+  free(w->node_theta);
+  memset(w, 0, sizeof *w);
+}
+
+void fem_internal_force(const fem_model *md, fem_work *w, const double *u, double *f) {
+  if (md->anp) fem_anp_prepare(md, w, u); /* nodal dilatation first */
   const int npe = md->npe;
   const int32_t ne = md->mesh.n_elems, nn = md->mesh.n_nodes;
-  double *fe = md->elem_force;
+  double *fe = w->elem_force;
+  const double *theta = w->node_theta;
 #pragma omp parallel if (ne > FEM_OMP_MIN_ELEMS)
   {
     if (npe == 4) {
 #pragma omp for schedule(static)
-      for (int32_t e = 0; e < ne; e++) elem_force_k(md, e, u, fe + (size_t)e * 12, 4, 1);
+      for (int32_t e = 0; e < ne; e++) elem_force_k(md, theta, e, u, fe + (size_t)e * 12, 4, 1);
     } else {
 #pragma omp for schedule(static)
-      for (int32_t e = 0; e < ne; e++) elem_force_k(md, e, u, fe + (size_t)e * 30, 10, 4);
+      for (int32_t e = 0; e < ne; e++) elem_force_k(md, theta, e, u, fe + (size_t)e * 30, 10, 4);
     }
     /* gather per node: no write conflicts, no colouring needed */
 #pragma omp for schedule(static)
@@ -203,10 +223,10 @@ void fem_elem_stiffness(const fem_model *md, int32_t e, double *Ke /* [3npe]^2 *
   }
 }
 
-void fem_element_strain_stress(const fem_model *md, const double *u, double *strain,
+void fem_element_strain_stress(const fem_model *md, fem_work *w, const double *u, double *strain,
                                double *stress) {
   const int npe = md->npe, nq = md->nq;
-  if (md->anp) fem_anp_prepare((fem_model *)md, u);
+  if (md->anp) fem_anp_prepare(md, w, u);
   static const int vi[6] = {0, 1, 2, 1, 0, 0}, vj[6] = {0, 1, 2, 2, 2, 1};
 #pragma omp parallel for schedule(static) if (md->mesh.n_elems > FEM_OMP_MIN_ELEMS)
   for (int32_t e = 0; e < md->mesh.n_elems; e++) {
@@ -228,7 +248,7 @@ void fem_element_strain_stress(const fem_model *md, const double *u, double *str
     hooke(md->lambda_elem, md->mu, Hm, S);
     if (md->anp) { /* + kappa * element mean of the nodal dilatation */
       double p = 0;
-      for (int a = 0; a < 4; a++) p += 0.25 * (md->lambda + 2 * md->mu / 3) * md->node_theta[c[a]];
+      for (int a = 0; a < 4; a++) p += 0.25 * (md->lambda + 2 * md->mu / 3) * w->node_theta[c[a]];
       for (int i = 0; i < 3; i++) S[i][i] += p;
     }
     for (int k = 0; k < 6; k++) {
@@ -238,14 +258,15 @@ void fem_element_strain_stress(const fem_model *md, const double *u, double *str
   }
 }
 
-double fem_strain_energy(const fem_model *md, const double *u) {
+double fem_strain_energy(const fem_model *md, fem_work *w, const double *u) {
   double s = 0;
-  if (md->anp) fem_anp_prepare((fem_model *)md, u); /* sum_e V_e pbar_e theta_e = sum_a kappa V_a theta_a^2 */
+  if (md->anp) fem_anp_prepare(md, w, u); /* sum_e V_e pbar_e theta_e = sum_a kappa V_a theta_a^2 */
+  const double *theta = w->node_theta;
   const int npe = md->npe;
 #pragma omp parallel for reduction(+ : s) schedule(static) if (md->mesh.n_elems > FEM_OMP_MIN_ELEMS)
   for (int32_t e = 0; e < md->mesh.n_elems; e++) {
     double fe[30];
-    elem_force(md, e, u, fe);
+    elem_force(md, theta, e, u, fe);
     const int32_t *c = md->mesh.conn + (size_t)e * npe;
     for (int a = 0; a < npe; a++)
       for (int d = 0; d < 3; d++) s += 0.5 * fe[3 * a + d] * u[3 * (size_t)c[a] + d];

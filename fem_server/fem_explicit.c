@@ -44,7 +44,7 @@ int fem_state_init(const fem_model *md, fem_state *st, proto_err *err) {
   st->b = calloc(n, sizeof *st->b);
   if (!st->u || !st->v || !st->v_half || !st->fint || !st->b)
     return proto_fail(err, "out of memory (state with %zu DOFs)", n);
-  return 0;
+  return fem_work_init(md, &st->work, err);
 }
 
 void fem_state_free(fem_state *st) {
@@ -54,15 +54,16 @@ void fem_state_free(fem_state *st) {
   free(st->v_half);
   free(st->fint);
   free(st->b);
+  fem_work_free(&st->work);
   memset(st, 0, sizeof *st);
 }
 
-void fem_state_reset(fem_model *md, fem_state *st, const double *u) {
+void fem_state_reset(const fem_model *md, fem_state *st, const double *u) {
   size_t n = (size_t)md->n_dof;
   for (size_t i = 0; i < n; i++) st->u[i] = md->fixed[i] ? md->u_fixed[i] : (u ? u[i] : 0);
   memset(st->v, 0, sizeof *st->v * n);
   memset(st->v_half, 0, sizeof *st->v_half * n);
-  fem_internal_force(md, st->u, st->fint);
+  fem_internal_force(md, &st->work, st->u, st->fint);
   double se = 0;
   for (size_t i = 0; i < n; i++) se += 0.5 * st->u[i] * st->fint[i];
   st->strain = se;
@@ -76,7 +77,8 @@ void fem_state_reset(fem_model *md, fem_state *st, const double *u) {
 int fem_stable_dt(fem_model *md, int max_iter, proto_err *err) {
   size_t n = (size_t)md->n_dof;
   double *x = malloc(sizeof *x * n), *y = malloc(sizeof *y * n);
-  if (!x || !y) {
+  fem_work w = {0};
+  if (!x || !y || fem_work_init(md, &w, err)) {
     free(x);
     free(y);
     return proto_fail(err, "out of memory (power iteration)");
@@ -89,7 +91,7 @@ int fem_stable_dt(fem_model *md, int max_iter, proto_err *err) {
   double lam = 0, lam_old = 0;
   int it;
   for (it = 1; it <= max_iter; it++) {
-    fem_internal_force(md, x, y);
+    fem_internal_force(md, &w, x, y);
     double xKx = 0, xMx = 0, nrm = 0;
     for (size_t i = 0; i < n; i++) {
       if (md->fixed[i]) continue;
@@ -110,6 +112,7 @@ int fem_stable_dt(fem_model *md, int max_iter, proto_err *err) {
   }
   free(x);
   free(y);
+  fem_work_free(&w);
   if (!(lam > 0) || !isfinite(lam))
     return proto_fail(err, "stable time step: power iteration gave lambda_max = %g", lam);
   md->omega_max = sqrt(lam);
@@ -156,7 +159,7 @@ static void solve_node(double A[3][3], double r[3], const uint8_t *fixed, double
 /* One leapfrog step of node a in a rotating frame (see the file comment).
  * Returns the kinetic energy of the new half-step velocity; adds u_{n+1}.K u_n
  * and the work to *uKu and *dw. */
-static double node_step_rotating(fem_model *md, fem_state *st, int32_t a, double dt,
+static double node_step_rotating(const fem_model *md, fem_state *st, int32_t a, double dt,
                                  double alpha, double *uKu, double *dw) {
   const size_t i0 = 3 * (size_t)a;
   const double m = md->mass[a];
@@ -190,7 +193,7 @@ static double node_step_rotating(fem_model *md, fem_state *st, int32_t a, double
   return kin;
 }
 
-int fem_explicit_advance(fem_model *md, fem_state *st, double span, double safety,
+int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double safety,
                          double dt_sub, proto_err *err) {
   if (!(span > 0)) return proto_fail(err, "explicit advance: span %g must be > 0", span);
   if (!(md->dt_crit > 0) && !(dt_sub > 0))
@@ -233,7 +236,7 @@ int fem_explicit_advance(fem_model *md, fem_state *st, double span, double safet
     st->work_abs += fabs(dw);
     st->t = t0 + span * (double)k / (double)n;
     st->n_sub++;
-    fem_internal_force(md, st->u, st->fint);
+    fem_internal_force(md, &st->work, st->u, st->fint);
     if (!isfinite(st->energy) || fabs(st->energy) > 10 * (fabs(st->energy0) + st->work_abs))
       return unstable(md, st, dt, k, n, err);
   }

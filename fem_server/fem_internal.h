@@ -51,10 +51,9 @@ static inline void fem_cross(const double a[3], const double b[3], double c[3]) 
  * acc + alpha x r + Omega x (Omega x r). The body force is -m times it. */
 void fem_frame_point_acc(const fem_frame *fr, const double r[3], double a[3]);
 
-/* ANP (fem_anp.c): nodal dilatation of u into md->node_theta, and the
- * element force of the volumetric part added in elem_force (via
- * fem_anp_elem_pressure). */
-void fem_anp_prepare(fem_model *md, const double *u);
+/* ANP (fem_anp.c): nodal dilatation of u into w->node_theta (w->elem_force
+ * as scratch), which the element kernel then reads for the volumetric part. */
+void fem_anp_prepare(const fem_model *md, fem_work *w, const double *u);
 int fem_anp_assemble(fem_model *md, proto_err *err);
 /* 2-ring node neighbours for the ANP pattern: nb[ptr[n]..ptr[n+1]) sorted. */
 int fem_anp_neighbours(const fem_model *md, int32_t **ptr, int32_t **nb, proto_err *err);

@@ -40,9 +40,7 @@ void fem_model_free(fem_model *md) {
   free(md->kval);
   free(md->n2e_ptr);
   free(md->n2e);
-  free(md->elem_force);
   free(md->node_vol);
-  free(md->node_theta);
   fem_factor_free(&md->factor);
   memset(md, 0, sizeof *md);
 }
@@ -77,8 +75,7 @@ int fem_model_init(fem_model *md, fem_mesh *mesh, const fem_material *mat,
   md->n_dof = 3 * md->mesh.n_nodes;
   md->fixed = calloc((size_t)md->n_dof, 1);
   md->u_fixed = calloc((size_t)md->n_dof, sizeof *md->u_fixed);
-  md->elem_force = malloc(sizeof *md->elem_force * (size_t)md->mesh.n_elems * md->mesh.nodes_per_elem * 3);
-  if (!md->fixed || !md->u_fixed || !md->elem_force) return proto_fail(err, "out of memory (model)");
+  if (!md->fixed || !md->u_fixed) return proto_fail(err, "out of memory (model)");
   if (fem_elem_data(md, err) || build_n2e(md, err)) return -1;
   return 0;
 }

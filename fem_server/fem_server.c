@@ -37,7 +37,7 @@ typedef struct server {
   int32_t *surf_tri;    /* [n_tri*3] */
   double *surf_x0;      /* [n_surf*3] rim frame, after the static solve */
   double *x_out, *v_out; /* [n_surf*3] world */
-  double series[5];
+  double series[FEM_N_SERIES];
   double scalars[8];    /* state_save: the scalar part of fem_state */
   /* snapshots */
   int32_t *cells;       /* [n_elems*npe] VTK order */
@@ -177,8 +177,11 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   }
   if (build_surface(s, err) || alloc_snapshots(s, err)) return -1;
 
-  static const char *const cols[] = {"t", "strain_energy", "kinetic_energy", "dt_sub", "sub_steps"};
-  if (proto_ready_series(ready, PROTO_A_SERIES, 5, cols) < 0 ||
+  static const char *const cols[FEM_N_SERIES] = {
+      [FEM_SERIES_T] = "t", [FEM_SERIES_STRAIN] = "strain_energy",
+      [FEM_SERIES_KINETIC] = "kinetic_energy", [FEM_SERIES_DT_SUB] = "dt_sub",
+      [FEM_SERIES_SUB_STEPS] = "sub_steps"};
+  if (proto_ready_series(ready, PROTO_A_SERIES, FEM_N_SERIES, cols) < 0 ||
       proto_ready_snapshot(ready, md->npe == 10 ? "tet10" : "tet4", SNAP[SNAP_X], MESH_CELLS,
                            4, SNAP + SNAP_U) < 0)
     return proto_fail(err, "out of memory");
@@ -257,7 +260,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
     memcpy(s->u_prev, s->st.u, sizeof *s->u_prev * (size_t)md->n_dof);
     if (fem_static_solve(md, s->cfg.solver, 1e-10, b, s->st.u, NULL, err)) return -1;
     for (int32_t i = 0; i < md->n_dof; i++) s->st.v[i] = (s->st.u[i] - s->u_prev[i]) / span;
-    fem_internal_force(md, s->st.u, s->st.fint);
+    fem_internal_force(md, &s->st.work, s->st.u, s->st.fint);
     double se = 0, ke = 0;
     for (int32_t i = 0; i < md->n_dof; i++) {
       se += 0.5 * s->st.u[i] * s->st.fint[i];
@@ -270,25 +273,26 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   }
   for (int32_t i = 0; i < s->n_surf; i++)
     to_world(s, R, c, w, vc, s->surf_node[i], s->x_out + 3 * (size_t)i, s->v_out + 3 * (size_t)i);
-  s->series[0] = info->t_end;
-  s->series[1] = s->st.strain;
-  s->series[2] = s->st.kinetic;
-  s->series[3] = s->st.dt_sub;
-  s->series[4] = s->cfg.mode == FEM_EXPLICIT ? (double)(int64_t)(span / s->st.dt_sub + 0.5) : 1;
+  s->series[FEM_SERIES_T] = info->t_end;
+  s->series[FEM_SERIES_STRAIN] = s->st.strain;
+  s->series[FEM_SERIES_KINETIC] = s->st.kinetic;
+  s->series[FEM_SERIES_DT_SUB] = s->st.dt_sub;
+  s->series[FEM_SERIES_SUB_STEPS] =
+      s->cfg.mode == FEM_EXPLICIT ? (double)(int64_t)(span / s->st.dt_sub + 0.5) : 1;
   if (proto_msg_add_f8(reply, PROTO_A_X, s->n_surf, 3, s->x_out) ||
       proto_msg_add_f8(reply, PROTO_A_V, s->n_surf, 3, s->v_out) ||
-      proto_msg_add_f8(reply, PROTO_A_SERIES, 5, 0, s->series))
+      proto_msg_add_f8(reply, PROTO_A_SERIES, FEM_N_SERIES, 0, s->series))
     return proto_fail(err, "reply full");
   if (info->output) {
     const int32_t nn = md->mesh.n_nodes, ne = md->mesh.n_elems;
     for (int32_t n = 0; n < nn; n++)
       to_world(s, R, c, w, vc, n, s->snap_x + 3 * (size_t)n, s->snap_v + 3 * (size_t)n);
-    fem_element_strain_stress(md, s->st.u, s->voigt, NULL);
+    fem_element_strain_stress(md, &s->st.work, s->st.u, s->voigt, NULL);
     /* XDMF Tensor6 order: xx xy xz yy yz zz (ours: xx yy zz yz xz xy) */
     static const int perm[6] = {0, 5, 4, 1, 3, 2};
     for (int32_t e = 0; e < ne; e++)
       for (int k = 0; k < 6; k++) s->strain[6 * (size_t)e + k] = s->voigt[6 * (size_t)e + perm[k]];
-    fem_element_strain_stress(md, s->st.u, NULL, s->voigt);
+    fem_element_strain_stress(md, &s->st.work, s->st.u, NULL, s->voigt);
     for (int32_t e = 0; e < ne; e++)
       for (int k = 0; k < 6; k++) s->stress[6 * (size_t)e + k] = s->voigt[6 * (size_t)e + perm[k]];
     const double *snap[N_SNAP] = {s->snap_x, s->st.u, s->snap_v, s->strain, s->stress};

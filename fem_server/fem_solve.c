@@ -18,6 +18,7 @@ struct fem_factor {
   double *full;             /* [n_dof] scratch */
   double *kuc;              /* [n_dof] K u_c */
   double *pcg;              /* [6*n_eq] PCG work: x r z p q 1/diag */
+  fem_work work;            /* force kernel scratch for K u_c */
 };
 
 void fem_factor_free(fem_factor **pf) {
@@ -33,6 +34,7 @@ void fem_factor_free(fem_factor **pf) {
   free(f->full);
   free(f->kuc);
   free(f->pcg);
+  fem_work_free(&f->work);
   free(f);
   *pf = NULL;
 }
@@ -79,7 +81,7 @@ static void reduced_rhs(fem_model *md, fem_factor *f, const double *b) {
     f->full[i] = md->fixed[i] ? md->u_fixed[i] : 0;
     any |= f->full[i] != 0;
   }
-  if (any) fem_internal_force(md, f->full, f->kuc);
+  if (any) fem_internal_force(md, &f->work, f->full, f->kuc);
   for (int32_t i = 0; i < md->n_dof; i++)
     if (md->eq[i] >= 0) f->rhs[md->eq[i]] = b[i] - (any ? f->kuc[i] : 0);
 }
@@ -99,7 +101,7 @@ static fem_factor *factor_new(const fem_model *md, proto_err *err) {
   f->rhs = malloc(sizeof *f->rhs * (size_t)md->n_eq);
   f->full = malloc(sizeof *f->full * (size_t)md->n_dof);
   f->kuc = malloc(sizeof *f->kuc * (size_t)md->n_dof);
-  if (!f->rhs || !f->full || !f->kuc) {
+  if (!f->rhs || !f->full || !f->kuc || fem_work_init(md, &f->work, err)) {
     fem_factor_free(&f);
     proto_fail(err, "out of memory (solver scratch)");
   }

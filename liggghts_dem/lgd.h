@@ -23,10 +23,6 @@
 
 #include "dem_server/dem.h"
 
-/* Columns of the per-step summary, the same as dem_server's "series". */
-#define LGD_SERIES_COLS 6
-extern const char *const LGD_SERIES[LGD_SERIES_COLS];
-
 typedef struct lgd_options {
   const char *screen;  /* LIGGGHTS' screen on rank 0 (NULL: /dev/null); kept short */
   const char *tmp_dir; /* where rank 0 writes the input files (NULL: $TMPDIR or /tmp) */
@@ -39,8 +35,8 @@ typedef struct lgd_options {
 /* Per-step results, valid on rank 0 after lgd_step. Forces are averages over
  * the coupling step (impulse / Δt, the sum over DEM sub-steps / their count). */
 typedef struct lgd_out {
-  double series[LGD_SERIES_COLS]; /* t, kinetic_energy, contacts, max_overlap_ratio,
-                                     elastic_energy, coordination (end of step) */
+  double series[DEM_N_SERIES]; /* dem_server's summary columns (dem_series_col),
+                                  end of step */
   double *wall_force;  /* [n_walls*3] force ON each wall, config order (N) */
   double *nodal_force; /* [n_nodes*3] force of the grains ON each coupled surface
                           node (N); NULL without a coupled surface */

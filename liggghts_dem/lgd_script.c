@@ -12,9 +12,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-const char *const LGD_SERIES[LGD_SERIES_COLS] = {"t", "kinetic_energy", "contacts", "max_overlap_ratio",
-                                                 "elastic_energy", "coordination"};
-
 static int any_fixed_rotation(const dem_model *m) {
   for (int i = 0; i < m->n_grains; i++)
     if (m->fix_rotation[i]) return 1;

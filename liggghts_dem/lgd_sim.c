@@ -499,9 +499,13 @@ int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err 
   double ratio = st.max_ratio;
   MPI_Allreduce(sums, tot, 4, MPI_DOUBLE, MPI_SUM, s->comm);
   MPI_Allreduce(&st.max_ratio, &ratio, 1, MPI_DOUBLE, MPI_MAX, s->comm);
-  const double row[LGD_SERIES_COLS] = {s->t, tot[0], round(tot[1]), ratio, tot[2],
-                                       2.0 * round(tot[3]) / s->n_grains};
-  memcpy(s->out.series, row, sizeof row);
+  double *row = s->out.series;
+  row[DEM_SERIES_T] = s->t;
+  row[DEM_SERIES_KINETIC] = tot[0];
+  row[DEM_SERIES_CONTACTS] = round(tot[1]);
+  row[DEM_SERIES_MAX_OVERLAP] = ratio;
+  row[DEM_SERIES_ELASTIC] = tot[2];
+  row[DEM_SERIES_COORDINATION] = 2.0 * round(tot[3]) / s->n_grains;
   s->out.substeps = nsub;
   MPI_Reduce(s->rank == 0 ? MPI_IN_PLACE : s->wall_local, s->wall_local, 3 * m->n_walls, MPI_DOUBLE,
              MPI_SUM, 0, s->comm);

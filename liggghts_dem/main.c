@@ -233,7 +233,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   if (do_init(a, op.n_nodes, x0, op.n_tri, op.n_tri ? (const int32_t *)tri->data : NULL, err)) return -1;
   const dem_model *m = &a->model;
 
-  if (proto_ready_series(ready, PROTO_A_SERIES, LGD_SERIES_COLS, LGD_SERIES) < 0 ||
+  if (proto_ready_series(ready, PROTO_A_SERIES, DEM_N_SERIES, DEM_SERIES) < 0 ||
       proto_ready_snapshot(ready, "points", SNAP[0], NULL, 3, SNAP + 1) < 0)
     return proto_fail(err, "out of memory");
   cJSON *h = proto_msg_header(ready);
@@ -294,9 +294,9 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
   if (do_step(a, op.dt, op.output, err)) return -1;
   const lgd_out *o = lgd_result(a->sim);
   const dem_model *m = &a->model;
-  a->wall_row[0] = o->series[0];
+  a->wall_row[0] = o->series[DEM_SERIES_T];
   memcpy(a->wall_row + 1, o->wall_force, sizeof(double) * 3 * (size_t)m->n_walls);
-  if (proto_msg_add_f8(reply, PROTO_A_SERIES, LGD_SERIES_COLS, 0, o->series) ||
+  if (proto_msg_add_f8(reply, PROTO_A_SERIES, DEM_N_SERIES, 0, o->series) ||
       proto_msg_add_prefixed(reply, PROTO_P_SERIES, WALL_FORCES, PROTO_F8, 1 + 3 * (int64_t)m->n_walls, 0,
                              a->wall_row) ||
       (a->n_nodes > 0 && proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, a->n_nodes, 3, o->nodal_force)))

@@ -151,8 +151,8 @@ static void *heartbeat_main(void *arg) {
 int proto_ready_series(proto_msg *ready, const char *dataset, int ncols,
                        const char *const *columns) {
   cJSON *h = proto_msg_header(ready);
-  cJSON *series = cJSON_GetObjectItemCaseSensitive(h, "series");
-  if (!series) series = cJSON_AddObjectToObject(h, "series");
+  cJSON *series = cJSON_GetObjectItemCaseSensitive(h, PROTO_H_SERIES);
+  if (!series) series = cJSON_AddObjectToObject(h, PROTO_H_SERIES);
   cJSON *cols = cJSON_CreateStringArray(columns, ncols);
   return series && cols && cJSON_AddItemToObject(series, dataset, cols) ? 0 : -1;
 }
@@ -160,7 +160,7 @@ int proto_ready_series(proto_msg *ready, const char *dataset, int ncols,
 int proto_ready_snapshot(proto_msg *ready, const char *kind,
                          const char *geometry, const char *cells, int nattrs,
                          const char *const *attributes) {
-  cJSON *snap = cJSON_AddObjectToObject(proto_msg_header(ready), "snapshot");
+  cJSON *snap = cJSON_AddObjectToObject(proto_msg_header(ready), PROTO_H_SNAPSHOT);
   if (!snap) return -1;
   cJSON_AddStringToObject(snap, "kind", kind);
   cJSON_AddStringToObject(snap, "geometry", geometry);

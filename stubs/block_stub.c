@@ -9,7 +9,7 @@
 #define STIFFNESS_DEFAULT 1e6 /* N/m, when standing in for contact_block */
 
 enum { COL_T, COL_D, COL_F, COL_NC, COL_IT, NCOL };
-static const char *const columns[NCOL] = {"t", "d_road", "force",
+static const char *const columns[NCOL] = {"t", PROTO_A_D_ROAD, PROTO_A_FORCE,
                                           "points_in_contact", "iterations"};
 static const char *const STATE_FORCE = "force";
 

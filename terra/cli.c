@@ -422,11 +422,15 @@ static int cmd_curve(int argc, char **argv, proto_err *err) {
   }
   cJSON_Delete(root);
   if (rc) return -1;
-  static const char *const cols[] = {"s", "z", "W", "F_t", "R", "DP", "T", "T_over_r", "eff",
-                                     "z_lo", "z_hi", "F_t_lo", "F_t_hi", "R_lo", "R_hi", "DP_lo",
-                                     "DP_hi", "T_lo", "T_hi", "T_over_r_lo", "T_over_r_hi"};
+  /* columns: the mean soil's values, then a min/max band over the packings
+   * for each of the WH_N_BANDED quantities z, F_t, R, DP, T, T/r (lo, hi) */
+  enum { WH_S, WH_Z, WH_W, WH_FT, WH_R, WH_DP, WH_T, WH_T_OVER_R, WH_EFF, WH_BAND, WH_N_BANDED = 6,
+         WH_N = WH_BAND + 2 * WH_N_BANDED };
+  static const char *const cols[WH_N] = {"s", "z", "W", "F_t", "R", "DP", "T", "T_over_r", "eff",
+                                         "z_lo", "z_hi", "F_t_lo", "F_t_hi", "R_lo", "R_hi", "DP_lo",
+                                         "DP_hi", "T_lo", "T_hi", "T_over_r_lo", "T_over_r_hi"};
   ter_series t;
-  if (ter_series_init(&t, 21, cols, err)) return -1;
+  if (ter_series_init(&t, WH_N, cols, err)) return -1;
   ter_series_meta(&t, "model", "rigid wheel, Bekker / Wong-Reece / Janosi-Hanamoto (terra/README.md)");
   ter_series_meta(&t, "params", "%s", params);
   ter_series_meta(&t, "radius_m", "%.6g", r);
@@ -440,19 +444,20 @@ static int cmd_curve(int argc, char **argv, proto_err *err) {
   for (int i = 0; i < ns && !rc; i++) {
     ter_forces f;
     rc = ter_solve(&wh, &mean, W, s[i], &f, err);
-    double row[21] = {s[i], f.z, f.W, f.Ft, f.R, f.DP, f.T, f.T / r, f.eff};
-    const double q[6] = {f.z, f.Ft, f.R, f.DP, f.T, f.T / r};
-    for (int k = 0; k < 6; k++) row[9 + 2 * k] = row[10 + 2 * k] = q[k];
+    double row[WH_N] = {[WH_S] = s[i], [WH_Z] = f.z, [WH_W] = f.W, [WH_FT] = f.Ft, [WH_R] = f.R,
+                        [WH_DP] = f.DP, [WH_T] = f.T, [WH_T_OVER_R] = f.T / r, [WH_EFF] = f.eff};
+    const double q[WH_N_BANDED] = {f.z, f.Ft, f.R, f.DP, f.T, f.T / r};
+    for (int k = 0; k < WH_N_BANDED; k++) row[WH_BAND + 2 * k] = row[WH_BAND + 2 * k + 1] = q[k];
     for (int k = 0; k < nsets && !rc; k++) {
       ter_forces g;
       rc = ter_solve(&wh, &sets[k], W, s[i], &g, err);
-      const double qk[6] = {g.z, g.Ft, g.R, g.DP, g.T, g.T / r};
-      for (int m = 0; m < 6; m++) {
-        row[9 + 2 * m] = fmin(row[9 + 2 * m], qk[m]);
-        row[10 + 2 * m] = fmax(row[10 + 2 * m], qk[m]);
+      const double qk[WH_N_BANDED] = {g.z, g.Ft, g.R, g.DP, g.T, g.T / r};
+      for (int m = 0; m < WH_N_BANDED; m++) {
+        row[WH_BAND + 2 * m] = fmin(row[WH_BAND + 2 * m], qk[m]);
+        row[WH_BAND + 2 * m + 1] = fmax(row[WH_BAND + 2 * m + 1], qk[m]);
       }
     }
-    beyond += row[10] > z_fit;
+    beyond += row[WH_BAND + 1] > z_fit; /* z_hi */
     if (!rc) rc = ter_series_add(&t, row, err);
   }
   if (isfinite(z_fit)) {

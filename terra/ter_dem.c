@@ -217,6 +217,10 @@ static double highest_top(const dem_state *s, double cx, double cy, double h) {
 
 static double grain_density(const dem_model *m, int material) { return m->mat[material].density; }
 
+/* Columns of the plate-test and shear-test series. */
+enum { PL_Z, PL_P, PL_P_SKIRT, PL_INERTIAL, PL_MAX_OVERLAP, PL_KE, N_PL };
+enum { SH_J, SH_TAU, SH_TAU_UPPER, SH_SIGMA, SH_SIGMA_PLATEN, SH_DILATION, SH_INERTIAL, N_SH };
+
 int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log, ter_series *out,
                    proto_err *err) {
   if (!(sp->width > 0 && sp->container > 2 * sp->width && sp->depth_factor > 0 && sp->speed > 0 &&
@@ -224,8 +228,10 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
     return proto_fail(err, "plate test: need width > 0, container > 2 width, depth_factor, speed, "
                       "z_max, dz > 0 (got %g, %g, %g, %g, %g, %g)", sp->width, sp->container,
                       sp->depth_factor, sp->speed, sp->z_max, sp->dz);
-  static const char *const cols[] = {"z", "p", "p_skirt", "inertial", "max_overlap", "ke_per_grain"};
-  if (ter_series_init(out, 6, cols, err)) return -1;
+  static const char *const cols[N_PL] = {
+      [PL_Z] = "z", [PL_P] = "p", [PL_P_SKIRT] = "p_skirt", [PL_INERTIAL] = "inertial",
+      [PL_MAX_OVERLAP] = "max_overlap", [PL_KE] = "ke_per_grain"};
+  if (ter_series_init(out, N_PL, cols, err)) return -1;
   cJSON *sec = base_section(soil, err);
   if (!sec) return -1;
   const double L = sp->container, b = sp->width, h = 0.5 * b, c = 0.5 * L;
@@ -290,14 +296,15 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
     if (sink >= (bin + 1) * sp->dz || sink >= sp->z_max) {
       double p = acc[0] / nacc;
       double I = p > 0 ? (sp->speed / b) * d_top / sqrt(p / rho) : INFINITY;
-      double row[6] = {sink - 0.5 * sp->dz, p, acc[1] / nacc, I, acc[2], acc[3] / nacc};
+      const double row[N_PL] = {[PL_Z] = sink - 0.5 * sp->dz, [PL_P] = p, [PL_P_SKIRT] = acc[1] / nacc,
+                                [PL_INERTIAL] = I, [PL_MAX_OVERLAP] = acc[2], [PL_KE] = acc[3] / nacc};
       if (sink > 0 && ter_series_add(out, row, err)) goto fail;
       memset(acc, 0, sizeof acc);
       nacc = 0;
       bin++;
       if (log && bin % (int)fmax(1, floor(0.1 * sp->z_max / sp->dz)) == 0)
         fprintf(log, "terra: plate sinkage %.1f mm, p %.4g Pa, I %.2g, max overlap %.3g, %.3g grain-steps/s\n",
-                1e3 * sink, p, I, row[4], rate(&s, k0, t0));
+                1e3 * sink, p, I, row[PL_MAX_OVERLAP], rate(&s, k0, t0));
     }
     if (sink >= sp->z_max) break;
   }
@@ -349,8 +356,10 @@ int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log
                       "and 0 < j_max < length/2");
   if (sp->d_max > 0.2 * sp->height)
     return proto_fail(err, "shear test: box height %g m is below 5 grain diameters (%g m)", sp->height, sp->d_max);
-  static const char *const cols[] = {"j", "tau", "tau_upper", "sigma", "sigma_platen", "dilation", "inertial"};
-  if (ter_series_init(out, 7, cols, err)) return -1;
+  static const char *const cols[N_SH] = {
+      [SH_J] = "j", [SH_TAU] = "tau", [SH_TAU_UPPER] = "tau_upper", [SH_SIGMA] = "sigma",
+      [SH_SIGMA_PLATEN] = "sigma_platen", [SH_DILATION] = "dilation", [SH_INERTIAL] = "inertial"};
+  if (ter_series_init(out, N_SH, cols, err)) return -1;
   const double L = sp->length, W = sp->width, H = sp->height, hs = 0.5 * H;
   /* grains: diameters uniform in [d_min, d_max], enough for the height H */
   const double d0 = sp->d_min, d1 = sp->d_max;
@@ -469,15 +478,17 @@ int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log
     nacc++;
     if (j >= (bin + 1) * sp->dj || j >= sp->j_max) {
       double sig = acc[2] / nacc;
-      double row[7] = {j - 0.5 * sp->dj, acc[0] / nacc, acc[1] / nacc, sig, acc[3] / nacc, acc[4] / nacc,
-                       sig > 0 ? sp->speed / (10 * sqrt(sig / rho)) : INFINITY};
+      const double row[N_SH] = {[SH_J] = j - 0.5 * sp->dj, [SH_TAU] = acc[0] / nacc,
+                                [SH_TAU_UPPER] = acc[1] / nacc, [SH_SIGMA] = sig,
+                                [SH_SIGMA_PLATEN] = acc[3] / nacc, [SH_DILATION] = acc[4] / nacc,
+                                [SH_INERTIAL] = sig > 0 ? sp->speed / (10 * sqrt(sig / rho)) : INFINITY};
       if (ter_series_add(out, row, err)) goto fail;
       memset(acc, 0, sizeof acc);
       nacc = 0;
       bin++;
       if (log && bin % (int)fmax(1, floor(0.1 * sp->j_max / sp->dj)) == 0)
         fprintf(log, "terra: shear j %.1f mm, tau %.4g Pa, sigma %.4g Pa, dilation %.3g mm, %.3g grain-steps/s\n",
-                1e3 * j, row[1], row[3], 1e3 * row[5], rate(&s, k0, t0));
+                1e3 * j, row[SH_TAU], row[SH_SIGMA], 1e3 * row[SH_DILATION], rate(&s, k0, t0));
     }
     if (j >= sp->j_max) break;
   }

@@ -115,7 +115,8 @@ int main(int argc, char **argv) {
            (a[LGD_LIG_NEIGH] - b[LGD_LIG_NEIGH]) * k, (a[LGD_LIG_COMM] - b[LGD_LIG_COMM]) * k,
            (after->run - before.run) * k, (after->forces - before.forces) * k,
            (after->summary - before.summary) * k, t_steps / timed / m.n_grains * size * 1e9, mem0, mem_model,
-           mem_open, mem_end, peak_max, out->series[2], out->series[5], out->series[1]);
+           mem_open, mem_end, peak_max, out->series[DEM_SERIES_CONTACTS],
+           out->series[DEM_SERIES_COORDINATION], out->series[DEM_SERIES_KINETIC]);
   }
   lgd_close(sim);
   dem_model_free(&m);

@@ -35,12 +35,12 @@ static void peer(const char *ep, int mode, int n, int rounds) {
       zmq_send(s, force, bytes, 0);
     } else {
       if (proto_recv(s, &req, NULL, &err) < 0 ||
-          !proto_msg_get_f8(&req, "x", n, 3, &err)) {
+          !proto_msg_get_f8(&req, PROTO_A_X, n, 3, &err)) {
         fprintf(stderr, "peer: %s\n", err.msg);
         _exit(1);
       }
       proto_msg_reset(&rep, "dem", "done", req.step, req.t);
-      proto_msg_add_f8(&rep, "nodal_force", n, 3, force);
+      proto_msg_add_f8(&rep, PROTO_A_NODAL_FORCE, n, 3, force);
       proto_send(s, &rep, 0, &err);
     }
   }
@@ -80,11 +80,11 @@ static double coupler(const char *ep, int mode, int n, int rounds) {
       zmq_msg_close(&m);
     } else {
       proto_msg_reset(&req, "dem", "step", r, r * 1e-5);
-      proto_msg_add_f8(&req, "x", n, 3, x);
+      proto_msg_add_f8(&req, PROTO_A_X, n, 3, x);
       proto_send_to(s, "p", &req, &err);
       char who[PROTO_NAME_LEN];
       if (proto_recv(s, &rep, who, &err) < 0 ||
-          !proto_msg_get_f8(&rep, "nodal_force", n, 3, &err)) {
+          !proto_msg_get_f8(&rep, PROTO_A_NODAL_FORCE, n, 3, &err)) {
         fprintf(stderr, "coupler: %s\n", err.msg);
         exit(1);
       }

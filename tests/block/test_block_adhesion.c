@@ -4,7 +4,6 @@
  * 0.3 / 0.6 / 0.9 N give an increasing adherence force. */
 #include <math.h>
 
-#include "blk_scene.h"
 #include "blk_test.h"
 
 static proto_err err;
@@ -66,5 +65,5 @@ int main(void) {
   CHECK(Fmin == 0.0, "force %g < 0 without adhesion", Fmin);
   blk_state_free(&s);
   blk_model_free(&m);
-  return blk_test_failures ? 1 : 0;
+  return cosim_test_done("test_block_adhesion");
 }

@@ -6,7 +6,6 @@
 #include <math.h>
 #include <string.h>
 
-#include "blk_scene.h"
 #include "blk_test.h"
 
 static proto_err err;
@@ -96,5 +95,5 @@ int main(void) {
   CHECK(cd <= 1e-8 * max_abs(Ft_dir, NF), "chord steps differ by %.2e N", cd);
   blk_state_free(&s);
   blk_model_free(&m);
-  return blk_test_failures ? 1 : 0;
+  return cosim_test_done("test_block_dynamics");
 }

@@ -61,5 +61,5 @@ int main(void) {
     blk_model_free(&m);
     remove(path);
   }
-  return blk_test_failures ? 1 : 0;
+  return cosim_test_done("test_block_greenfile");
 }

@@ -124,5 +124,5 @@ int main(void) {
   compare("dynamic, springs", 0, 0, BLK_NR_DUAL);
   tangent_fd(BLK_CG);
   tangent_fd(BLK_NR_PLAIN);
-  return blk_test_failures ? 1 : 0;
+  return cosim_test_done("test_block_solvers");
 }

@@ -10,7 +10,7 @@
 #include <string.h>
 
 #include "coupler/run.h"
-#include "tests/proto/check.h"
+#include "cosim_test.h"
 
 #define M 6
 
@@ -113,5 +113,5 @@ int main(void) {
   for (int i = 0; i < M; i++) CHECK(fabs(u[i] - 0.5 / 1.8) < 1e-9);
   cpl_accel_free(ait);
   cpl_accel_free(c1);
-  CHECK_DONE();
+  return cosim_test_done("test_accel");
 }

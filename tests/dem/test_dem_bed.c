@@ -85,5 +85,5 @@ int main(void) {
   CHECK(rc != 0 && strstr(msg, "grains 0 and 1 overlap") && strstr(msg, "the bed file records"),
         "tampered bed accepted or message unclear: %s", msg);
   unlink(path);
-  return finish("test_dem_bed");
+  return cosim_test_done("test_dem_bed");
 }

@@ -77,5 +77,5 @@ int main(int argc, char **argv) {
   CHECK(worst <= 1e-6, "energy drift %.3g > 1e-6", worst);
   dem_state_free(&s);
   dem_model_free(&m);
-  return finish("test_dem_energy");
+  return cosim_test_done("test_dem_energy");
 }

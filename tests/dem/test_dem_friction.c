@@ -53,8 +53,8 @@ int main(void) {
     setup(th0, 1, 0, &m, &s);
     advance(&m, &s, 0.3);
     const double Gs = 1.0 / (2 * (2 - NU) * 2 * (1 + NU) / E), delta = R - s.x[2];
-    check_rel("sticking grain: elastic tangential displacement", s.x[0],
-              mass * G * sin(th0) / (8 * Gs * sqrt(R * delta)), 1e-6);
+    CHECK_REL("sticking grain: elastic tangential displacement",
+              s.x[0], mass * G * sin(th0) / (8 * Gs * sqrt(R * delta)), 1e-6);
   }
   dem_state_free(&s); dem_model_free(&m);
 
@@ -64,7 +64,8 @@ int main(void) {
   advance(&m, &s, 0.05);
   double v1 = s.v[0], t1 = s.t;
   advance(&m, &s, 0.15);
-  check_rel("sliding block acceleration", (s.v[0] - v1) / (s.t - t1), G * (sin(th) - MU * cos(th)), 1e-5);
+  CHECK_REL("sliding block acceleration",
+            (s.v[0] - v1) / (s.t - t1), G * (sin(th) - MU * cos(th)), 1e-5);
   dem_state_free(&s); dem_model_free(&m);
 
   /* 3. free sphere, tan θ = 2 μ < 7/2 μ: rolls, a = 5/7 g sin θ, v = ω r */
@@ -74,9 +75,9 @@ int main(void) {
   v1 = s.v[0]; t1 = s.t;
   advance(&m, &s, 0.15);
   double rc = lever(th);
-  check_rel("rolling sphere acceleration", (s.v[0] - v1) / (s.t - t1),
-            G * sin(th) / (1 + 0.4 * R * R / (rc * rc)), 1e-5);
-  check_rel("rolling sphere v = omega r_c", s.omega[1] * rc, s.v[0], 1e-5);
+  CHECK_REL("rolling sphere acceleration",
+            (s.v[0] - v1) / (s.t - t1), G * sin(th) / (1 + 0.4 * R * R / (rc * rc)), 1e-5);
+  CHECK_REL("rolling sphere v = omega r_c", s.omega[1] * rc, s.v[0], 1e-5);
   dem_state_free(&s); dem_model_free(&m);
 
   /* 4. free sphere, tan θ = 5 μ > 7/2 μ: slides and spins up */
@@ -87,17 +88,19 @@ int main(void) {
   double w1 = s.omega[1];
   t1 = s.t;
   advance(&m, &s, 0.15);
-  check_rel("sliding sphere acceleration", (s.v[0] - v1) / (s.t - t1), G * (sin(th) - MU * cos(th)), 1e-5);
-  check_rel("sliding sphere angular acceleration", (s.omega[1] - w1) / (s.t - t1),
-            MU * G * cos(th) * lever(th) / (0.4 * R * R), 1e-5);
+  CHECK_REL("sliding sphere acceleration",
+            (s.v[0] - v1) / (s.t - t1), G * (sin(th) - MU * cos(th)), 1e-5);
+  CHECK_REL("sliding sphere angular acceleration",
+            (s.omega[1] - w1) / (s.t - t1), MU * G * cos(th) * lever(th) / (0.4 * R * R), 1e-5);
   dem_state_free(&s); dem_model_free(&m);
 
   /* 5. flat plane, thrown at v0 without spin: ends rolling at 5/7 v0 */
   setup(0, 0, 1.0, &m, &s);
   advance(&m, &s, 0.3); /* sliding phase lasts 2 v0 / (7 μ g) = 0.073 s */
   rc = lever(0);
-  check_rel("sphere thrown flat: final v = v0/(1 + 2/5 r^2/r_c^2)", s.v[0], 1.0 / (1 + 0.4 * R * R / (rc * rc)), 1e-5);
-  check_rel("sphere thrown flat: v = omega r_c", s.omega[1] * rc, s.v[0], 1e-5);
+  CHECK_REL("sphere thrown flat: final v = v0/(1 + 2/5 r^2/r_c^2)",
+            s.v[0], 1.0 / (1 + 0.4 * R * R / (rc * rc)), 1e-5);
+  CHECK_REL("sphere thrown flat: v = omega r_c", s.omega[1] * rc, s.v[0], 1e-5);
   dem_state_free(&s); dem_model_free(&m);
-  return finish("test_dem_friction");
+  return cosim_test_done("test_dem_friction");
 }

@@ -75,18 +75,18 @@ int main(void) {
       impact got = run(pair, v, 1.0, th.tc / 3333.3);
       const char *kind = pair ? "pair" : "wall";
       snprintf(what, sizeof what, "%s v=%g contact duration", kind, v);
-      check_rel(what, got.tc, th.tc, 0.01);
+      CHECK_REL(what, got.tc, th.tc, 0.01);
       snprintf(what, sizeof what, "%s v=%g peak overlap", kind, v);
-      check_rel(what, got.dmax, th.dmax, 0.01);
+      CHECK_REL(what, got.dmax, th.dmax, 0.01);
       snprintf(what, sizeof what, "%s v=%g peak force", kind, v);
-      check_rel(what, got.fmax, th.fmax, 0.01);
+      CHECK_REL(what, got.fmax, th.fmax, 0.01);
       snprintf(what, sizeof what, "%s v=%g restitution (undamped)", kind, v);
-      check_rel(what, got.e, 1.0, 0.01);
+      CHECK_REL(what, got.e, 1.0, 0.01);
       const double es[] = {0.5, 0.9};
       for (int q = 0; q < 2; q++) {
         impact d = run(pair, v, es[q], th.tc / 3333.3);
         snprintf(what, sizeof what, "%s v=%g restitution e=%g", kind, v, es[q]);
-        check_rel(what, d.e, es[q], 0.02);
+        CHECK_REL(what, d.e, es[q], 0.02);
       }
     }
   /* static overlap on a plane under gravity: 4/3 E* sqrt(r) δ^{3/2} = m g */
@@ -103,10 +103,10 @@ int main(void) {
     proto_err err;
     scene(json, &m, &s);
     if (dem_advance(&m, &s, 0.1, &err)) { fprintf(stderr, "%s\n", err.msg); return 1; }
-    check_rel("static overlap on a plane", R - s.x[2], ds, 1e-6);
+    CHECK_REL("static overlap on a plane", R - s.x[2], ds, 1e-6);
     CHECK(fabs(s.v[2]) < 1e-9, "resting grain still moves: v = %g", s.v[2]);
     dem_state_free(&s);
     dem_model_free(&m);
   }
-  return finish("test_dem_hertz");
+  return cosim_test_done("test_dem_hertz");
 }

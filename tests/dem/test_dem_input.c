@@ -78,5 +78,5 @@ int main(void) {
     if (!rc) dem_model_free(&m);
     cJSON_Delete(j);
   }
-  return finish("test_dem_input");
+  return cosim_test_done("test_dem_input");
 }

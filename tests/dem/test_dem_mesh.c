@@ -136,8 +136,9 @@ static void test_belt(double z0) {
   make_scene_belt(1, x0, v0, U, &m, &s);
   if (dem_advance(&m, &s, 0.1, &err)) { fprintf(stderr, "%s\n", err.msg); exit(1); }
   const double rc = R - 0.5 * (R - z0); /* contact point in the middle of the overlap */
-  check_rel("belt: final grain speed U/(1 + r_c^2/(0.4 r^2))", s.v[0], U / (1 + rc * rc / (0.4 * R * R)), 1e-4);
-  check_rel("belt: rolling on the belt, v - omega r_c = U", s.v[0] - s.omega[1] * rc, U, 1e-4);
+  CHECK_REL("belt: final grain speed U/(1 + r_c^2/(0.4 r^2))",
+            s.v[0], U / (1 + rc * rc / (0.4 * R * R)), 1e-4);
+  CHECK_REL("belt: rolling on the belt, v - omega r_c = U", s.v[0] - s.omega[1] * rc, U, 1e-4);
   /* the BVH followed the belt: its root box was refitted at the last list
    * rebuild, at most skin/2 behind the nodes */
   const dem_bvh *b = &s.work->bvh[0];
@@ -187,5 +188,5 @@ int main(void) {
   const double xc[3] = {0.0, 0.0, z0}, vc[2] = {0, 0};
   compare_paths("resting on a vertex", xc, vc, 2000);
   test_belt(z0);
-  return finish("test_dem_mesh");
+  return cosim_test_done("test_dem_mesh");
 }

@@ -131,5 +131,5 @@ int main(void) {
   dem_state_free(&s);
   dem_model_free(&m);
   free(x0); free(x1); free(a0); free(a1);
-  return finish("test_dem_sleep");
+  return cosim_test_done("test_dem_sleep");
 }

@@ -222,5 +222,5 @@ int main(void) {
   dem_state_free(&a);
   dem_model_free(&m);
   dem_model_free(&mb);
-  return finish("test_dem_state_io");
+  return cosim_test_done("test_dem_state_io");
 }

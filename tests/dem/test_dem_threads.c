@@ -98,5 +98,5 @@ int main(void) {
     dem_model_free(&m[v]);
     free(out[v]);
   }
-  return finish("test_dem_threads");
+  return cosim_test_done("test_dem_threads");
 }

@@ -27,10 +27,13 @@ def _send(sock, name, type_, step=0, t=0.0, arrays=(), **extra):
 
 
 def _recv(sock, timeout_ms=60000):
-    if not sock.poll(timeout_ms):
-        raise RuntimeError("reference coupler: no reply")
-    frames = sock.recv_multipart()
-    ident, h = frames[0].decode(), json.loads(frames[2])
+    while True:  # heartbeats (PROTOCOL.md "Liveness") come whenever a participant is
+        if not sock.poll(timeout_ms):  # silent for a while: on a loaded machine, any time
+            raise RuntimeError("reference coupler: no reply")
+        frames = sock.recv_multipart()
+        ident, h = frames[0].decode(), json.loads(frames[2])
+        if h["type"] != "heartbeat":
+            break
     arrays = {a["name"]: np.frombuffer(fr, dtype=DTYPES[a["dtype"]]).reshape(a["shape"])
               for a, fr in zip(h["arrays"], frames[3:])}
     if h["type"] == "error":

@@ -72,5 +72,5 @@ int main(void) {
   CHECK(fabs(d10[2] / d_t - 1) < 0.01, "TET10 40x4x4 off Timoshenko by %.2f %%", 100 * (d10[2] / d_t - 1));
   CHECK(fabs(d10[1] / d_ref - 1) < 0.005, "TET10 20x2x2 off the 3-D answer by %.2f %%", 100 * (d10[1] / d_ref - 1));
   CHECK(d4[0] / d_t < 0.7, "TET4 coarse mesh should show shear locking (%.3f)", d4[0] / d_t);
-  return fem_test_done("test_fem_cantilever");
+  return cosim_test_done("test_fem_cantilever");
 }

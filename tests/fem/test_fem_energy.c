@@ -90,5 +90,5 @@ int main(void) {
   conservation("TET10");
   fem_model_free(&md);
   free(u0);
-  return fem_test_done("test_fem_energy");
+  return cosim_test_done("test_fem_energy");
 }

@@ -357,5 +357,5 @@ int main(void) {
   CHECK(steady < 1e-3, "thin ring not settled (%.2e)", steady);
 
   energy_and_zero_spin();
-  return fem_test_done("test_fem_frame");
+  return cosim_test_done("test_fem_frame");
 }

@@ -256,5 +256,5 @@ int main(void) {
   gmsh_style_file();
   snprintf(cmd, sizeof cmd, "rm -rf %s", tmpdir);
   if (system(cmd) != 0) return 1;
-  return fem_test_done("test_fem_input");
+  return cosim_test_done("test_fem_input");
 }

@@ -82,5 +82,5 @@ int main(void) {
       CHECK(fabs(eb) < 0.01, "TET10 u_r(b) error %.3f %% above 1 %%", 100 * eb);
     }
   }
-  return fem_test_done("test_fem_lame");
+  return cosim_test_done("test_fem_lame");
 }

@@ -41,7 +41,11 @@ static double max_err_u(const fem_model *md, const double *u) {
 
 static double stress_err(const fem_model *md, const double *u, double S[3][3]) {
   double *sig = malloc(sizeof *sig * 6 * md->mesh.n_elems);
-  fem_element_strain_stress(md, u, NULL, sig);
+  proto_err err;
+  fem_work w;
+  OK(fem_work_init(md, &w, &err));
+  fem_element_strain_stress(md, &w, u, NULL, sig);
+  fem_work_free(&w);
   static const int vi[6] = {0, 1, 2, 1, 0, 0}, vj[6] = {0, 1, 2, 2, 2, 1};
   double e = 0, s = 0;
   for (int32_t k = 0; k < md->mesh.n_elems; k++)
@@ -157,7 +161,10 @@ static void rigid_body(int tet10) {
     u[3 * i + 1] = c[1] + w[2] * x[0] - w[0] * x[2];
     u[3 * i + 2] = c[2] + w[0] * x[1] - w[1] * x[0];
   }
-  fem_internal_force(&md, u, f);
+  fem_work wk;
+  OK(fem_work_init(&md, &wk, &err));
+  fem_internal_force(&md, &wk, u, f);
+  fem_work_free(&wk);
   double fmax_ = 0;
   for (int32_t i = 0; i < md.n_dof; i++) fmax_ = fmax(fmax_, fabs(f[i]));
   double scale = md.mat.E * 0.3 * 0.3 * 0.5; /* E h^2 |u| */
@@ -175,5 +182,5 @@ int main(void) {
     variant_b(t);
     rigid_body(t);
   }
-  return fem_test_done("test_fem_patch");
+  return cosim_test_done("test_fem_patch");
 }

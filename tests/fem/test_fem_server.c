@@ -47,7 +47,7 @@ static void recv_msg(proto_msg *m, const char *want_type) {
     OK(proto_recv(router, m, id, &err));
   }
   if (strcmp(m->type, want_type) != 0) {
-    const cJSON *msg = m->header ? cJSON_GetObjectItem(m->header, "message") : NULL;
+    const cJSON *msg = m->header ? cJSON_GetObjectItem(m->header, PROTO_H_MESSAGE) : NULL;
     fprintf(stderr, "FAIL: expected '%s', got '%s' %s\n", want_type, m->type,
             cJSON_IsString(msg) ? msg->valuestring : "");
     exit(1);
@@ -78,10 +78,10 @@ static int run(const char *exe, const char *mode, const char *element) {
            "\"mode\":\"%s\",\"element\":\"%s\"}", mode, element);
   proto_msg_reset(&m, "fem", "welcome", 0, 0);
   cJSON *h = proto_msg_header(&m);
-  cJSON_AddItemToObject(h, "config", cJSON_Parse(cfg));
-  cJSON *run = cJSON_AddObjectToObject(h, "run");
+  cJSON_AddItemToObject(h, PROTO_H_CONFIG, cJSON_Parse(cfg));
+  cJSON *run = cJSON_AddObjectToObject(h, PROTO_H_RUN);
   const double dt = 2e-4;
-  cJSON_AddNumberToObject(run, "dt", dt);
+  cJSON_AddNumberToObject(run, PROTO_H_DT, dt);
   cJSON_AddNumberToObject(run, "t_end", 10 * dt);
   cJSON_AddNumberToObject(run, "n_steps", 10);
   cJSON_AddNumberToObject(run, "output_every", 2);
@@ -89,7 +89,8 @@ static int run(const char *exe, const char *mode, const char *element) {
   send_msg(&m);
   recv_msg(&m, "ready");
   proto_err err;
-  const proto_array *xa = proto_msg_find(&m, "surface_x0"), *ta = proto_msg_find(&m, "surface_tri");
+  const proto_array *xa = proto_msg_find(&m, PROTO_A_SURFACE_X0),
+                    *ta = proto_msg_find(&m, PROTO_A_SURFACE_TRI);
   CHECK(xa && ta && xa->ndim == 2 && xa->shape[1] == 3 && ta->shape[1] == 3, "ready lacks the surface mesh");
   int64_t n = xa->shape[0], nt = ta->shape[0];
   double *x0 = malloc(sizeof *x0 * 3 * n);
@@ -145,17 +146,18 @@ static int run(const char *exe, const char *mode, const char *element) {
     for (int64_t i = 0; i < n; i++) ftot += force[3 * i + 2];
     for (int64_t i = 0; i < n && ftot > 0; i++) force[3 * i + 2] *= 2000 / ftot;
     proto_msg_reset(&m, "fem", "step", k, (k - 1) * dt);
-    cJSON_AddNumberToObject(proto_msg_header(&m), "dt", dt);
-    cJSON_AddBoolToObject(proto_msg_header(&m), "output", k % 2 == 0);
-    proto_msg_add_f8(&m, "nodal_force", n, 3, force);
-    proto_msg_add_f8(&m, "rim_R", 3, 3, R);
-    proto_msg_add_f8(&m, "rim_c", 3, 0, c);
-    proto_msg_add_f8(&m, "rim_omega", 3, 0, w);
-    proto_msg_add_f8(&m, "rim_v", 3, 0, vc);
+    cJSON_AddNumberToObject(proto_msg_header(&m), PROTO_H_DT, dt);
+    cJSON_AddBoolToObject(proto_msg_header(&m), PROTO_H_OUTPUT, k % 2 == 0);
+    proto_msg_add_f8(&m, PROTO_A_NODAL_FORCE, n, 3, force);
+    proto_msg_add_f8(&m, PROTO_A_RIM_R, 3, 3, R);
+    proto_msg_add_f8(&m, PROTO_A_RIM_C, 3, 0, c);
+    proto_msg_add_f8(&m, PROTO_A_RIM_OMEGA, 3, 0, w);
+    proto_msg_add_f8(&m, PROTO_A_RIM_V, 3, 0, vc);
     send_msg(&m);
     recv_msg(&m, "done");
-    const double *x = proto_msg_get_f8(&m, "x", n, 3, &err), *v = proto_msg_get_f8(&m, "v", n, 3, &err);
-    const double *row = proto_msg_get_f8(&m, "series", 5, 0, &err);
+    const double *x = proto_msg_get_f8(&m, PROTO_A_X, n, 3, &err),
+                 *v = proto_msg_get_f8(&m, PROTO_A_V, n, 3, &err);
+    const double *row = proto_msg_get_f8(&m, PROTO_A_SERIES, FEM_N_SERIES, 0, &err);
     CHECK(x && v && row, "done lacks x, v or series: %s", err.msg);
     if (!x || !v || !row) break;
     double ex = 0, ev = 0;
@@ -171,9 +173,10 @@ static int run(const char *exe, const char *mode, const char *element) {
       }
     }
     printf("%s step %d: t %.4g, strain energy %.4g J, kinetic %.3g J, sub-step %.3g s x %g; "
-           "max |x - (R x0 + c)| %.2e m, max |v - rigid| %.2e m/s\n", mode, k, m.t, row[1], row[2],
-           row[3], row[4], ex, ev);
-    if (k == 1) e_first = row[1];
+           "max |x - (R x0 + c)| %.2e m, max |v - rigid| %.2e m/s\n", mode, k, m.t,
+           row[FEM_SERIES_STRAIN], row[FEM_SERIES_KINETIC], row[FEM_SERIES_DT_SUB],
+           row[FEM_SERIES_SUB_STEPS], ex, ev);
+    if (k == 1) e_first = row[FEM_SERIES_STRAIN];
     if (k <= 2) {
       /* The tread starts at rest relative to a rim spinning at |w| = 2 rad/s:
        * only the centrifugal force moves it off the rigid motion. Explicit:
@@ -183,7 +186,8 @@ static int run(const char *exe, const char *mode, const char *element) {
        * steady stretch stays below that of a free thin ring at r_max,
        * rho w^2 r^3/E (the rim nodes are held), and the velocity vanishes
        * once the lagged frame load has converged (step 2). */
-      const double a_cf = w[1] * w[1] * rmax, ns = k * row[4], dts = row[3];
+      const double a_cf = w[1] * w[1] * rmax, ns = k * row[FEM_SERIES_SUB_STEPS];
+      const double dts = row[FEM_SERIES_DT_SUB];
       const double x_free = 0.5 * a_cf * dts * dts * ns * (ns + 1), v_free = a_cf * dts * ns;
       const double x_ring = 1100 * w[1] * w[1] * rmax * rmax * rmax / 2e7;
       if (strcmp(mode, "explicit") == 0) {
@@ -201,7 +205,7 @@ static int run(const char *exe, const char *mode, const char *element) {
       CHECK(e_first > 0, "%s: inflation gives no strain energy", mode);
     } else {
       CHECK(ex > 1e-6, "%s: nodal forces did not deform the tread", mode);
-      CHECK(row[1] != e_first, "%s: strain energy unchanged", mode);
+      CHECK(row[FEM_SERIES_STRAIN] != e_first, "%s: strain energy unchanged", mode);
     }
     if (k % 2 == 0) {
       const double *su = proto_msg_get_f8(&m, "snap.u", n_nodes, 3, &err);
@@ -243,5 +247,5 @@ int main(int argc, char **argv) {
   zmq_close(router);
   zmq_ctx_term(ctx);
   unlink(endpoint + 6);
-  return fem_test_done("test_fem_server");
+  return cosim_test_done("test_fem_server");
 }

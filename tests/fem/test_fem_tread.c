@@ -92,5 +92,5 @@ int main(void) {
   CHECK(negative == 0 && fabs(mass / (mat.density * v10) - 1) < 1e-12, "HRZ lumped mass");
   fem_model_free(&md);
   fem_mesh_free(&m);
-  return fem_test_done("test_fem_tread");
+  return cosim_test_done("test_fem_tread");
 }

@@ -66,5 +66,5 @@ static int run(int tet10) {
 int main(void) {
   run(0);
   run(1);
-  return fem_test_done("test_fem_wave");
+  return cosim_test_done("test_fem_wave");
 }

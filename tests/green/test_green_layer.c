@@ -7,21 +7,21 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "check.h"
+#include "cosim_test.h"
 #include "green/green.h"
 
 int main(void) {
   const double E = 3e6, nu = 0.45, h = 0.01, rho = 1100;
   const double Es = E / (1 - nu * nu);
   /* kernel: half-space at qh >> 1, incompressible thin film 3G/(q²h³) */
-  CHECK_REL(grn_layer_stiffness(3000, h, E, nu), Es * 3000 / 2, 1e-9, "k(qh=30) = E*q/2");
+  CHECK_REL("k(qh=30) = E*q/2", grn_layer_stiffness(3000, h, E, nu), Es * 3000 / 2, 1e-9);
   {
     double G = E / 3, q = 0.01 / h; /* nu = 0.5 exactly */
-    CHECK_REL(grn_layer_stiffness(q, h, E, 0.5), 3 * G / (q * q * h * h * h), 2e-4,
-              "k(qh=0.01, nu=.5) = 3G/(q²h³)");
+    CHECK_REL("k(qh=0.01, nu=.5) = 3G/(q²h³)",
+              grn_layer_stiffness(q, h, E, 0.5), 3 * G / (q * q * h * h * h), 2e-4);
   }
-  CHECK_REL(grn_layer_stiffness(1e-4, h, E, nu),
-            E * (1 - nu) / ((1 + nu) * (1 - 2 * nu) * h), 1e-6, "k(0) = M/h");
+  CHECK_REL("k(0) = M/h", grn_layer_stiffness(1e-4, h, E, nu),
+            E * (1 - nu) / ((1 + nu) * (1 - 2 * nu) * h), 1e-6);
   /* dynamic system: static limit, half-space, 1-D column */
   const double mu = E / (2 * (1 + nu)), lam = 2 * mu * nu / (1 - 2 * nu);
   double Hr, Hi, worst = 0;
@@ -39,12 +39,12 @@ int main(void) {
     double complex R = (2 * q * q - ks2) * (2 * q * q - ks2) - 4 * q * q * a * b;
     double complex Hhs = -a * ks2 / (mu * R);
     grn_layer_dynamic(q, w, 1.0, rho, mu, 0, lam, 0, &Hr, &Hi);
-    CHECK_REL(Hr, creal(Hhs), 1e-9, "thick layer = Rayleigh half-space");
+    CHECK_REL("thick layer = Rayleigh half-space", Hr, creal(Hhs), 1e-9);
   }
   {
     double w = 2 * M_PI * 500, M = lam + 2 * mu, kp = w / sqrt(M / rho);
     grn_layer_dynamic(0.0, w, h, rho, mu, 0, lam, 0, &Hr, &Hi);
-    CHECK_REL(Hr, tan(kp * h) / (M * kp), 1e-10, "q = 0: tan(k_p h)/(M k_p)");
+    CHECK_REL("q = 0: tan(k_p h)/(M k_p)", Hr, tan(kp * h) / (M * kp), 1e-10);
   }
   /* static influence coefficients */
   grn_grid g = {4, 4, 1e-3, 1e-3};
@@ -72,7 +72,7 @@ int main(void) {
   {
     double ht = 2e-5, M = E * (1 - nu) / ((1 + nu) * (1 - 2 * nu));
     CHECK(grn_static_layer(&g, ht, E, nu, 0, C, &err) == 0, "%s", err.msg);
-    CHECK_REL(C[c0], ht / (M * g.dx * g.dy), 2e-3, "thin layer self = h/(M A)");
+    CHECK_REL("thin layer self = h/(M A)", C[c0], ht / (M * g.dx * g.dy), 2e-3);
     CHECK(fabs(C[c0 + 1]) < 1e-3 * C[c0], "thin layer neighbour %.3e", C[c0 + 1] / C[c0]);
     /* symmetry */
     CHECK(fabs(C[c0 + 1] - C[c0 - 1]) <= 1e-12 * C[c0], "symmetry");
@@ -83,5 +83,5 @@ int main(void) {
   printf("error message: %s\n", err.msg);
   free(CL);
   free(C);
-  CHECK_DONE();
+  return cosim_test_done("test_green_layer");
 }

@@ -8,7 +8,7 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "check.h"
+#include "cosim_test.h"
 #include "green/green.h"
 
 /* The bonded layer with 1.5 × 0.5 mm elements against the same layer with
@@ -84,8 +84,8 @@ int main(void) {
                                           0.5 * p.dy, E, nu);
     char what[64];
     snprintf(what, sizeof what, "periodic K(0) - K(%d,%d) vs Love", near[k][0], near[k][1]);
-    CHECK_REL(dk, dl, 2e-4, what);
+    CHECK_REL(what, dk, dl, 2e-4);
   }
   free(K);
-  CHECK_DONE();
+  return cosim_test_done("test_green_rect");
 }

@@ -6,7 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "check.h"
+#include "cosim_test.h"
 #include "green/green.h"
 
 int main(void) {
@@ -14,11 +14,11 @@ int main(void) {
   double phi, phi2;
   /* half-space limit */
   CHECK(grn_punch_solve(1e-3, 0.5, 0, &phi, &err) == 0, "%s", err.msg);
-  CHECK_REL(phi, 1.0, 2e-3, "a/h = 1e-3: K/(2E*a)");
+  CHECK_REL("a/h = 1e-3: K/(2E*a)", phi, 1.0, 2e-3);
   /* Nyström convergence at a moderate ratio */
   CHECK(grn_punch_solve(3.0, 0.5, 150, &phi, &err) == 0, "%s", err.msg);
   CHECK(grn_punch_solve(3.0, 0.5, 300, &phi2, &err) == 0, "%s", err.msg);
-  CHECK_REL(phi, phi2, 2e-3, "a/h = 3: n = 150 vs 300");
+  CHECK_REL("a/h = 3: n = 150 vs 300", phi, phi2, 2e-3);
   /* thin film: ratio to (3π/64) λ³ (= (3π/8) G a⁴ δ / h³ over 2E*a δ with
    * E* = 4G) tends to 1 like 1 + c/λ */
   double lam[3] = {10, 20, 40}, r[3];
@@ -28,14 +28,14 @@ int main(void) {
     printf("a/h = %4.0f: K/(2E*a) = %.5g, / thin-film law = %.4f\n", lam[i], phi, r[i]);
   }
   CHECK(r[0] > r[1] && r[1] > r[2] && r[2] > 1, "monotone approach to the thin-film law");
-  CHECK_REL((lam[2] * r[2] - lam[1] * r[1]) / (lam[2] - lam[1]), 1.0, 0.02,
-            "thin-film limit (Richardson, a/h = 20, 40)");
+  CHECK_REL("thin-film limit (Richardson, a/h = 20, 40)",
+            (lam[2] * r[2] - lam[1] * r[1]) / (lam[2] - lam[1]), 1.0, 0.02);
   /* compressible thin layer is Winkler-like, not ∝ λ³: phi/λ bounded */
   /* table interpolation */
   grn_punch_table t;
   CHECK(grn_punch_table_build(&t, 0.5, 1e-3, 20, 16, &err) == 0, "%s", err.msg);
   CHECK(grn_punch_solve(0.5, 0.5, 0, &phi, &err) == 0, "%s", err.msg);
-  CHECK_REL(grn_punch_phi(&t, 0.5), phi, 5e-3, "table interpolation at a/h = 0.5");
+  CHECK_REL("table interpolation at a/h = 0.5", grn_punch_phi(&t, 0.5), phi, 5e-3);
   CHECK(grn_punch_phi(&t, 100) > grn_punch_phi(&t, 20), "continuation beyond the table");
 
   /* roughness spring of a paraboloid z = −r²/(2R) in a thick film: patch
@@ -56,9 +56,9 @@ int main(void) {
   double d[65], F[65], k[65], m[65];
   CHECK(grn_spring_raw(z, n, n, n, ds, ds, &t, &o, nd, d, F, k, &err) == 0, "%s", err.msg);
   double Es = o.E / (1 - o.nu * o.nu);
-  CHECK_REL(F[nd - 1], 4.0 / 3 * Es * sqrt(2 * R) * pow(d[nd - 1], 1.5), 0.02,
-            "paraboloid spring F(d_max)");
-  CHECK_REL(k[nd - 1], 2 * Es * sqrt(2 * R * d[nd - 1]), 0.02, "paraboloid spring k(d_max)");
+  CHECK_REL("paraboloid spring F(d_max)",
+            F[nd - 1], 4.0 / 3 * Es * sqrt(2 * R) * pow(d[nd - 1], 1.5), 0.02);
+  CHECK_REL("paraboloid spring k(d_max)", k[nd - 1], 2 * Es * sqrt(2 * R * d[nd - 1]), 0.02);
   /* thin film (thesis rule h = z_max - z_min - d) is stiffer */
   o.film_h = 0;
   double F2[65], k2[65];
@@ -112,16 +112,16 @@ int main(void) {
     int att = 0;
     double kk;
     CHECK(grn_spring_eval(&sp, 0, -1e-5, &att, &kk) == 0 && !att, "no tension before contact");
-    CHECK_REL(grn_spring_eval(&sp, 0, 1e-5, &att, &kk), 0.4, 1e-12, "compression branch");
+    CHECK_REL("compression branch", grn_spring_eval(&sp, 0, 1e-5, &att, &kk), 0.4, 1e-12);
     CHECK(att == 1, "attached after compression");
-    CHECK_REL(grn_spring_eval(&sp, 0, -1e-5, &att, &kk), -0.4, 1e-12, "mirrored tension");
+    CHECK_REL("mirrored tension", grn_spring_eval(&sp, 0, -1e-5, &att, &kk), -0.4, 1e-12);
     CHECK(att == 1 && kk > 0, "still attached below the release force");
     CHECK(grn_spring_eval(&sp, 0, -1.6e-5, &att, &kk) == 0 && att == 0, "released above 0.6 N");
     CHECK(grn_spring_eval(&sp, 0, -0.5e-5, &att, &kk) == 0 && att == 0, "stays released");
-    CHECK_REL(grn_spring_eval(&sp, 0, 3e-5, &att, &kk), 1.2 + sk[2] * 1e-5, 1e-12,
-              "linear beyond the last knot");
+    CHECK_REL("linear beyond the last knot",
+              grn_spring_eval(&sp, 0, 3e-5, &att, &kk), 1.2 + sk[2] * 1e-5, 1e-12);
   }
   grn_punch_table_free(&t);
   free(z);
-  CHECK_DONE();
+  return cosim_test_done("test_green_springs");
 }

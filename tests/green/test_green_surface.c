@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "check.h"
+#include "cosim_test.h"
 #include "green/green.h"
 
 int main(void) {
@@ -19,8 +19,8 @@ int main(void) {
     double slope = grn_surface_psd_slope(&s, 2 * M_PI / p.lambda_long, 2 * M_PI / p.lambda_short, &err);
     char what[64];
     snprintf(what, sizeof what, "PSD slope, H = %.1f", Hs[k]);
-    CHECK_REL(slope, -2 * (1 + Hs[k]), 0.05, what);
-    CHECK_REL(grn_surface_rms(&s), p.rms, 1e-9, "rms");
+    CHECK_REL(what, slope, -2 * (1 + Hs[k]), 0.05);
+    CHECK_REL("rms", grn_surface_rms(&s), p.rms, 1e-9);
     grn_surface s2;
     CHECK(grn_surface_generate(&p, &s2, &err) == 0, "%s", err.msg);
     CHECK(memcmp(s.z, s2.z, 512 * 512 * sizeof(double)) == 0, "same seed, same surface");
@@ -68,5 +68,5 @@ int main(void) {
   remove("test_green_nan.h5");
   remove("test_green_road.txt");
   remove("test_green_nan.txt");
-  CHECK_DONE();
+  return cosim_test_done("test_green_surface");
 }

@@ -11,7 +11,7 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "../proto/check.h"
+#include "cosim_test.h"
 #include "proto/proto.h"
 
 static const cJSON *at(const cJSON *o, const char *a, const char *b) {
@@ -204,37 +204,37 @@ static void test_series(void) {
   proto_dims_init(&d);
   proto_msg ready = {0}, done = {0};
   proto_msg_reset(&ready, "b", "ready", 0, 0);
-  const char *cols[] = {"t", "force"}, *wf[] = {"t", "Fx"};
-  proto_ready_series(&ready, "series", 2, cols);
+  const char *cols[] = {"t", PROTO_A_FORCE}, *wf[] = {"t", "Fx"};
+  proto_ready_series(&ready, PROTO_A_SERIES, 2, cols);
   proto_ready_series(&ready, "wall_forces", 2, wf);
   CHECK(proto_role_check(PROTO_ROLE_BLOCK, PROTO_MSG_READY, &ready, &d, &err) == 0);
   CHECK(d.n_series == 2);
   double row[2] = {0, 1}, f[1] = {1};
   proto_msg_reset(&done, "b", "done", 1, 0);
-  proto_msg_add_f8(&done, "force", 1, 0, f);
-  add_row(&done, "series", 2, row);
-  add_row(&done, "series.wall_forces", 2, row);
+  proto_msg_add_f8(&done, PROTO_A_FORCE, 1, 0, f);
+  add_row(&done, PROTO_A_SERIES, 2, row);
+  add_row(&done, PROTO_P_SERIES "wall_forces", 2, row);
   CHECK(proto_role_check(PROTO_ROLE_BLOCK, PROTO_MSG_DONE, &done, &d, &err) == 0);
   /* a done without its series row */
   proto_msg_reset(&done, "b", "done", 1, 0);
-  proto_msg_add_f8(&done, "force", 1, 0, f);
-  add_row(&done, "series.wall_forces", 2, row);
+  proto_msg_add_f8(&done, PROTO_A_FORCE, 1, 0, f);
+  add_row(&done, PROTO_P_SERIES "wall_forces", 2, row);
   CHECK(proto_role_check(PROTO_ROLE_BLOCK, PROTO_MSG_DONE, &done, &d, &err) < 0);
   CHECK_MSG(err, "missing array 'series' (f8 [2]): ready declared the series dataset 'series'");
   /* a row of the wrong width */
   proto_msg_reset(&done, "b", "done", 1, 0);
-  proto_msg_add_f8(&done, "force", 1, 0, f);
-  add_row(&done, "series", 1, row);
-  add_row(&done, "series.wall_forces", 2, row);
+  proto_msg_add_f8(&done, PROTO_A_FORCE, 1, 0, f);
+  add_row(&done, PROTO_A_SERIES, 1, row);
+  add_row(&done, PROTO_P_SERIES "wall_forces", 2, row);
   CHECK(proto_role_check(PROTO_ROLE_BLOCK, PROTO_MSG_DONE, &done, &d, &err) < 0);
   CHECK_MSG(err, "wrong shape or dtype of array 'series'");
   /* an undeclared dataset, and the declared one under a second name */
-  const char *extra[] = {"series.other", "series.series"};
+  const char *extra[] = {PROTO_P_SERIES "other", PROTO_P_SERIES PROTO_A_SERIES};
   for (int i = 0; i < 2; i++) {
     proto_msg_reset(&done, "b", "done", 1, 0);
-    proto_msg_add_f8(&done, "force", 1, 0, f);
-    add_row(&done, "series", 2, row);
-    add_row(&done, "series.wall_forces", 2, row);
+    proto_msg_add_f8(&done, PROTO_A_FORCE, 1, 0, f);
+    add_row(&done, PROTO_A_SERIES, 2, row);
+    add_row(&done, PROTO_P_SERIES "wall_forces", 2, row);
     add_row(&done, extra[i], 2, row);
     CHECK(proto_role_check(PROTO_ROLE_BLOCK, PROTO_MSG_DONE, &done, &d, &err) < 0);
     CHECK_MSG(err, "belongs to no series dataset declared");
@@ -275,5 +275,5 @@ int main(void) {
   test_header();
   test_names();
   test_series();
-  CHECK_DONE();
+  return cosim_test_done("test_input_proto");
 }

@@ -1,51 +1,31 @@
 /* lgd_test.h — helpers for the liggghts_dem tests: MPI set-up, a model from
- * JSON, checks printed on rank 0, and a "twin" that runs one scene in
- * liggghts_dem's engine (LIGGGHTS over MPI) and in dem_server's (cosim_dem)
- * side by side, the coupled surface driven by the same motion. */
+ * JSON, checks (tests/common/cosim_test.h) decided on rank 0, and a "twin"
+ * that runs one scene in liggghts_dem's engine (LIGGGHTS over MPI) and in
+ * dem_server's (cosim_dem) side by side, the coupled surface driven by the
+ * same motion. */
 #ifndef COSIM_LGD_TEST_H
 #define COSIM_LGD_TEST_H
 
 #include <math.h>
-#include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 
+#include "cosim_test.h"
 #include "liggghts_dem/lgd.h"
 
-static int g_rank, g_failures;
+static int g_rank;
 
 static inline void lgd_test_init(int *argc, char ***argv) {
   MPI_Init(argc, argv);
   MPI_Comm_rank(MPI_COMM_WORLD, &g_rank);
+  cosim_test_mute = g_rank != 0; /* the results are on rank 0 */
 }
 
 /* Checks are decided on rank 0 (where the results are); every rank exits alike. */
 static inline int lgd_test_finish(const char *name) {
-  MPI_Bcast(&g_failures, 1, MPI_INT, 0, MPI_COMM_WORLD);
-  if (g_rank == 0) {
-    if (g_failures) fprintf(stderr, "%s: %d failure(s)\n", name, g_failures);
-    else printf("%s: all passed\n", name);
-  }
+  MPI_Bcast(&cosim_test_failures, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  const int rc = g_rank == 0 ? cosim_test_done(name) : cosim_test_failures != 0;
   MPI_Finalize();
-  return g_failures ? 1 : 0;
-}
-
-#define CHECK(cond, ...)                                                \
-  do {                                                                  \
-    if (g_rank == 0 && !(cond)) {                                       \
-      fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__);              \
-      fprintf(stderr, __VA_ARGS__);                                     \
-      fprintf(stderr, "\n");                                            \
-      g_failures++;                                                     \
-    }                                                                   \
-  } while (0)
-
-/* err <= tol, printed either way (rank 0 decides). */
-static inline int check_small(const char *what, double err, double tol) {
-  if (g_rank != 0) return 1;
-  printf("%-60s %.3g (tol %.3g) %s\n", what, err, tol, err <= tol ? "ok" : "FAIL");
-  if (!(err <= tol)) g_failures++;
-  return err <= tol;
+  return rc;
 }
 
 static inline void die(const char *what, const proto_err *err) {

@@ -84,9 +84,9 @@ int main(int argc, char **argv) {
     CHECK(fabs(r.z_dem - (R + RISE)) < 0.1 * R, "%s: dem_server's grain rides up to %g (expected about %g)",
           name, r.z_dem, R + RISE);
     snprintf(what, sizeof what, "%s: positions, max |lgd - dem_server| / r", name);
-    check_small(what, r.dx / R, 1e-6);
+    CHECK_SMALL(what, r.dx / R, 1e-6);
     snprintf(what, sizeof what, "%s: nodal forces, max |diff| / max |F|", name);
-    check_small(what, r.df, 1e-6);
+    CHECK_SMALL(what, r.df, 1e-6);
     run(ridge, 1, &r);
     if (g_rank == 0)
       printf("%s, LIGGGHTS' frozen activity: grain z at the end %.6g m (the plate top is at %.6g m)\n", name,

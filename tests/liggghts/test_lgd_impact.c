@@ -21,8 +21,8 @@ static void plane_impact(void) {
                 "\"particles\":[{\"x\":[0,0,0.0035001],\"v\":[0.2,0.05,-0.7],\"r\":0.0035}]}",
             0, NULL, 0, NULL, 3e-6, 0);
   for (int k = 0; k < 467; k++) twin_step(&w, NULL, NULL); /* 1.4 ms: contact and rebound */
-  check_small("plane: wall force history, max |diff| / max |F|", w.wall_diff / w.wall_max, 1e-6);
-  check_small("plane: final grain position |diff| / r", twin_position_diff(&w) / 0.0035, 1e-6);
+  CHECK_SMALL("plane: wall force history, max |diff| / max |F|", w.wall_diff / w.wall_max, 1e-6);
+  CHECK_SMALL("plane: final grain position |diff| / r", twin_position_diff(&w) / 0.0035, 1e-6);
   CHECK(w.wall_max > 0.5, "plane: the grain hit the wall (max force %g N)", w.wall_max);
   twin_close(&w);
 }
@@ -58,9 +58,9 @@ static void surface_impact(void) {
   twin w;
   twin_open(&w, json, (N + 1) * (N + 1), g_x0, 2 * N * N, g_tri, 3e-6, 0);
   for (int k = 0; k < 1200; k++) twin_step(&w, moving_roof, NULL);
-  check_small("surface: nodal forces, max |diff| / max |F_node|", w.nodal_diff / w.nodal_max, 1e-6);
-  check_small("surface: wall force, max |diff| / max |F|", w.wall_diff / w.wall_max, 1e-6);
-  check_small("surface: final grain positions |diff| / r", twin_position_diff(&w) / 0.003, 1e-6);
+  CHECK_SMALL("surface: nodal forces, max |diff| / max |F_node|", w.nodal_diff / w.nodal_max, 1e-6);
+  CHECK_SMALL("surface: wall force, max |diff| / max |F|", w.wall_diff / w.wall_max, 1e-6);
+  CHECK_SMALL("surface: final grain positions |diff| / r", twin_position_diff(&w) / 0.003, 1e-6);
   CHECK(w.nodal_max > 0.05, "surface: the grains hit it (max nodal force %g N)", w.nodal_max);
   twin_close(&w);
 }
@@ -73,8 +73,8 @@ static void fixed_rotation(void) {
                 "{\"x\":[0.02,0,0.0035001],\"v\":[0.3,-0.1,-0.5],\"omega\":[5,-20,3],\"r\":0.0035}]}",
             0, NULL, 0, NULL, 3e-6, 0);
   for (int k = 0; k < 1000; k++) twin_step(&w, NULL, NULL); /* 3 ms: impact, then rolling and sliding */
-  check_small("fixed rotation: wall force history", w.wall_diff / w.wall_max, 1e-6);
-  check_small("fixed rotation: final positions |diff| / r", twin_position_diff(&w) / 0.0035, 1e-6);
+  CHECK_SMALL("fixed rotation: wall force history", w.wall_diff / w.wall_max, 1e-6);
+  CHECK_SMALL("fixed rotation: final positions |diff| / r", twin_position_diff(&w) / 0.0035, 1e-6);
   double lw[6];
   proto_err err = {{0}};
   if (lgd_gather(w.sim, NULL, NULL, lw, &err)) die("gather", &err);
@@ -84,7 +84,7 @@ static void fixed_rotation(void) {
       dw = fmax(dw, fabs(lw[3 * w.sd.id[i] + k] - w.sd.omega[3 * i + k]));
       wmax = fmax(wmax, fabs(w.sd.omega[3 * i + k]));
     }
-  check_small("fixed rotation: final spins |diff| / max", dw / wmax, 1e-6);
+  CHECK_SMALL("fixed rotation: final spins |diff| / max", dw / wmax, 1e-6);
   CHECK(g_rank != 0 || (lw[0] == 0 && lw[1] == 0 && lw[2] == 0), "the grain with fix_rotation does not rotate");
   twin_close(&w);
 }

@@ -2,7 +2,7 @@
  * reports line and column; unknown keys are caught; --set overrides. */
 #include <math.h>
 
-#include "check.h"
+#include "cosim_test.h"
 #include "proto/proto.h"
 
 static void test_parse_errors(void) {
@@ -79,5 +79,5 @@ int main(void) {
   test_parse_errors();
   test_reader();
   test_set();
-  CHECK_DONE();
+  return cosim_test_done("test_config");
 }

@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <zmq.h>
 
-#include "check.h"
+#include "cosim_test.h"
 #include "proto/proto.h"
 
 static int decode(const char *header, int narr, const size_t *arr_sizes,
@@ -124,5 +124,5 @@ int main(void) {
   test_decoder_rejects();
   test_getters();
   test_round_trip();
-  CHECK_DONE();
+  return cosim_test_done("test_framing");
 }

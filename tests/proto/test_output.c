@@ -1,6 +1,6 @@
 /* test_output.c — HDF5 series/arrays/attributes and the XDMF companion file:
  * writes through proto_h5_* / proto_xdmf_*, reads back with the HDF5 API. */
-#include "check.h"
+#include "cosim_test.h"
 #include "proto/proto.h"
 
 #include <hdf5.h>
@@ -258,5 +258,5 @@ int main(void) {
     unlink(xpath);
     rmdir(dir);
   }
-  CHECK_DONE();
+  return cosim_test_done("test_output");
 }

@@ -4,7 +4,7 @@
  * the array, the expected shape and its meaning; "with a surface" arrays
  * only when the conversation has a surface; the JSON form lists them. */
 #include "proto/proto.h"
-#include "tests/proto/check.h"
+#include "cosim_test.h"
 
 int main(void) {
   proto_err err = {{0}};
@@ -73,7 +73,7 @@ int main(void) {
   const cJSON *roles = cJSON_GetObjectItem(j, "roles");
   const cJSON *dem_done = cJSON_GetObjectItem(cJSON_GetObjectItem(roles, "dem"), "done");
   const cJSON *nf = cJSON_GetArrayItem(dem_done, 0);
-  CHECK(nf && strcmp(cJSON_GetObjectItem(nf, "name")->valuestring, "nodal_force") == 0);
+  CHECK(nf && strcmp(cJSON_GetObjectItem(nf, "name")->valuestring, PROTO_A_NODAL_FORCE) == 0);
   CHECK(strcmp(cJSON_GetArrayItem(cJSON_GetObjectItem(nf, "shape"), 0)->valuestring, "n") == 0);
   CHECK(strcmp(cJSON_GetObjectItem(nf, "when")->valuestring, "with_surface") == 0);
   cJSON_Delete(j);
@@ -88,5 +88,5 @@ int main(void) {
   CHECK(proto_state_get(&m, "w", PROTO_F8, 3, back, &err) < 0);
   CHECK_MSG(err, "missing array 'state.w'");
   proto_msg_free(&m);
-  CHECK_DONE();
+  return cosim_test_done("test_roles");
 }

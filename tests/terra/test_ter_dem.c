@@ -3,7 +3,8 @@
  * the normal stress, nothing leaves the box; the scene reader's errors.
  * (The measurements themselves are bench/terra, results in
  * bench/results/terra.md.) */
-#include "ter_test.h"
+#include "cosim_test.h"
+#include "terra/terra.h"
 
 static const char SCENE[] =
     "{\"processes\": {\"fem\": {\"exec\": \"fem_server\"}, \"soil\": {\"exec\": \"dem_server\","
@@ -98,5 +99,5 @@ int main(void) {
   FAILS_WITH(ter_dem_soil_from_scene(no_dem, &soil, &err), "dem_server");
   cJSON_Delete(no_dem);
   cJSON_Delete(scene);
-  return ter_test_done("test_ter_dem");
+  return cosim_test_done("test_ter_dem");
 }

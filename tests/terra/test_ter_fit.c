@@ -5,7 +5,8 @@
  *  - tau(j) = tau_f (1 - exp(-j/K)) with noise: tau_f and K recovered;
  *  - a line fit with its standard errors;
  *  - CSV round trip, malformed records named by file and line. */
-#include "ter_test.h"
+#include "cosim_test.h"
+#include "terra/terra.h"
 
 #include <unistd.h>
 
@@ -123,5 +124,5 @@ int main(void) {
   shear();
   line();
   records();
-  return ter_test_done("test_ter_fit");
+  return cosim_test_done("test_ter_fit");
 }

@@ -11,7 +11,8 @@
  *    Int = sqrt(pi) Gamma(n+1) / (2 Gamma(n+3/2)) (= 2/3 at n = 1, where
  *    Bekker's z0 is exact);
  *  - bad input (slip, load, immobilised wheel). */
-#include "ter_test.h"
+#include "cosim_test.h"
+#include "terra/terra.h"
 
 static ter_soil dry_sand(void) {
   ter_soil p;
@@ -139,5 +140,5 @@ int main(void) {
   regression();
   closed_forms();
   monotone_and_errors();
-  return ter_test_done("test_ter_wheel");
+  return cosim_test_done("test_ter_wheel");
 }
