@@ -29,6 +29,9 @@ def tyre_scene(name, end):
                   "sinkage_force": 20, "slip": 0.05, "omega": 1.8, "radius": 0.272})
     s["time"] = {"dt": 1e-3, "end": end}
     s["output"]["every"] = 50
+    # a participant's start under a sanitizer on a loaded machine can take
+    # seconds: the faults here are later ones
+    s.setdefault("coupling", {})["hello_timeout"] = 60
     return s
 
 
@@ -78,7 +81,7 @@ for seed in (1, 2, 3):
 
 # --- the coupler stopped (Ctrl-Z) longer than its deadlines, then continued
 s = tyre_scene("pause", 15.0)
-s["coupling"] = {"step_timeout": 1, "heartbeat_timeout": 2}
+s["coupling"] = {"step_timeout": 1, "heartbeat_timeout": 2, "hello_timeout": 60}
 p = start(s)
 pid_of(s, "dem")
 time.sleep(0.5)
@@ -94,7 +97,7 @@ no_orphans(s, "pause")
 
 # --- a participant stopped: named by its silence
 s = tyre_scene("stopped", 1000.0)
-s["coupling"] = {"step_timeout": 60, "heartbeat_timeout": 2}
+s["coupling"] = {"step_timeout": 60, "heartbeat_timeout": 2, "hello_timeout": 60}
 p = start(s)
 pid = pid_of(s, "dem")
 time.sleep(0.5)
