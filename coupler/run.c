@@ -293,7 +293,6 @@ static int welcome_one(cpl_runner *r, int i) {
   return rc;
 }
 
-/* The fem first (its surface goes to the dem processes), then the rest. */
 /* The rim height that puts the lowest surface node at z (the rim frame is
  * the identity at t = 0). */
 static void rim_height_for(cpl_runner *r, double z) {
@@ -328,6 +327,8 @@ static int place_rim(cpl_runner *r) {
   return 0;
 }
 
+/* The fem first (its surface goes to the dem processes), then the rest;
+ * an "auto" rim waits parked above everything until the beds are settled. */
 static int welcome_all(cpl_runner *r) {
   const int rim_auto = r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL &&
                        r->scene->scenario.rim_auto && r->fem >= 0;
