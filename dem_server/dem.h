@@ -116,6 +116,8 @@ typedef struct dem_model {
   int threads;           /* OpenMP threads, 0 = "auto" (dem_threads.c) */
   int has_rolling;
   int limit_force;       /* "limit_force": F_n = max(F_n, 0) (damping never pulls) */
+  int surface_couple;    /* "surface_couple": mesh nodes also take the contact's moment
+                          * (exact angular momentum across the surface; dem_mesh.c) */
   int orientation;       /* "orientation": integrate q (spheres need it only for output) */
   dem_sleep_config sleep; /* "sleep": grains at rest far from moving meshes stop */
   int n_grains;

@@ -565,8 +565,9 @@ int dem_mesh_grain(const dem_model *m, dem_state *s, int i, double *u) {
       for (int d = 0; d < 3; d++) t[d] += tr[d];
     }
     /* the grain's moment about the closest point q: its contact point is
-     * (dist - cr) n = -δ/2 n from q, plus the rolling torque; the nodes take
-     * minus that besides their ζ-shares of -F (dem_mesh_reactions) */
+     * (dist - cr) n = -δ/2 n from q, plus the rolling torque; with
+     * surface_couple the nodes take minus that besides their ζ-shares of -F
+     * (dem_mesh_reactions) */
     double *couple = &w->mc_couple[3 * (base + k)];
     for (int d = 0; d < 3; d++) {
       f[d] += F[d];
@@ -640,7 +641,7 @@ void dem_mesh_reactions(const dem_model *m, dem_state *s) {
         const double *F = &w->mc_force[3 * sl], *z = &w->mc_zeta[3 * sl];
         for (int a = 0; a < 3; a++)
           for (int d = 0; d < 3; d++) nf[3 * tn[a] + d] -= z[a] * F[d];
-        add_couple(s->mesh_x[mi], tn, &w->mc_couple[3 * sl], nf);
+        if (m->surface_couple) add_couple(s->mesh_x[mi], tn, &w->mc_couple[3 * sl], nf);
         double *wf = &s->wall_force[3 * m->meshes[mi].wall];
         for (int d = 0; d < 3; d++) wf[d] -= F[d];
       }
