@@ -97,8 +97,12 @@ got = drive({"COSIM_ROLES": path}, 1.5)
 types = [m.type for _, m in got]
 check(got[0][1].header.get("heartbeat_s") == P.HEARTBEAT_S, f"hello promises heartbeat_s: {got[0][1].header}")
 gaps = [b[0] - a[0] for a, b in zip(got, got[1:])]
-check(max(gaps) < P.HEARTBEAT_S, f"never silent for {P.HEARTBEAT_S} s from hello to bye "
-      f"(longest {max(gaps):.2f} s)")
+# beats go every HEARTBEAT_S / 2; the coupler's default heartbeat_timeout is
+# 2 HEARTBEAT_S (coupler/scene.c), the silence it must never see. A process
+# descheduled on a loaded machine may go quiet past HEARTBEAT_S itself (seen
+# at load 6 on 2 cores), so the bound checked is the coupler's.
+check(max(gaps) < 2 * P.HEARTBEAT_S, f"never silent for the coupler's heartbeat_timeout "
+      f"{2 * P.HEARTBEAT_S} s from hello to bye (longest {max(gaps):.2f} s)")
 beats = [m for _, m in got if m.type == "heartbeat"]
 phases = {m.header["phase"] for m in beats}
 check({"welcome", "init", "step", "idle"} <= phases, f"heartbeats in every phase: {sorted(phases)}")
