@@ -126,7 +126,7 @@ def main():
           "Each run: the bed generated and settled in the run, the tyre's sinkage at 0.1 m/s to the "
           "scene's load, then travel at 5 % slip (ω = 1.8 rad/s, r = 0.272 m: 0.465 m/s) to the end of the "
           "scene (0.5 m and a little more). One run each (timed under the shared benchmark lock), serial "
-          "scheme, dt = 50 µs, `threads: auto` for the DEM. Raw numbers: `tire_soil.json`.", ""]
+          "scheme, dt = 25 µs, `threads: auto` for the DEM. Raw numbers: `tire_soil.json`.", ""]
     for n in names:
         res = done[n]
         md.append(f"## {n}")
