@@ -1,14 +1,17 @@
 """bench/results/tire_soil.md from the timed runs of bench/tire_soil/run_paper.sh.
 
-    PYTHONPATH=python /usr/bin/python3 bench/tire_soil/report.py WORK_DIR [NAME...]
+    PYTHONPATH=python /usr/bin/python3 bench/tire_soil/report.py WORK_DIR [--sweep DIR] [NAME...]
 
 NAME (default: paper deep) are run dirs in WORK_DIR with NAME.time and NAME.log
-beside them; a missing one is reported as not run. Writes
-bench/results/tire_soil.md, tire_soil.json and tire_soil_<NAME>.png."""
+beside them; a missing one is reported as not run. --sweep: a `cosim sweep`
+output dir whose summary.csv and summary.png go into the report. Writes
+bench/results/tire_soil.md (then bench/tire_soil/findings.md, hand-written,
+appended as is), tire_soil.json, tire_soil_<NAME>.png, tire_soil_sweep.png."""
 import json
 import math
 import os
 import re
+import shutil
 import sys
 
 import numpy as np
@@ -115,9 +118,33 @@ def table(res):
     return rows
 
 
+def sweep_section(d):
+    lines = open(os.path.join(d, "summary.csv")).read().splitlines()
+    notes = [l[2:] for l in lines if l.startswith("# window")]
+    rows = [l.split(",") for l in lines if not l.startswith("#")]
+    head, body = rows[0], rows[1:]
+    keep = [0] + [i for i, c in enumerate(head) if c.endswith(("_mean", "_min", "_max"))
+                  or c in ("travel_start_s", "window_t0_s", "window_t1_s")]
+    md = ["## Slip sweep", "", f"`cosim sweep` output `{os.path.basename(os.path.normpath(d))}`; "
+          + "; ".join(notes) + ".", "",
+          "| " + " | ".join(head[i] for i in keep) + " |", "|" + "---|" * len(keep)]
+    md += ["| " + " | ".join(r[i] for i in keep) + " |" for r in body]
+    png = os.path.join(d, "summary.png")
+    if os.path.exists(png):
+        shutil.copy(png, os.path.join(RESULTS, "tire_soil_sweep.png"))
+        md += ["", "![sweep](tire_soil_sweep.png)"]
+    return md + [""]
+
+
 def main():
-    work = sys.argv[1]
-    names = sys.argv[2:] or ["paper", "deep"]
+    args = sys.argv[1:]
+    sweep_dir = None
+    if "--sweep" in args:
+        i = args.index("--sweep")
+        sweep_dir = args[i + 1]
+        del args[i:i + 2]
+    work = args[0]
+    names = args[1:] or ["paper", "deep"]
     done = {n: one(work, n) for n in names}
     json.dump(done, open(os.path.join(RESULTS, "tire_soil.json"), "w"), indent=1, default=str)
     md = ["# The paper's tyre on soil at full scale: wall time and traction", "",
@@ -156,6 +183,11 @@ def main():
                "```", res["loop_table"], "```", ""]
         md += ["Traction over the steady window (`/coupler/traction`; T_R is negative: against the travel):",
                ""] + table(res) + ["", f"![{n}](tire_soil_{n}.png)", ""]
+    if sweep_dir:
+        md += sweep_section(sweep_dir)
+    findings = os.path.join(os.path.dirname(os.path.abspath(__file__)), "findings.md")
+    if os.path.exists(findings):
+        md += [open(findings).read().rstrip()]
     open(os.path.join(RESULTS, "tire_soil.md"), "w").write("\n".join(md) + "\n")
     print("wrote", os.path.join(RESULTS, "tire_soil.md"))
 
