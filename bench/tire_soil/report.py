@@ -23,6 +23,7 @@ ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 RESULTS = os.path.join(ROOT, "bench", "results")
 SETTLED_RE = re.compile(r"bed of (\d+) grains settled in (\d+) steps \(([\d.]+) s\)")
 LOOP_RE = re.compile(r"^Loop time .*?(?=^results:|\Z)", re.S | re.M)
+SMOOTH_S = 5e-3  # running mean drawn over the raw rows
 FINISHED_RE = re.compile(r"finished: (\d+) steps, t = ([\d.e+-]+) s, ([\d.]+) s wall")
 
 
@@ -83,7 +84,9 @@ def plot(r, tr, s, speed, path, name):
     x = (tr["t"] - s["travel_start_s"]) * speed
     fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
     k = max(1, len(x) // 2000)  # 2000 points per curve; 5 ms means for the eye
-    def smooth(v, n=100):
+    n = max(1, int(round(SMOOTH_S / r.scene["time"]["dt"])))
+
+    def smooth(v):
         return np.convolve(v, np.ones(n) / n, mode="same")
     for q, c in [("T_H", "tab:blue"), ("T_R", "tab:red"), ("T_P", "tab:green")]:
         ax[0].plot(x[::k], tr[q][::k], color=c, lw=0.4, alpha=0.35)
