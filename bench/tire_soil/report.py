@@ -172,11 +172,12 @@ def main():
             md += [f"**Failed** (exit {res['rc']}) after {res['wall_s']:.0f} s:", "", "```"] + \
                   res["error"] + ["```", ""]
             continue
-        loop_total = sum(v for k, v in res["loop_s"].items())
+        rest = res["wall_s"] - res["settle_s"] - res["loop_s"]["wall"]
         md += [f"- total wall time: **{res['wall_s']:.0f} s ({res['wall_s'] / 60:.1f} min)**, of "
                f"which settling the bed {res['settle_s']:.0f} s ({res['settle_steps']} DEM steps), "
-               f"the coupled loop {res['steps']} steps; the rest is start-up (mesh, the tyre's "
-               "initial static solve, handshake) and closing the output.",
+               f"the coupled loop {res['loop_s']['wall']:.0f} s ({res['steps']} steps, "
+               f"{1e3 * res['loop_s']['wall'] / res['steps']:.2f} ms/step), the rest {rest:.0f} s "
+               "(start-up: mesh, the tyre's initial static solve, handshake; closing the output).",
                f"- travel: {res['travel_m']:.3f} m from t = {res['travel_start_s']:.3f} s "
                f"(the load reached {res['sinkage_force']} N there); steady window from "
                f"{DEFAULT_SKIP_TRAVEL_M} m of travel, t = {res['window_t0_s']:.3f}–"
