@@ -6,7 +6,8 @@
    from that run's results.h5 over the window it derives on its own (first
    row at the target load, plus the skipped travel at omega R (1 - s));
    the PNG is written;
-2. bad arguments exit 1 with a message naming what is wrong, before any run.
+2. bad arguments exit 1 with a message naming what is wrong, before any run;
+3. a scene's top-level "notes" is accepted as a string and refused otherwise.
 """
 import csv
 import json
@@ -98,4 +99,11 @@ for args, want in cases:
     check(rc == 1 and want in se, f"{' '.join(args[1:])}: exit 1 naming '{want}' "
           f"(got {rc}: {se.strip()[-300:]})")
 check(not [d for d in os.listdir(bad) if d.startswith("scenario")], "no run started on bad arguments")
+
+# 3. a scene's "notes" (the paper scenes' reading of the tables) must be a string
+for notes, ok in (("why the numbers are what they are", True), (5, False), (["a"], False)):
+    s2 = dict(s, notes=notes)
+    p = subprocess.run([COSIM, "check", write(s2)], capture_output=True, text=True, timeout=60)
+    check((p.returncode == 0) == ok and (ok or "notes: expected a string" in p.stderr),
+          f"notes = {notes!r}: {'accepted' if ok else 'refused by name'} (got {p.returncode}: {p.stderr.strip()})")
 done()
