@@ -39,6 +39,7 @@ SUMMARY_FILE, PLOT_FILE, REFERENCE_FILE = "summary.csv", "summary.png", "referen
 DEFAULT_SKIP_TRAVEL_M = 0.1
 DEFAULT_WIDTH_M = 0.165  # the paper's tyre (seed 000 table 2), if the scene does not say
 REFERENCE_SLIP_STEP = 0.01
+DODGE = 0.012  # horizontal offset of the three quantities, fraction of the value range
 
 
 class UsageError(CosimError):
@@ -155,7 +156,7 @@ def reference_curve(args, scene, out):
     return path
 
 
-def plot(path, key, rows, ref_path, title):
+def plot(path, key, rows, ref_path, title, ref_label="terramechanics"):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -166,21 +167,27 @@ def plot(path, key, rows, ref_path, title):
               ("T_R", "|T_R| (running resistance)", "tab:red", -1),
               ("T_P", "T_P (drawbar pull)", "tab:green", 1)]
     pos = np.array(xs, float) if numeric else np.arange(len(xs), dtype=float)
-    for q, label, color, sign in styles:
+    span = np.ptp(pos) if len(pos) > 1 else 1.0
+    for j, (q, label, color, sign) in enumerate(styles):
+        at = pos + (j - 1) * DODGE * span  # side by side, so the ranges stay readable
         mean = np.array([sign * r[f"{q}_mean"] for r in rows])
         a = np.array([sign * r[f"{q}_min"] for r in rows])
         b = np.array([sign * r[f"{q}_max"] for r in rows])
         lo, hi = np.minimum(a, b), np.maximum(a, b)
-        ax.errorbar(pos, mean, yerr=[mean - lo, hi - mean], fmt="o-", color=color,
+        ax.errorbar(at, mean, yerr=[mean - lo, hi - mean], fmt="o-", color=color,
                     capsize=4, label=f"DEM–FEM {label}: mean, min–max")
     if ref_path:
-        ref = np.genfromtxt(ref_path, delimiter=",", names=True, comments="#")
+        # a terra record: "# key: value" lines, then a header (genfromtxt
+        # would take the first comment line for the names)
+        with open(ref_path) as f:
+            body = [l for l in f if not l.startswith("#")]
+        ref = np.genfromtxt(body, delimiter=",", names=True)
         s = ref["s"]
         for col, label, color in [("T_over_r", "T/r", "tab:blue"),
                                   ("DP", "DP", "tab:green")]:
-            ax.plot(s, ref[col], "--", color=color, label=f"terramechanics {label}")
+            ax.plot(s, ref[col], "--", color=color, label=f"{ref_label} {label}")
         ax.plot(s, ref["T_over_r"] - ref["DP"], "--", color="tab:red",
-                label="terramechanics T/r − DP")
+                label=f"{ref_label} T/r − DP")
     if not numeric:
         ax.set_xticks(pos, [json.dumps(x) for x in xs])
     ax.axhline(0, color="0.6", lw=0.8)
@@ -273,7 +280,9 @@ def main(argv):
     write_summary(os.path.join(args.out, SUMMARY_FILE), [key], rows, args.skip_travel)
     ref = reference_curve(args, scene, args.out)
     title = f"{scene.get('name', args.scene)}: traction over the steady travel"
-    plot(os.path.join(args.out, PLOT_FILE), key, rows, ref, title)
+    load = scene.get("scenario", {}).get("sinkage_force")
+    plot(os.path.join(args.out, PLOT_FILE), key, rows, ref, title,
+         f"terramechanics ({load:g} N)" if args.terra_params and load else "terramechanics")
     print(f"summary: {os.path.join(args.out, SUMMARY_FILE)}, plot: "
           f"{os.path.join(args.out, PLOT_FILE)}")
     return 0 if len(rows) == len(done) else 3
