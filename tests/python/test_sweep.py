@@ -80,6 +80,18 @@ for slip, row in zip(SLIPS, rows):
             check(abs(got - ref) <= 1e-8 * max(1.0, abs(ref)), f"slip {slip} {q}_{st}: {got} vs {ref}")
 check(os.path.getsize(os.path.join(out, "summary.png")) > 1000, "summary.png written")
 
+# the summary again, now beside the terramechanics reference for the scene's wheel
+params = os.path.join(HERE, "..", "..", "bench", "results", "tire_soil_terra_params_deep.json")
+os.remove(os.path.join(out, "summary.png"))
+rc, so, se = sweep(path, "--values", "scenario.slip=" + ",".join(map(str, SLIPS)), "--out", out,
+                   "--skip-travel", str(SKIP), "--summary-only", "--terra-params", params)
+check(rc == 0 and os.path.getsize(os.path.join(out, "summary.png")) > 1000,
+      f"--summary-only --terra-params redraws the plot (got {rc}: {se.strip()[-300:]})")
+with open(os.path.join(out, "reference.csv")) as f:
+    ref = f.read()
+check(f"# load_N: {SCEN['sinkage_force']}" in ref and "T_over_r" in ref,
+      "the reference is computed for the scene's load")
+
 # 2. bad arguments: exit 1, the message names the problem, no run started
 bad = tempfile.mkdtemp(prefix="cosim-sweep-bad-")
 cases = [
