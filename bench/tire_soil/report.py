@@ -131,7 +131,12 @@ def sweep_section(d):
     md = ["## Slip sweep", "", f"`cosim sweep` output `{os.path.basename(os.path.normpath(d))}`; "
           + "; ".join(notes) + ".", "",
           "| " + " | ".join(head[i] for i in keep) + " |", "|" + "---|" * len(keep)]
-    md += ["| " + " | ".join(r[i] for i in keep) + " |" for r in body]
+    def cell(v):
+        try:
+            return f"{float(v):.4g}"
+        except ValueError:
+            return v
+    md += ["| " + " | ".join(cell(r[i]) for i in keep) + " |" for r in body]
     png = os.path.join(d, "summary.png")
     if os.path.exists(png):
         shutil.copy(png, os.path.join(RESULTS, "tire_soil_sweep.png"))
