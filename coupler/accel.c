@@ -20,8 +20,8 @@
  * Convergence, per field (preCICE's relative and residual-relative
  * measures, either suffices): |r_f| ≤ tol |x̃_f − base_f| (base: the
  * positions at the step start; zero for forces), or |r_f| ≤ tol |r_f,0|, the
- * first residual of the step — for a field that vanishes (the forces when
- * the grains leave the tread), which the first test cannot pass. */
+ * first non-zero residual of the step — for a field that vanishes (the
+ * forces when the grains leave the tread), which the first test cannot pass. */
 #include "run.h"
 
 #include <math.h>
@@ -228,7 +228,11 @@ int cpl_accel_next(cpl_accel *a, double *x, const double *xt,
     }
     rn[f] = sqrt(r2);
     total += r2;
-    if (a->iter == 0) a->r0[f] = rn[f];
+    /* the first non-zero residual: a field whose first residual was exactly
+     * zero (no grain touched the tread for the guess) may get one from the
+     * acceleration's coupling of the fields, and must then be measured
+     * against it (else its relative residual stays infinite) */
+    if (a->iter == 0 || a->r0[f] == 0) a->r0[f] = rn[f];
     const double scale = fmax(sqrt(d2), a->iter > 0 ? a->r0[f] : 0);
     res[f] = scale > 0 ? rn[f] / scale : r2 > 0 ? INFINITY : 0;
     a->field_ok[f] = rn[f] <= a->opt.tolerance * scale;

@@ -86,6 +86,13 @@ static int coupler_state(cpl_runner *r, int64_t *step, double *wall, int64_t *un
   v[n++] = (cpl_stateval){"rim.v", PROTO_F8, r->rim.v, 3};
   v[n++] = (cpl_stateval){"rim.w", PROTO_F8, r->rim.w, 3};
   v[n++] = (cpl_stateval){"rim.R", PROTO_F8, r->rim.R, 9};
+  v[n++] = (cpl_stateval){"rim.c0", PROTO_F8, r->rim.c0, 3};
+  v[n++] = (cpl_stateval){"rim.z_touch", PROTO_F8, &r->rim.z_touch, 1};
+  v[n++] = (cpl_stateval){"rim.z_fit", PROTO_F8, &r->rim.z_fit, 1};
+  v[n++] = (cpl_stateval){"rim.fit", PROTO_F8, r->rim.fit, 5};
+  v[n++] = (cpl_stateval){"rim.stiffness", PROTO_F8, &r->rim.stiffness, 1};
+  v[n++] = (cpl_stateval){"rim.mass", PROTO_F8, &r->rim.mass, 1};
+  v[n++] = (cpl_stateval){"rim.damping", PROTO_F8, &r->rim.damping, 1};
   v[n++] = (cpl_stateval){"road.d", PROTO_F8, &r->road.d, 1};
   v[n++] = (cpl_stateval){"road.v", PROTO_F8, &r->road.v, 1};
   v[n++] = (cpl_stateval){"road.a", PROTO_F8, &r->road.a, 1};

@@ -45,6 +45,18 @@ typedef struct cpl_implicit {
 } cpl_implicit;
 
 typedef enum { CPL_SCN_NONE, CPL_SCN_TIRE_TRAVEL, CPL_SCN_INDENTATION } cpl_scenario_kind;
+/* scenario.rig: what holds the rim's height during travel */
+typedef enum { CPL_RIG_KINEMATIC, CPL_RIG_LOAD } cpl_rig;
+/* The load rig's default mass is sinkage_force / this (dead-weight tester). */
+#define CPL_STANDARD_GRAVITY 9.81
+/* Default clearance of the lowest tread node above the bed for "auto". */
+#define CPL_AUTO_GAP 0.002
+/* Height of the lowest tread node while an "auto" rim waits for the bed. */
+#define CPL_AUTO_PARK_Z 1000.0
+/* The load rig is refused above this omega dt (semi-implicit Euler on the
+ * soil's spring is unstable at 2: half of that). */
+#define CPL_RIG_MAX_OMEGA_DT 1.0
+
 typedef enum {
   CPL_PROFILE_LINEAR, CPL_PROFILE_QUADRATIC, CPL_PROFILE_LOAD_HOLD_UNLOAD,
   CPL_PROFILE_SINUSOIDAL, CPL_PROFILE_FORCE
@@ -61,6 +73,11 @@ typedef struct cpl_scenario {
   double slip;            /* s in v = omega R (1 - s) */
   double omega;           /* rad/s during travel */
   double radius;          /* m, rolling radius R */
+  int rim_auto;           /* rim_center[2] is "auto": set from the dems' bed_top */
+  double auto_gap;        /* m: lowest tread node above the bed top ("auto") */
+  cpl_rig rig;
+  double rig_mass;        /* kg (load rig) */
+  double rig_damping;     /* N s/m (load rig), against the ground; default 0 */
   /* indentation (block): d_road(t), positive = towards the block */
   cpl_profile profile;
   double depth;           /* m: final (linear/quadratic) or held depth */
@@ -136,11 +153,21 @@ typedef struct cpl_rim {
   int travelling;   /* 0 sinkage, 1 travel */
   double angle;     /* rad about +y */
   double c[3], v[3], w[3], R[9];
+  double c0[3];     /* the centre at t = 0 (an "auto" height resolved) */
+  /* load rig: the soil's stiffness from the sinkage phase, by least squares
+   * of the load over the height while it rose from W/2 to W (W =
+   * sinkage_force): n, sums of dz, F, dz², dz F with dz = z - z_fit */
+  double z_touch;   /* height at the first step with load > 0 (NAN before) */
+  double z_fit;     /* height where the fit began (NAN before) */
+  double fit[5];
+  double stiffness; /* N/m measured (0: unknown) */
+  double mass, damping; /* kg, N s/m in use during travel */
 } cpl_rim;
 void cpl_rim_init(cpl_rim *rim, const cpl_scenario *s);
-/* Advances the rim by dt given the vertical load (N, +z on the tire). */
-void cpl_rim_advance(cpl_rim *rim, const cpl_scenario *s, double dt,
-                     double vertical_load);
+/* Advances the rim by dt given the vertical load (N, +z on the tire).
+ * Fails (err names the key) when the load rig would not be stable. */
+int cpl_rim_advance(cpl_rim *rim, const cpl_scenario *s, double dt,
+                    double vertical_load, proto_err *err);
 /* Prescribed road displacement at t (m); NAN for force-driven mode. */
 double cpl_road_displacement(const cpl_scenario *s, double t);
 

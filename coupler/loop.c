@@ -112,8 +112,9 @@ static int implicit_step(cpl_runner *r, int64_t k, int output) {
   const double dt = r->scene->dt;
   /* actions once, at the start (with the last step's load) */
   for (int e = 0; e < r->nex; e++)
-    if (r->ex[e].peer < 0 && !(road_coupled(r) && r->ex[e].action == CPL_ACT_ROAD))
-      cpl_do_action(r, r->ex[e].action, k);
+    if (r->ex[e].peer < 0 && !(road_coupled(r) && r->ex[e].action == CPL_ACT_ROAD) &&
+        cpl_do_action(r, r->ex[e].action, k) < 0)
+      return -1;
   /* start: x_{k-1}; guess d_k = x_{k-1} + dt v, forces of the last step */
   memcpy(r->x_start, X->cur, sizeof(double) * (size_t)nx);
   for (int64_t j = 0; j < nx; j++) r->xi[j] = X->cur[j] + dt * V->cur[j];
@@ -157,7 +158,7 @@ static void traction(const cpl_runner *r, double t, double *row) {
     /* y-component of (x - c) × f */
     torque += (x[2] - r->rim.c[2]) * f[0] - (x[0] - r->rim.c[0]) * f[2];
   }
-  double sinkage = r->scene->scenario.rim_center[2] - r->rim.c[2];
+  double sinkage = r->rim.c0[2] - r->rim.c[2];
   double vals[N_TR] = {t, th, tr, th - fabs(tr), fz, sinkage, torque};
   memcpy(row, vals, sizeof vals);
 }

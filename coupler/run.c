@@ -7,6 +7,7 @@
 #include "run.h"
 
 #include <errno.h>
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -292,14 +293,52 @@ static int welcome_one(cpl_runner *r, int i) {
   return rc;
 }
 
-/* The fem first (its surface goes to the dem processes), then the rest. */
+/* The rim height that puts the lowest surface node at z (the rim frame is
+ * the identity at t = 0). */
+static void rim_height_for(cpl_runner *r, double z) {
+  double lowest = INFINITY;
+  for (int64_t i = 0; i < r->surf.n_nodes; i++) lowest = fmin(lowest, r->surf.x0[3 * i + 2]);
+  r->rim.c[2] = r->rim.c0[2] = z - (r->surf.n_nodes ? lowest : 0);
+}
+
+/* rim_center [x, y, "auto"]: the lowest tread node auto_gap above the
+ * highest bed_top the dem processes report after settling. */
+static int place_rim(cpl_runner *r) {
+  const cpl_scenario *sc = &r->scene->scenario;
+  double top = -INFINITY;
+  for (int i = 0; i < r->n; i++) {
+    if (r->peers[i].role != PROTO_ROLE_DEM) continue;
+    const cJSON *t = cJSON_GetObjectItemCaseSensitive(r->peers[i].reply.header, PROTO_H_BED_TOP);
+    if (!cJSON_IsNumber(t) || !isfinite(t->valuedouble)) {
+      r->failed_peer = i;
+      return proto_fail(&r->err, "scenario.rim_center[2]: \"auto\" needs the settled bed's "
+                        "top from every dem process, and participant '%s' (%s) reported no "
+                        "%s in its ready (no grains under the tread's footprint, or a dem "
+                        "that does not measure it); give the height as a number",
+                        r->peers[i].proc->name, r->peers[i].proc->exec, PROTO_H_BED_TOP);
+    }
+    top = fmax(top, t->valuedouble);
+  }
+  rim_height_for(r, top + sc->auto_gap);
+  if (!r->opts->quiet)
+    fprintf(stderr, "cosim: rim_center \"auto\": bed top %.10g m, rim height %.10g m (lowest "
+            "tread node %g m above the bed)\n", top, r->rim.c[2], sc->auto_gap);
+  init_fields(r);
+  return 0;
+}
+
+/* The fem first (its surface goes to the dem processes), then the rest;
+ * an "auto" rim waits parked above everything until the beds are settled. */
 static int welcome_all(cpl_runner *r) {
+  const int rim_auto = r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL &&
+                       r->scene->scenario.rim_auto && r->fem >= 0;
   if (r->fem >= 0 && welcome_one(r, r->fem) < 0) return -1;
   if (cpl_fields_init(r, r->surf.n_nodes, &r->err) < 0) return -1;
+  if (rim_auto) rim_height_for(r, CPL_AUTO_PARK_Z); /* out of the way while beds settle */
   init_fields(r);
   for (int i = 0; i < r->n; i++)
     if (i != r->fem && welcome_one(r, i) < 0) return -1;
-  return 0;
+  return rim_auto ? place_rim(r) : 0;
 }
 
 /* The implicit scheme repeats steps: every process must roll back. */

@@ -208,8 +208,8 @@ int cpl_last_stage(const cpl_runner *r);
 /* Sets r->in to the fields' current values (serial, parallel). */
 void cpl_inputs_current(cpl_runner *r);
 void cpl_field_commit(cpl_runner *r, cpl_field_id id);
-/* Runs a coupler action for step k (scenario; road body). */
-void cpl_do_action(cpl_runner *r, cpl_action a, int64_t k);
+/* Runs a coupler action for step k (scenario; road body); -1 with r->err. */
+int cpl_do_action(cpl_runner *r, cpl_action a, int64_t k);
 double cpl_vertical_load(const cpl_runner *r);
 
 /* loop.c: the loop over all steps. */

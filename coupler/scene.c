@@ -190,11 +190,49 @@ static int read_coupling(proto_cfg *root, cpl_scene *s) {
   return proto_cfg_end(&c);
 }
 
+/* rim_center: [x, y, z] or [x, y, "auto"] (the height from the settled bed). */
+static int read_rim_center(proto_cfg *c, cpl_scenario *sc) {
+  static const char *const AUTO = "auto";
+  const cJSON *node = cJSON_GetObjectItemCaseSensitive(c->obj, "rim_center");
+  const cJSON *z = cJSON_IsArray(node) ? cJSON_GetArrayItem(node, 2) : NULL;
+  if (!cJSON_IsString(z))
+    return proto_cfg_vec(c, "rim_center", PROTO_OPTIONAL, sc->rim_center, 3, 3, NULL);
+  char path[PROTO_PATH_CAP];
+  proto_cfg_subpath(c, "rim_center", 2, path, sizeof path);
+  if (strcmp(z->valuestring, AUTO) != 0)
+    return proto_fail(c->err, "%s: expected a number or \"auto\", got \"%s\"", path,
+                      z->valuestring);
+  /* x, y as numbers: check them through a copy with z = 0 */
+  cJSON *copy = cJSON_Duplicate(node, 1);
+  cJSON *wrap = cJSON_CreateObject();
+  if (!copy || !wrap) {
+    cJSON_Delete(copy);
+    cJSON_Delete(wrap);
+    return proto_fail(c->err, "out of memory");
+  }
+  cJSON_ReplaceItemInArray(copy, 2, cJSON_CreateNumber(0));
+  cJSON_AddItemToObject(wrap, "rim_center", copy);
+  proto_cfg sub;
+  int rc = proto_cfg_open(&sub, wrap, c->path, c->err);
+  if (rc == 0) rc = proto_cfg_vec(&sub, "rim_center", PROTO_REQUIRED, sc->rim_center, 3, 3, NULL);
+  cJSON_Delete(wrap);
+  proto_cfg_raw(c, "rim_center", PROTO_OPTIONAL); /* used */
+  sc->rim_auto = 1;
+  return rc;
+}
+
 static int read_tire_travel(proto_cfg *c, cpl_scenario *sc) {
+  static const char *const rigs[] = {"kinematic", "load", NULL};
   sc->radius = 0.272; /* 165/65 R13 outer radius (seed 000) */
   sc->slip = 0.05;
-  if (proto_cfg_vec(c, "rim_center", PROTO_OPTIONAL, sc->rim_center, 3, 3,
-                    NULL) < 0 ||
+  sc->auto_gap = CPL_AUTO_GAP;
+  sc->rig_mass = -1;
+  int rig = CPL_RIG_KINEMATIC;
+  if (read_rim_center(c, sc) < 0 ||
+      proto_cfg_num(c, "auto_gap", PROTO_OPTIONAL, 0, 10, &sc->auto_gap) < 0 ||
+      proto_cfg_enum(c, "rig", PROTO_OPTIONAL, rigs, &rig) < 0 ||
+      proto_cfg_num(c, "rig_mass", PROTO_OPTIONAL, 1e-9, 1e9, &sc->rig_mass) < 0 ||
+      proto_cfg_num(c, "rig_damping", PROTO_OPTIONAL, 0, 1e12, &sc->rig_damping) < 0 ||
       proto_cfg_num(c, "sinkage_velocity", PROTO_REQUIRED, 0, 1e3,
                     &sc->sinkage_velocity) < 0 ||
       proto_cfg_num(c, "sinkage_force", PROTO_REQUIRED, 0, 1e9,
@@ -203,6 +241,15 @@ static int read_tire_travel(proto_cfg *c, cpl_scenario *sc) {
       proto_cfg_num(c, "omega", PROTO_REQUIRED, -1e4, 1e4, &sc->omega) < 0 ||
       proto_cfg_num(c, "radius", PROTO_OPTIONAL, 1e-6, 1e3, &sc->radius) < 0)
     return -1;
+  sc->rig = (cpl_rig)rig;
+  /* the rig keys are read in either mode (a scene switches with one --set) */
+  if (sc->rig_mass < 0) {
+    if (sc->rig == CPL_RIG_LOAD && !(sc->sinkage_force > 0))
+      return proto_fail(c->err, "%s.rig_mass: the default, sinkage_force / %g, needs "
+                        "sinkage_force > 0 (got %g); give rig_mass (kg)", c->path,
+                        CPL_STANDARD_GRAVITY, sc->sinkage_force);
+    sc->rig_mass = sc->sinkage_force / CPL_STANDARD_GRAVITY;
+  }
   return 0;
 }
 

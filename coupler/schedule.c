@@ -186,13 +186,16 @@ static void road_action(cpl_runner *r, int64_t k) {
   d[0] = r->road.d;
 }
 
-void cpl_do_action(cpl_runner *r, cpl_action a, int64_t k) {
+int cpl_do_action(cpl_runner *r, cpl_action a, int64_t k) {
   if (a == CPL_ACT_RIM && r->fem >= 0) {
-    cpl_rim_advance(&r->rim, &r->scene->scenario, r->scene->dt, cpl_vertical_load(r));
+    if (cpl_rim_advance(&r->rim, &r->scene->scenario, r->scene->dt, cpl_vertical_load(r),
+                        &r->err) < 0)
+      return -1;
     rim_to_fields(r);
   } else if (a == CPL_ACT_ROAD && r->n_of_role[PROTO_ROLE_BLOCK]) {
     road_action(r, k);
   }
+  return 0;
 }
 
 /* ------------------------------------------------------------- exchanges */
@@ -279,7 +282,7 @@ static int run_stage(cpl_runner *r, int stage, int64_t k, int iteration, int out
     const cpl_exchange *x = &r->ex[e];
     if (x->stage != stage) continue;
     if (x->peer < 0) {
-      if (actions) cpl_do_action(r, x->action, k);
+      if (actions && cpl_do_action(r, x->action, k) < 0) return -1;
       continue;
     }
     if (send_request(r, x->peer, k, iteration, output) < 0) return -1;

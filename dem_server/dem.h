@@ -116,6 +116,8 @@ typedef struct dem_model {
   int threads;           /* OpenMP threads, 0 = "auto" (dem_threads.c) */
   int has_rolling;
   int limit_force;       /* "limit_force": F_n = max(F_n, 0) (damping never pulls) */
+  int surface_couple;    /* "surface_couple": mesh nodes also take the contact's moment
+                          * (exact angular momentum across the surface; dem_mesh.c) */
   int orientation;       /* "orientation": integrate q (spheres need it only for output) */
   dem_sleep_config sleep; /* "sleep": grains at rest far from moving meshes stop */
   int n_grains;
@@ -248,6 +250,15 @@ int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain,
  * allocates; values must be finite, radii > 0 (materials: the caller). */
 int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto_err *err);
 int dem_bed_load(dem_model *m, const char *path, proto_err *err);
+
+/* The bed's top: the `percentile` (in (0, 100]) of the grain tops z + r over
+ * the grains whose centre lies in the x-y rectangle [lo, hi] (nearest rank);
+ * NAN and *count = 0 if none does. For placing a tyre over a settled bed. */
+int dem_bed_top(const dem_state *s, const double lo[2], const double hi[2], double percentile,
+                double *top, int *count, proto_err *err);
+/* The percentile the participant reports as `bed_top` (a few protruding
+ * grains must not lift the tyre, the bulk of the top layer must not touch it). */
+#define DEM_BED_TOP_PERCENTILE 95.0
 
 /* Allocates the model's grain arrays for n grains (zeroed). */
 int dem_model_alloc_grains(dem_model *m, int n, proto_err *err);

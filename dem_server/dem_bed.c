@@ -162,3 +162,30 @@ int dem_bed_load(dem_model *m, const char *path, proto_err *err) {
   proto_h5in_close(f);
   return rc;
 }
+
+static int ascending(const void *a, const void *b) {
+  const double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+int dem_bed_top(const dem_state *s, const double lo[2], const double hi[2], double percentile,
+                double *top, int *count, proto_err *err) {
+  double *tops = malloc(sizeof(double) * (size_t)(s->n > 0 ? s->n : 1));
+  if (!tops) return proto_fail(err, "out of memory (bed top)");
+  int n = 0;
+  for (int i = 0; i < s->n; i++) {
+    const double *x = &s->x[3 * (size_t)i];
+    if (x[0] >= lo[0] && x[0] <= hi[0] && x[1] >= lo[1] && x[1] <= hi[1])
+      tops[n++] = x[2] + s->radius[i];
+  }
+  *count = n;
+  *top = NAN;
+  if (n > 0) {
+    qsort(tops, (size_t)n, sizeof *tops, ascending);
+    /* nearest rank: the smallest value with at least `percentile` % at or below it */
+    int rank = (int)ceil(percentile / 100.0 * n);
+    *top = tops[rank < 1 ? 0 : rank > n ? n - 1 : rank - 1];
+  }
+  free(tops);
+  return 0;
+}

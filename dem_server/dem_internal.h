@@ -82,6 +82,10 @@ struct dem_work {
   int32_t *mc_tri;  /* [n*K] global triangle: mesh << 24 | tri is not assumed, see mc_mesh */
   int8_t *mc_mesh;  /* [n*K] */
   double *mc_shear, *mc_normal, *mc_zeta, *mc_force; /* [n*K*3] */
+  /* [n*K*3] the moment the nodes must take besides the ζ-shares of the force,
+   * so that they get exactly minus the grain's moment: the force acts at
+   * the grain's contact point, δ/2 off the triangle, and the rolling torque */
+  double *mc_couple;
   double *mesh_f, *mesh_t; /* [n*3] force/torque on grain from meshes */
   dem_bvh bvh[DEM_MAX_MESHES];
   /* mesh contact candidates per slot (CSR): key mesh << DEM_TRI_BITS | triangle */

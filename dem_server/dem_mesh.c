@@ -210,10 +210,11 @@ int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->mc_normal = calloc(3 * nk, sizeof(double));
   w->mc_zeta = calloc(3 * nk, sizeof(double));
   w->mc_force = calloc(3 * nk, sizeof(double));
+  w->mc_couple = calloc(3 * nk, sizeof(double));
   w->mesh_f = calloc(3 * (size_t)s->n, sizeof(double));
   w->mesh_t = calloc(3 * (size_t)s->n, sizeof(double));
   if (!w->mc_key || !w->mc_tri || !w->mc_mesh || !w->mc_shear || !w->mc_normal || !w->mc_zeta ||
-      !w->mc_force || !w->mesh_f || !w->mesh_t || !w->ml_start || !w->ml_cbuf || !w->ml_cbuf_cap)
+      !w->mc_force || !w->mc_couple || !w->mesh_f || !w->mesh_t || !w->ml_start || !w->ml_cbuf || !w->ml_cbuf_cap)
     return proto_fail(err, "out of memory for mesh contacts");
   return 0;
 }
@@ -231,7 +232,7 @@ void dem_mesh_free(const dem_model *m, dem_state *s) {
   free(w->ml_cbuf); free(w->ml_cbuf_cap); free(w->ml_start); free(w->ml_key);
   (void)m;
   free(w->mc_key); free(w->mc_tri); free(w->mc_mesh); free(w->mc_shear); free(w->mc_normal);
-  free(w->mc_zeta); free(w->mc_force); free(w->mesh_f); free(w->mesh_t);
+  free(w->mc_zeta); free(w->mc_force); free(w->mc_couple); free(w->mesh_f); free(w->mesh_t);
 }
 
 /* Meshes move with their node velocities (constant for rigid meshes, the
@@ -558,14 +559,20 @@ int dem_mesh_grain(const dem_model *m, dem_state *s, int i, double *u) {
     const dem_pair_law *l = &m->law[s->material[i]][me->material];
     double up;
     double Fn = dem_hertz(l, delta, r, mass, n, vc, m->dt, shear, F, nxf, &up);
+    double tr[3] = {0, 0, 0};
     if (m->has_rolling && l->mu_roll > 0) {
-      double tr[3];
       dem_rolling(l, Fn, r, &s->omega[3 * i], tr);
       for (int d = 0; d < 3; d++) t[d] += tr[d];
     }
+    /* the grain's moment about the closest point q: its contact point is
+     * (dist - cr) n = -δ/2 n from q, plus the rolling torque; with
+     * surface_couple the nodes take minus that besides their ζ-shares of -F
+     * (dem_mesh_reactions) */
+    double *couple = &w->mc_couple[3 * (base + k)];
     for (int d = 0; d < 3; d++) {
       f[d] += F[d];
       t[d] -= cr * nxf[d];
+      couple[d] = 0.5 * delta * nxf[d] - tr[d];
     }
     w->mc_key[base + k] = c[k].key;
     w->mc_mesh[base + k] = (int8_t)c[k].mesh;
@@ -577,6 +584,40 @@ int dem_mesh_grain(const dem_model *m, dem_state *s, int i, double *u) {
     if (delta / r > w->ratio[i]) w->ratio[i] = delta / r;
   }
   return nc;
+}
+
+/* Adds to the nodal forces of triangle tn a pure couple of moment M (zero
+ * sum): the least-norm one, h_a = b × e_a with e_a = x_a − centroid and
+ * J b = M, J = Σ (|e_a|² I − e_a e_aᵀ) (then Σ e_a × h_a = J b = M). */
+static void add_couple(const double *x, const int32_t *tn, const double *M, double *nf) {
+  if (M[0] == 0 && M[1] == 0 && M[2] == 0) return;
+  double e[3][3], cen[3] = {0, 0, 0}, J[9] = {0};
+  for (int a = 0; a < 3; a++)
+    for (int d = 0; d < 3; d++) cen[d] += x[3 * tn[a] + d] / 3;
+  for (int a = 0; a < 3; a++) {
+    for (int d = 0; d < 3; d++) e[a][d] = x[3 * tn[a] + d] - cen[d];
+    const double e2 = dem_dot(e[a], e[a]);
+    for (int p = 0; p < 3; p++)
+      for (int q = 0; q < 3; q++) J[3 * p + q] += (p == q ? e2 : 0) - e[a][p] * e[a][q];
+  }
+  /* Cramer's rule; J is positive definite unless the triangle is degenerate */
+  const double det = J[0] * (J[4] * J[8] - J[5] * J[7]) - J[1] * (J[3] * J[8] - J[5] * J[6]) +
+                     J[2] * (J[3] * J[7] - J[4] * J[6]);
+  const double scale = J[0] + J[4] + J[8];
+  if (!(det > 1e-12 * scale * scale * scale)) return;
+  double b[3];
+  for (int c = 0; c < 3; c++) {
+    double A[9];
+    memcpy(A, J, sizeof A);
+    for (int p = 0; p < 3; p++) A[3 * p + c] = M[p];
+    b[c] = (A[0] * (A[4] * A[8] - A[5] * A[7]) - A[1] * (A[3] * A[8] - A[5] * A[6]) +
+            A[2] * (A[3] * A[7] - A[4] * A[6])) / det;
+  }
+  for (int a = 0; a < 3; a++) {
+    double h[3];
+    dem_cross(b, e[a], h);
+    for (int d = 0; d < 3; d++) nf[3 * tn[a] + d] += h[d];
+  }
 }
 
 /* The reactions onto the nodes by ζ (seed 000 eq. 42) and the force on each
@@ -600,6 +641,7 @@ void dem_mesh_reactions(const dem_model *m, dem_state *s) {
         const double *F = &w->mc_force[3 * sl], *z = &w->mc_zeta[3 * sl];
         for (int a = 0; a < 3; a++)
           for (int d = 0; d < 3; d++) nf[3 * tn[a] + d] -= z[a] * F[d];
+        if (m->surface_couple) add_couple(s->mesh_x[mi], tn, &w->mc_couple[3 * sl], nf);
         double *wf = &s->wall_force[3 * m->meshes[mi].wall];
         for (int d = 0; d < 3; d++) wf[d] -= F[d];
       }

@@ -366,6 +366,7 @@ int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, pr
   int limit_force = 0;
   if (proto_cfg_bool(&c, "limit_force", PROTO_OPTIONAL, &limit_force)) goto fail;
   m->limit_force = limit_force;
+  if (proto_cfg_bool(&c, "surface_couple", PROTO_OPTIONAL, &m->surface_couple)) goto fail;
   for (int a = 0; a < m->n_materials; a++)
     for (int b = 0; b < m->n_materials; b++) {
       pair_law(&m->mat[a], &m->mat[b], props[a][b].e, props[a][b].mu, props[a][b].mu_roll, limit_force, &m->law[a][b]);

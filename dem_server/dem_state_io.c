@@ -289,7 +289,8 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   /* valid: make room, then copy (the layout again: buffers may have moved) */
   if (dem_neigh_reserve(m, s, (int)npairs, err)) return -1;
   layout(m, s, npairs, e);
-  for (int k = 0; k < ne; k++) memcpy(e[k].data, src[k], entry_bytes(&e[k]));
+  for (int k = 0; k < ne; k++) /* an empty array may come without data */
+    if (entry_bytes(&e[k])) memcpy(e[k].data, src[k], entry_bytes(&e[k]));
   s->step = cnt[IO_C_STEP];
   s->rebuilds = cnt[IO_C_REBUILDS];
   s->contacts = cnt[IO_C_CONTACTS];

@@ -77,6 +77,27 @@ static void report(void *ctx, double fraction, const char *what) {
   proto_peer_progress(ctx, fraction, what);
 }
 
+/* ready's bed_top: the settled bed's top under the coupled surface's x-y
+ * footprint (its bounding box as placed in the welcome), or under all
+ * grains without a surface; absent if no grain lies there. */
+static int report_bed_top(dem_app *a, cJSON *h, proto_err *err) {
+  double lo[2] = {-INFINITY, -INFINITY}, hi[2] = {INFINITY, INFINITY}, top;
+  if (a->surface >= 0) {
+    const dem_mesh *me = &a->model.meshes[a->surface];
+    for (int k = 0; k < 2; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (int i = 0; i < me->n_nodes; i++)
+      for (int k = 0; k < 2; k++) {
+        lo[k] = fmin(lo[k], me->x0[3 * i + k]);
+        hi[k] = fmax(hi[k], me->x0[3 * i + k]);
+      }
+  }
+  int count;
+  if (dem_bed_top(&a->state, lo, hi, DEM_BED_TOP_PERCENTILE, &top, &count, err) < 0) return -1;
+  if (count > 0) cJSON_AddNumberToObject(h, PROTO_H_BED_TOP, top);
+  cJSON_AddNumberToObject(h, PROTO_H_BED_TOP_GRAINS, count);
+  return 0;
+}
+
 static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_err *err) {
   dem_app *a = user;
   dem_model *m = &a->model;
@@ -123,6 +144,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
       snprintf(name, sizeof name, "wall%d_F%c", w, "xyz"[k]);
       cJSON_AddItemToArray(wf, cJSON_CreateString(name));
     }
+  if (report_bed_top(a, h, err) < 0) return -1;
   cJSON_AddNumberToObject(h, "dem_dt", m->dt);
   cJSON_AddNumberToObject(h, "rayleigh_time", m->rayleigh_time);
   cJSON_AddNumberToObject(h, "grains", m->n_grains);

@@ -39,6 +39,12 @@ int lgd_model_from_json(dem_model *m, const cJSON *section, const char *path, MP
     if (rc == 0) dem_model_free(m);
     return -1;
   }
+  if (m->surface_couple) { /* the same section on every rank: all refuse */
+    dem_model_free(m);
+    return proto_fail(err, "%s.surface_couple: dem_server's only (LIGGGHTS gives each mesh "
+                      "contact's force, not its moment: liggghts_dem's nodal forces are eq. 42's)",
+                      path);
+  }
   /* what the grains decide: the smallest Rayleigh time (hence dt), the default
    * skin, and the settling and saving settings of a generated bed */
   MPI_Bcast(&m->rayleigh_time, 1, MPI_DOUBLE, 0, comm);
