@@ -15,6 +15,9 @@ static void usage(FILE *f) {
           "       cosim roles [--json]\n"
           "       cosim road|springs|green ARGS...   (forwarded to cosim_green)\n"
           "       cosim terra plate|shear|fit|combine|curve ARGS...   (forwarded to cosim_terra)\n"
+          "       cosim sweep SCENE --values KEY.PATH=V1,V2,... --out DIR [--set K=V]...\n"
+          "                   [--jobs N] [--terra-params P.json|--reference REF.csv]\n"
+          "                   (forwarded to python3 -m cosim; --help for the rest)\n"
           "\n"
           "run      starts the participants the scene names, couples them step by\n"
           "         step and writes results.h5 in output.dir. --attach waits for\n"
@@ -26,6 +29,8 @@ static void usage(FILE *f) {
           "         its own executable) without running it.\n"
           "monitor  prints what is published on a run's monitor bus (the endpoint,\n"
           "         or the run's output.dir, whose endpoints.json says where it is).\n"
+          "sweep    one run per value of a scene key into DIR/<key>=<value>/, then\n"
+          "         DIR/summary.csv (traction over the steady travel) and summary.png.\n"
           "roles    the role table: each role's messages and arrays (--json: for\n"
           "         other languages).\n"
           "Exit codes: 0 ok, 1 bad config or usage, 3 a participant failed,\n"
@@ -160,6 +165,35 @@ static int forward(const char *name, char **argv) {
   return 1;
 }
 
+/* `cosim sweep ...` runs the Python package's sweep (python/cosim/sweep_cli.py)
+ * with the interpreter $COSIM_PYTHON (default COSIM_PYTHON_DEFAULT), the
+ * package from this source tree and this cosim binary for its runs. */
+static int forward_python(char **argv) {
+  char self[CPL_PATH_LEN] = {0};
+  ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+  if (n > 0) setenv("COSIM_EXE", self, 0);
+  const char *old = getenv("PYTHONPATH");
+  char path[2 * CPL_PATH_LEN];
+  snprintf(path, sizeof path, "%s%s%s", COSIM_PYTHON_DIR, old && *old ? ":" : "",
+           old ? old : "");
+  setenv("PYTHONPATH", path, 1);
+  const char *py = getenv("COSIM_PYTHON");
+  if (!py || !*py) py = COSIM_PYTHON_DEFAULT;
+  /* argv[0] = "cosim", argv[1] = "sweep": becomes py -m cosim sweep ... */
+  int argc = 0;
+  while (argv[argc]) argc++;
+  char **args = calloc((size_t)argc + 3, sizeof *args);
+  if (!args) return 1;
+  args[0] = (char *)py;
+  args[1] = "-m";
+  args[2] = "cosim";
+  for (int i = 1; i < argc; i++) args[i + 2] = argv[i];
+  execvp(py, args);
+  fprintf(stderr, "cosim: cannot run %s for 'cosim %s' (set COSIM_PYTHON)\n", py, argv[1]);
+  free(args);
+  return 1;
+}
+
 int cpl_main(int argc, char **argv) {
   if (argc < 2 || strcmp(argv[1], "-h") == 0 || strcmp(argv[1], "--help") == 0 ||
       strcmp(argv[1], "help") == 0) {
@@ -173,6 +207,7 @@ int cpl_main(int argc, char **argv) {
       strcmp(cmd, "green") == 0)
     return forward("cosim_green", argv);
   if (strcmp(cmd, "terra") == 0) return forward("cosim_terra", argv + 1);
+  if (strcmp(cmd, "sweep") == 0) return forward_python(argv);
   if (strcmp(cmd, "run") != 0 && strcmp(cmd, "check") != 0) {
     fprintf(stderr, "cosim: unknown command '%s'\n", cmd);
     usage(stderr);

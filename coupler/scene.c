@@ -109,6 +109,17 @@ static int read_checkpoint(proto_cfg *root, cpl_scene *s) {
   return proto_cfg_end(&c);
 }
 
+/* notes: free text for the reader of the scene (why its numbers were
+ * chosen); the coupler checks only that it is a string. */
+static int read_notes(proto_cfg *root, proto_err *err) {
+  const cJSON *n = proto_cfg_raw(root, "notes", PROTO_OPTIONAL);
+  if (n && !cJSON_IsString(n))
+    return proto_fail(err, "notes: expected a string, got %s",
+                      cJSON_IsArray(n) ? "an array" : cJSON_IsObject(n) ? "an object"
+                                                                         : "a number or literal");
+  return 0;
+}
+
 /* security: {"curve": true} (README "Security"). */
 static int read_security(proto_cfg *root, cpl_scene *s) {
   proto_cfg c;
@@ -401,7 +412,8 @@ int cpl_scene_from_json(cpl_scene *s, cJSON *json, const char *source,
   if (read_time(&root, s) < 0 || read_output(&root, s) < 0 ||
       read_bus(&root, s) < 0 || read_coupling(&root, s) < 0 ||
       read_scenario(&root, s) < 0 || read_checkpoint(&root, s) < 0 ||
-      read_security(&root, s) < 0 || read_processes(&root, s) < 0 ||
+      read_security(&root, s) < 0 || read_notes(&root, err) < 0 ||
+      read_processes(&root, s) < 0 ||
       proto_cfg_end(&root) < 0)
     return proto_wrap(err, "%s", source);
   return 0;

@@ -1,0 +1,205 @@
+"""bench/results/tire_soil.md from the timed runs of bench/tire_soil/run_paper.sh.
+
+    PYTHONPATH=python /usr/bin/python3 bench/tire_soil/report.py WORK_DIR [--sweep DIR] [NAME...]
+
+NAME (default: paper deep) are run dirs in WORK_DIR with NAME.time and NAME.log
+beside them; a missing one is reported as not run. --sweep: a `cosim sweep`
+output dir whose summary.csv and summary.png go into the report. Writes
+bench/results/tire_soil.md (then bench/tire_soil/findings.md, hand-written,
+appended as is), tire_soil.json, tire_soil_<NAME>.png, tire_soil_sweep.png."""
+import json
+import math
+import os
+import re
+import shutil
+import sys
+
+import numpy as np
+
+from cosim import Results
+from cosim.sweep_cli import QUANTITIES, DEFAULT_SKIP_TRAVEL_M, summarise_run
+
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+RESULTS = os.path.join(ROOT, "bench", "results")
+SETTLED_RE = re.compile(r"bed of (\d+) grains settled in (\d+) steps \(([\d.]+) s\)")
+LOOP_RE = re.compile(r"^Loop time .*?(?=^results:|\Z)", re.S | re.M)
+SMOOTH_S = 5e-3  # running mean drawn over the raw rows
+FINISHED_RE = re.compile(r"finished: (\d+) steps, t = ([\d.e+-]+) s, ([\d.]+) s wall")
+
+
+def read_time(path):
+    d = {}
+    for line in open(path):
+        k, _, v = line.partition(":")
+        d[k.strip()] = v.strip()
+    return d
+
+
+def settle_seconds(run_dir):
+    logs = os.path.join(run_dir, "logs")
+    for f in sorted(os.listdir(logs)) if os.path.isdir(logs) else []:
+        m = SETTLED_RE.search(open(os.path.join(logs, f), errors="replace").read())
+        if m:
+            return int(m.group(1)), int(m.group(2)), float(m.group(3))
+    return None, None, math.nan
+
+
+def one(work, name):
+    run = os.path.join(work, name)
+    if not os.path.exists(run + ".time"):
+        return None
+    t = read_time(run + ".time")
+    log = open(run + ".log", errors="replace").read()
+    loop = LOOP_RE.search(log)
+    fin = FINISHED_RE.search(log)
+    grains, settle_steps, settle_s = settle_seconds(run)
+    res = {"name": name, "scene": t.get("scene"), "rc": int(t.get("rc", -1)),
+           "wall_s": float(t.get("wall_s", "nan")), "load_before": t.get("load_before"),
+           "load_after": t.get("load_after"), "loop_table": loop.group(0).strip() if loop else "",
+           "steps": int(fin.group(1)) if fin else None, "grains": grains,
+           "settle_steps": settle_steps, "settle_s": settle_s}
+    if res["rc"] != 0 or not os.path.exists(os.path.join(run, "results.h5")):
+        res["error"] = log.strip().splitlines()[-3:] if log.strip() else ["no log"]
+        return res
+    with Results(run) as r:
+        tr = r.series("coupler", "traction")
+        s = summarise_run(r, DEFAULT_SKIP_TRAVEL_M)
+        sc = r.scene["scenario"]
+        tim = r.timing
+        res["loop_s"] = {c: float(tim[c].sum()) for c in tim.columns if c != "t"}
+        speed = sc["omega"] * sc["radius"] * (1 - sc["slip"])
+        res["travel_m"] = float((tr["t"][-1] - s["travel_start_s"]) * speed)
+        res.update({k: v for k, v in s.items()})
+        res["sinkage_force"] = sc["sinkage_force"]
+        dem = r.series("soil")
+        res["max_overlap_ratio"] = float(dem["max_overlap_ratio"].max())
+        plot(r, tr, s, speed, os.path.join(RESULTS, f"tire_soil_{name}.png"), name)
+    return res
+
+
+def plot(r, tr, s, speed, path, name):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    x = (tr["t"] - s["travel_start_s"]) * speed
+    fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
+    k = max(1, len(x) // 2000)  # 2000 points per curve; 5 ms means for the eye
+    n = max(1, int(round(SMOOTH_S / r.scene["time"]["dt"])))
+
+    def smooth(v):
+        return np.convolve(v, np.ones(n) / n, mode="same")
+    for q, c in [("T_H", "tab:blue"), ("T_R", "tab:red"), ("T_P", "tab:green")]:
+        ax[0].plot(x[::k], tr[q][::k], color=c, lw=0.4, alpha=0.35)
+        ax[0].plot(x[::k], smooth(tr[q])[::k], color=c, lw=1.2, label=f"{q} (5 ms mean)")
+    ax[0].set_ylabel("N")
+    ax[0].legend(fontsize=7)
+    ax[1].plot(x[::k], tr["vertical_load"][::k], lw=0.4, alpha=0.35)
+    ax[1].plot(x[::k], smooth(tr["vertical_load"])[::k], lw=1.2, label="vertical load")
+    ax[1].axhline(r.scene["scenario"]["sinkage_force"], color="k", ls=":", label="target")
+    ax[1].set_ylabel("N")
+    ax[1].legend(fontsize=7)
+    ax[2].plot(x[::k], 1e3 * tr["sinkage"][::k], label="rim descent (from its start)")
+    ax[2].set_ylabel("mm")
+    ax[2].set_xlabel("travel (m); negative: sinkage phase")
+    ax[2].legend(fontsize=7)
+    for a in ax:
+        a.axvline(DEFAULT_SKIP_TRAVEL_M, color="0.5", lw=0.8)
+    ax[0].set_title(f"{name}: traction, load and sinkage (steady window right of the grey line)",
+                    fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def table(res):
+    rows = ["| quantity | mean | min | max |", "|---|---|---|---|"]
+    for q in QUANTITIES:
+        f = 1e3 if q == "sinkage" else 1
+        u = "mm" if q == "sinkage" else "N"
+        rows.append(f"| {q} ({u}) | {f * res[q + '_mean']:.2f} | {f * res[q + '_min']:.2f} | "
+                    f"{f * res[q + '_max']:.2f} |")
+    return rows
+
+
+def sweep_section(d):
+    lines = open(os.path.join(d, "summary.csv")).read().splitlines()
+    notes = [l[2:] for l in lines if l.startswith("# window")]
+    rows = [l.split(",") for l in lines if not l.startswith("#")]
+    head, body = rows[0], rows[1:]
+    keep = [0] + [i for i, c in enumerate(head) if c.endswith(("_mean", "_min", "_max"))
+                  or c in ("travel_start_s", "window_t0_s", "window_t1_s")]
+    md = ["## Slip sweep", "", f"`cosim sweep` output `{os.path.basename(os.path.normpath(d))}`; "
+          + "; ".join(notes) + ".", "",
+          "| " + " | ".join(head[i] for i in keep) + " |", "|" + "---|" * len(keep)]
+    def cell(v):
+        try:
+            return f"{float(v):.4g}"
+        except ValueError:
+            return v
+    md += ["| " + " | ".join(cell(r[i]) for i in keep) + " |" for r in body]
+    png = os.path.join(d, "summary.png")
+    if os.path.exists(png):
+        shutil.copy(png, os.path.join(RESULTS, "tire_soil_sweep.png"))
+        md += ["", "![sweep](tire_soil_sweep.png)"]
+    return md + [""]
+
+
+def main():
+    args = sys.argv[1:]
+    sweep_dir = None
+    if "--sweep" in args:
+        i = args.index("--sweep")
+        sweep_dir = args[i + 1]
+        del args[i:i + 2]
+    work = args[0]
+    names = args[1:] or ["paper", "deep"]
+    done = {n: one(work, n) for n in names}
+    json.dump(done, open(os.path.join(RESULTS, "tire_soil.json"), "w"), indent=1, default=str)
+    md = ["# The paper's tyre on soil at full scale: wall time and traction", "",
+          "`bash bench/tire_soil/run_paper.sh build WORK paper` (and `SCENE=configs/tire_soil_paper_deep.json "
+          "... deep`), then `PYTHONPATH=python /usr/bin/python3 bench/tire_soil/report.py WORK`. "
+          "Each run: the bed generated and settled in the run, the tyre's sinkage at 0.1 m/s to the "
+          "scene's load, then travel at 5 % slip (ω = 1.8 rad/s, r = 0.272 m: 0.465 m/s) to the end of the "
+          "scene (0.5 m and a little more). One run each (timed under the shared benchmark lock), serial "
+          "scheme, dt = 25 µs, `threads: auto` for the DEM. Raw numbers: `tire_soil.json`.", ""]
+    for n in names:
+        res = done[n]
+        md.append(f"## {n}")
+        md.append("")
+        if res is None:
+            md += ["**Not run** (no timed run in this report).", ""]
+            continue
+        md.append(f"Scene `{res['scene']}`: {res['grains']} grains; load average before "
+                  f"{res['load_before']}, after {res['load_after']} (2 cores, shared with other "
+                  "jobs: the wall times are upper bounds for an idle machine).")
+        md.append("")
+        if "error" in res:
+            md += [f"**Failed** (exit {res['rc']}) after {res['wall_s']:.0f} s:", "", "```"] + \
+                  res["error"] + ["```", ""]
+            continue
+        rest = res["wall_s"] - res["settle_s"] - res["loop_s"]["wall"]
+        md += [f"- total wall time: **{res['wall_s']:.0f} s ({res['wall_s'] / 60:.1f} min)**, of "
+               f"which settling the bed {res['settle_s']:.0f} s ({res['settle_steps']} DEM steps), "
+               f"the coupled loop {res['loop_s']['wall']:.0f} s ({res['steps']} steps, "
+               f"{1e3 * res['loop_s']['wall'] / res['steps']:.2f} ms/step), the rest {rest:.0f} s "
+               "(start-up: mesh, the tyre's initial static solve, handshake; closing the output).",
+               f"- travel: {res['travel_m']:.3f} m from t = {res['travel_start_s']:.3f} s "
+               f"(the load reached {res['sinkage_force']} N there); steady window from "
+               f"{DEFAULT_SKIP_TRAVEL_M} m of travel, t = {res['window_t0_s']:.3f}–"
+               f"{res['window_t1_s']:.3f} s ({res['window_rows']} steps).",
+               f"- largest grain overlap in the run: {res['max_overlap_ratio']:.3f} of the radius.",
+               "", "Per process (the coupler's loop-time table, printed at the end of the run):", "",
+               "```", res["loop_table"], "```", ""]
+        md += ["Traction over the steady window (`/coupler/traction`; T_R is negative: against the travel):",
+               ""] + table(res) + ["", f"![{n}](tire_soil_{n}.png)", ""]
+    if sweep_dir:
+        md += sweep_section(sweep_dir)
+    findings = os.path.join(os.path.dirname(os.path.abspath(__file__)), "findings.md")
+    if os.path.exists(findings):
+        md += [open(findings).read().rstrip()]
+    open(os.path.join(RESULTS, "tire_soil.md"), "w").write("\n".join(md) + "\n")
+    print("wrote", os.path.join(RESULTS, "tire_soil.md"))
+
+
+if __name__ == "__main__":
+    main()
