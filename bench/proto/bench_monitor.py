@@ -15,6 +15,7 @@ bench/results/reliability.md.
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -81,6 +82,8 @@ def one_run(cosim, n, end, lazy, reading, snapshots=False):
     t0 = time.perf_counter()
     p = subprocess.run([cosim, "run", path], capture_output=True, text=True, timeout=600)
     took = time.perf_counter() - t0
+    shutil.rmtree(d, ignore_errors=True)  # a snapshot every step: GBs per run
+    shutil.rmtree(os.path.dirname(s["output"]["dir"]), ignore_errors=True)
     stop.set()
     if th:
         th.join()

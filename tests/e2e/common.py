@@ -2,6 +2,7 @@
 dict, read results.h5, and make sure no participant process is left behind."""
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -15,6 +16,13 @@ BIN = os.environ.get("COSIM_BIN", os.path.join(os.getcwd(), "bin"))
 HERE = os.path.dirname(os.path.abspath(__file__))
 COSIM = os.path.join(BIN, "cosim")
 FAILURES = []
+SCRATCH = []  # temporary folders of this test: removed when every check passed
+
+
+def scratch(prefix):
+    d = tempfile.mkdtemp(prefix=prefix)
+    SCRATCH.append(d)
+    return d
 
 
 def check(cond, what):
@@ -27,8 +35,10 @@ def check(cond, what):
 
 def done():
     if FAILURES:
-        print(f"{len(FAILURES)} check(s) failed")
+        print(f"{len(FAILURES)} check(s) failed (outputs kept in {', '.join(SCRATCH)})")
         sys.exit(1)
+    for d in SCRATCH:  # runs write hundreds of MB: a passing test leaves none behind
+        shutil.rmtree(d, ignore_errors=True)
     print("all checks passed")
 
 
@@ -38,7 +48,7 @@ def scene(name, processes, **kw):
     uniq = f"{name}_{os.getpid()}_{int(time.time() * 1e3) % 100000}"
     s = {"name": uniq,
          "time": {"dt": 1e-3, "end": 0.05},
-         "output": {"dir": os.path.join(tempfile.mkdtemp(prefix="cosim-e2e-"), uniq),
+         "output": {"dir": os.path.join(scratch("cosim-e2e-"), uniq),
                     "every": 10},
          "coupling": {"handshake_timeout": 5, "step_timeout": 5},
          "processes": processes}
@@ -47,7 +57,7 @@ def scene(name, processes, **kw):
 
 
 def write(s, text=None):
-    d = tempfile.mkdtemp(prefix="cosim-cfg-")
+    d = scratch("cosim-cfg-")
     path = os.path.join(d, "scene.json")
     with open(path, "w") as f:
         f.write(text if text is not None else json.dumps(s, indent=1))
