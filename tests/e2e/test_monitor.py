@@ -37,13 +37,19 @@ def collect(ep, stop, got, snapshots=True):
     sub.connect(ep)
     if snapshots:
         sub.connect(ep + "-snapshots")  # the snapshot stream (bus.snapshots' default)
-    while not stop.is_set():
-        if sub.poll(100):
-            frames = sub.recv_multipart()
-            hdr = json.loads(frames[1])
-            arrays = {a["name"]: np.frombuffer(fr, dtype="<" + a["dtype"]).reshape(a["shape"])
-                      for a, fr in zip(hdr["arrays"], frames[2:])}
-            got.append((frames[0].decode(), hdr, arrays))
+    # after the run (stop set) drain what is queued: a reader descheduled on a
+    # loaded machine may be hundreds of messages behind when the run ends
+    while True:
+        stopping = stop.is_set()
+        if not sub.poll(1000 if stopping else 100):
+            if stopping:
+                break
+            continue
+        frames = sub.recv_multipart()
+        hdr = json.loads(frames[1])
+        arrays = {a["name"]: np.frombuffer(fr, dtype="<" + a["dtype"]).reshape(a["shape"])
+                  for a, fr in zip(hdr["arrays"], frames[2:])}
+        got.append((frames[0].decode(), hdr, arrays))
     sub.close()
 
 
