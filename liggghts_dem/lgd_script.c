@@ -209,6 +209,8 @@ static double face_tolerance(const dem_model *m) {
   return p < 1e-8 ? 1e-8 : p;
 }
 
+#define LIMIT_FORCE(m) ((m)->limit_force ? " limitForce on" : "")
+
 static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const char *model,
                      double tol, proto_err *err) {
   static const char *const plane_kw[3] = {"xplane", "yplane", "zplane"};
@@ -218,8 +220,8 @@ static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const c
     const int d = lgd_plane_axis(pl);
     char id[LGD_ID_LEN];
     snprintf(id, sizeof id, LGD_FIX_PLANE, p);
-    rc = add(s, "fix %s all wall/gran %s primitive type %d %s %.17g store_force yes\n", id, model,
-             lgd_type(m, pl->material, 0), plane_kw[d], pl->point[d]);
+    rc = add(s, "fix %s all wall/gran %s primitive type %d %s %.17g store_force yes%s\n", id, model,
+             lgd_type(m, pl->material, 0), plane_kw[d], pl->point[d], LIMIT_FORCE(m));
   }
   for (int k = 0; k < m->n_meshes && !rc; k++) {
     const dem_mesh *me = &m->meshes[k];
@@ -236,7 +238,7 @@ static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const c
   if (m->n_meshes > 0 && !rc) {
     rc = add(s, "fix %s all wall/gran %s mesh n_meshes %d meshes", LGD_FIX_MESHWALL, model, m->n_meshes);
     for (int k = 0; k < m->n_meshes && !rc; k++) rc = add(s, " " LGD_FIX_MESH, k);
-    if (!rc) rc = add(s, " store_force_contact_stress yes\n");
+    if (!rc) rc = add(s, " store_force_contact_stress yes%s\n", LIMIT_FORCE(m));
   }
   return rc ? proto_fail(err, "LIGGGHTS input: out of memory") : 0;
 }
@@ -265,7 +267,9 @@ int lgd_script_build(const dem_model *m, const char *dir, double tol, lgd_script
   if (m->has_rolling) rc = rc || add_pair_table(s, m, "lgd_mur", "coefficientRollingFriction", law_mu_roll);
   char model[96];
   snprintf(model, sizeof model, "model hertz tangential history%s", m->has_rolling ? " rolling_friction cdt" : "");
-  rc = rc || add(s, "pair_style gran %s\npair_coeff * *\ntimestep %.17g\n", model, m->dt);
+  /* limit_force: LIGGGHTS' `limitForce on` (F_n never attractive), after the
+   * pair style's model and last in each wall fix (LIGGGHTS' keyword order) */
+  rc = rc || add(s, "pair_style gran %s%s\npair_coeff * *\ntimestep %.17g\n", model, LIMIT_FORCE(m), m->dt);
   const double *g = m->gravity, gm = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
   if (gm > 0) rc = rc || add(s, "fix lgd_gravity all gravity %.17g vector %.17g %.17g %.17g\n", gm, g[0], g[1], g[2]);
   if (rc) return proto_fail(err, "LIGGGHTS input: out of memory");

@@ -120,6 +120,32 @@ for key in ("np1", "np2", "np2_launched"):
         check(e < 1e-6, f"squeeze {key}: {ds} equals dem_server's to 1e-6 ({e:.3g})")
 
 
+# limit_force (the normal force never pulls): LIGGGHTS' `limitForce on` in the
+# pair style and the walls; a grain bouncing off the floor (where the damping
+# would pull as it leaves)
+lf = variant(squeeze, "limit", "dem_server")
+lf["processes"]["dem"]["limit_force"] = True
+lf["processes"]["dem"]["particles"] = [{"x": [0.001, 0.002, 0.0036], "v": [0, 0, -0.7], "r": 0.0035}]
+lf_runs = {}
+for key, dem in (("dem_server", "dem_server"), ("np1", "liggghts_dem")):
+    v = variant(lf, key, dem)
+    rc, _, err = run(v, timeout=600, env=MPI_ENV)
+    check(rc == 0, f"{v['name']}: run ok ({err[-500:]})")
+    lf_runs[key] = h5(v)
+for ds, cols in (("/dem/wall_forces", slice(1, None)), ("/coupler/traction", slice(1, None))):
+    e = rel_diff(lf_runs["np1"][ds][:, cols], lf_runs["dem_server"][ds][:, cols])
+    print(f"impact limit_force np1: {ds} max |diff| / max = {e:.3g}")
+    check(e < 1e-6, f"impact limit_force: {ds} equals dem_server's to 1e-6 ({e:.3g})")
+# the same impact without the clamp differs (else this part could not fail)
+nolf = variant(lf, "nolimit", "dem_server")
+nolf["processes"]["dem"]["limit_force"] = False
+rc, _, err = run(nolf, timeout=600, env=MPI_ENV)
+check(rc == 0, f"{nolf['name']}: run ok ({err[-500:]})")
+e = rel_diff(h5(nolf)["/dem/wall_forces"][:, 1:], lf_runs["dem_server"]["/dem/wall_forces"][:, 1:])
+print(f"impact: limit_force changes dem_server's wall forces by {e:.3g} of their maximum")
+check(e > 1e-3, f"impact: limit_force changes the wall forces ({e:.3g})")
+
+
 # A surface with a flat triangle (LIGGGHTS would drop it, and the nodal forces
 # need every triangle) is refused by name, and the run stops cleanly.
 bad = scene("lgd_degenerate", {
