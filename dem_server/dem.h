@@ -209,6 +209,16 @@ typedef enum dem_series_col {
   DEM_N_SERIES
 } dem_series_col;
 extern const char *const DEM_SERIES[DEM_N_SERIES];
+/* Snapshot arrays ("snap.<name>") of dem_server and liggghts_dem: x, v, omega
+ * [n,3] and r [n] (names: DEM_SNAP); the wall-force dataset ("series.<name>",
+ * columns t, then Fx Fy Fz per wall). */
+typedef enum dem_snap_array { DEM_SNAP_X, DEM_SNAP_V, DEM_SNAP_OMEGA, DEM_SNAP_R, DEM_N_SNAP } dem_snap_array;
+extern const char *const DEM_SNAP[DEM_N_SNAP];
+#define DEM_WALL_FORCES "wall_forces"
+/* What a dem participant declares in its ready message (dem_server and
+ * liggghts_dem alike): the series, the points snapshot, and the wall-force
+ * dataset's columns (t, wall<w>_F<x|y|z>). */
+int dem_ready_declare(const dem_model *m, proto_msg *ready, proto_err *err);
 
 /* ---- state export / import (rollback, checkpoints) ----
  * export adds arrays named "state.<x>" to `out` that hold everything that

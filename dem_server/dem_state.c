@@ -258,6 +258,24 @@ const char *const DEM_SERIES[DEM_N_SERIES] = {
     [DEM_SERIES_MAX_OVERLAP] = "max_overlap_ratio",
     [DEM_SERIES_ELASTIC] = "elastic_energy",
     [DEM_SERIES_COORDINATION] = "coordination"};
+const char *const DEM_SNAP[DEM_N_SNAP] = {"x", "v", "omega", "r"};
+
+int dem_ready_declare(const dem_model *m, proto_msg *ready, proto_err *err) {
+  if (proto_ready_series(ready, PROTO_A_SERIES, DEM_N_SERIES, DEM_SERIES) < 0 ||
+      proto_ready_snapshot(ready, "points", DEM_SNAP[DEM_SNAP_X], NULL, 3, DEM_SNAP + DEM_SNAP_V) < 0)
+    return proto_fail(err, "out of memory");
+  cJSON *series = cJSON_GetObjectItemCaseSensitive(proto_msg_header(ready), PROTO_H_SERIES);
+  cJSON *wf = cJSON_AddArrayToObject(series, DEM_WALL_FORCES);
+  if (!wf) return proto_fail(err, "out of memory");
+  cJSON_AddItemToArray(wf, cJSON_CreateString("t"));
+  for (int w = 0; w < m->n_walls; w++)
+    for (int k = 0; k < 3; k++) {
+      char name[32];
+      snprintf(name, sizeof name, "wall%d_F%c", w, "xyz"[k]);
+      cJSON_AddItemToArray(wf, cJSON_CreateString(name));
+    }
+  return 0;
+}
 
 double dem_coordination(const dem_model *m, const dem_state *s) {
   (void)m;

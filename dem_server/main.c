@@ -28,9 +28,6 @@ typedef struct dem_app {
   double *snap_x, *snap_v, *snap_w, *snap_r;
 } dem_app;
 
-enum { SNAP_X, SNAP_V, SNAP_OMEGA, SNAP_R, N_SNAP };
-static const char *const SNAP[N_SNAP] = {"x", "v", "omega", "r"};
-static const char *const WALL_FORCES = "wall_forces";
 
 
 static int configure(void *user, const proto_run_info *info, const cJSON *section, proto_err *err) {
@@ -129,19 +126,8 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   if (!a->wall_row || !a->snap_x || !a->snap_v || !a->snap_w || !a->snap_r)
     return proto_fail(err, "out of memory");
   dem_gather(&a->state, a->state.radius, 1, a->snap_r);
-  if (proto_ready_series(ready, PROTO_A_SERIES, DEM_N_SERIES, DEM_SERIES) < 0 ||
-      proto_ready_snapshot(ready, "points", SNAP[SNAP_X], NULL, 3, SNAP + SNAP_V) < 0)
-    return proto_fail(err, "out of memory");
+  if (dem_ready_declare(m, ready, err)) return -1;
   cJSON *h = proto_msg_header(ready);
-  cJSON *series = cJSON_GetObjectItemCaseSensitive(h, PROTO_H_SERIES);
-  cJSON *wf = cJSON_AddArrayToObject(series, WALL_FORCES);
-  cJSON_AddItemToArray(wf, cJSON_CreateString("t"));
-  for (int w = 0; w < m->n_walls; w++)
-    for (int k = 0; k < 3; k++) {
-      char name[32];
-      snprintf(name, sizeof name, "wall%d_F%c", w, "xyz"[k]);
-      cJSON_AddItemToArray(wf, cJSON_CreateString(name));
-    }
   if (report_bed_top(a, h, err) < 0) return -1;
   cJSON_AddNumberToObject(h, "dem_dt", m->dt);
   cJSON_AddNumberToObject(h, "rayleigh_time", m->rayleigh_time);
@@ -216,7 +202,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
   publish_summary(a, peer, info->k, t);
   a->wall_row[0] = t;
   if (proto_msg_add_f8(reply, PROTO_A_SERIES, DEM_N_SERIES, 0, a->series) ||
-      proto_msg_add_prefixed(reply, PROTO_P_SERIES, WALL_FORCES, PROTO_F8, 1 + (int64_t)nw3, 0,
+      proto_msg_add_prefixed(reply, PROTO_P_SERIES, DEM_WALL_FORCES, PROTO_F8, 1 + (int64_t)nw3, 0,
                              a->wall_row))
     return proto_fail(err, "reply full");
   if (a->surface >= 0 &&
@@ -227,9 +213,9 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
     dem_gather(s, s->v, 3, a->snap_v);
     dem_gather(s, s->omega, 3, a->snap_w);
     const int n = s->n;
-    const double *snap[N_SNAP] = {a->snap_x, a->snap_v, a->snap_w, a->snap_r};
-    for (int k = 0; k < N_SNAP; k++)
-      if (proto_msg_add_prefixed(reply, PROTO_P_SNAP, SNAP[k], PROTO_F8, n, k == SNAP_R ? 0 : 3, snap[k]))
+    const double *snap[DEM_N_SNAP] = {a->snap_x, a->snap_v, a->snap_w, a->snap_r};
+    for (int k = 0; k < DEM_N_SNAP; k++)
+      if (proto_msg_add_prefixed(reply, PROTO_P_SNAP, DEM_SNAP[k], PROTO_F8, n, k == DEM_SNAP_R ? 0 : 3, snap[k]))
         return proto_fail(err, "reply full");
   }
   return 0;

@@ -40,10 +40,6 @@ typedef struct app {
 
 static app g_app; /* one per process; the exit handler reads it */
 
-/* snapshot arrays "snap.<name>" (as dem_server's) and the wall-force dataset */
-static const char *const SNAP[] = {"x", "v", "omega", "r"};
-#define WALL_FORCES "wall_forces"
-
 /* ------------------------------------------------ collective work (all ranks) */
 
 static int do_configure(app *a, const char *json, double dt, proto_err *err) {
@@ -233,18 +229,8 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   if (do_init(a, op.n_nodes, x0, op.n_tri, op.n_tri ? (const int32_t *)tri->data : NULL, err)) return -1;
   const dem_model *m = &a->model;
 
-  if (proto_ready_series(ready, PROTO_A_SERIES, DEM_N_SERIES, DEM_SERIES) < 0 ||
-      proto_ready_snapshot(ready, "points", SNAP[0], NULL, 3, SNAP + 1) < 0)
-    return proto_fail(err, "out of memory");
+  if (dem_ready_declare(m, ready, err)) return -1;
   cJSON *h = proto_msg_header(ready);
-  cJSON *wf = cJSON_AddArrayToObject(cJSON_GetObjectItemCaseSensitive(h, PROTO_H_SERIES), WALL_FORCES);
-  cJSON_AddItemToArray(wf, cJSON_CreateString("t"));
-  for (int w = 0; w < m->n_walls; w++)
-    for (int k = 0; k < 3; k++) {
-      char col[32];
-      snprintf(col, sizeof col, "wall%d_F%c", w, "xyz"[k]);
-      cJSON_AddItemToArray(wf, cJSON_CreateString(col));
-    }
   int ranks;
   MPI_Comm_size(MPI_COMM_WORLD, &ranks);
   cJSON_AddNumberToObject(h, "dem_dt", m->dt);
@@ -297,15 +283,15 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
   a->wall_row[0] = o->series[DEM_SERIES_T];
   memcpy(a->wall_row + 1, o->wall_force, sizeof(double) * 3 * (size_t)m->n_walls);
   if (proto_msg_add_f8(reply, PROTO_A_SERIES, DEM_N_SERIES, 0, o->series) ||
-      proto_msg_add_prefixed(reply, PROTO_P_SERIES, WALL_FORCES, PROTO_F8, 1 + 3 * (int64_t)m->n_walls, 0,
+      proto_msg_add_prefixed(reply, PROTO_P_SERIES, DEM_WALL_FORCES, PROTO_F8, 1 + 3 * (int64_t)m->n_walls, 0,
                              a->wall_row) ||
       (a->n_nodes > 0 && proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, a->n_nodes, 3, o->nodal_force)))
     return proto_fail(err, "reply full");
   if (op.output) {
     const int n = m->n_grains;
-    const double *snap[] = {a->snap_x, a->snap_v, a->snap_w, a->snap_r};
-    for (int k = 0; k < 4; k++)
-      if (proto_msg_add_prefixed(reply, PROTO_P_SNAP, SNAP[k], PROTO_F8, n, k == 3 ? 0 : 3, snap[k]))
+    const double *snap[DEM_N_SNAP] = {a->snap_x, a->snap_v, a->snap_w, a->snap_r};
+    for (int k = 0; k < DEM_N_SNAP; k++)
+      if (proto_msg_add_prefixed(reply, PROTO_P_SNAP, DEM_SNAP[k], PROTO_F8, n, k == DEM_SNAP_R ? 0 : 3, snap[k]))
         return proto_fail(err, "reply full");
   }
   a->t_step += MPI_Wtime() - t0;

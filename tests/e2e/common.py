@@ -93,6 +93,17 @@ def processes_with(marker):
     return found
 
 
+def pid_of(marker, name, tries=500):
+    """The participant `name` of the run whose command lines carry marker
+    (the scene's name), once it is running; None if it never shows."""
+    for _ in range(tries):
+        for pid, cmd in processes_with(marker):
+            if f"--name {name}" in cmd and "cosim run" not in cmd:
+                return pid
+        time.sleep(0.02)
+    return None
+
+
 def no_orphans(s, what):
     # give the kernel a moment to reap what was killed
     for _ in range(50):

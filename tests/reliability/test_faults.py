@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "e2e"))
-from common import BIN, COSIM, check, done, h5, no_orphans, processes_with, scene, write  # noqa: E402
+from common import BIN, COSIM, check, done, h5, no_orphans, pid_of, scene, write  # noqa: E402
 
 
 
@@ -33,16 +33,6 @@ def tyre_scene(name, end):
     # seconds: the faults here are later ones
     s.setdefault("coupling", {})["hello_timeout"] = 60
     return s
-
-
-def pid_of(s, name):
-    """The participant `name` of the scene s (its command line has both)."""
-    for _ in range(200):
-        for pid, cmd in processes_with(s["name"]):
-            if f"--name {name}" in cmd and "cosim run" not in cmd:
-                return pid
-        time.sleep(0.02)
-    return None
 
 
 def start(s, *args):
@@ -67,7 +57,7 @@ for seed in (1, 2, 3):
     for victim in ("fem", "dem"):
         s = tyre_scene(f"kill{seed}{victim}", 1000.0)
         p = start(s)
-        pid = pid_of(s, victim)
+        pid = pid_of(s["name"], victim, tries=200)
         time.sleep(rng.uniform(0.2, 0.8))  # a random step (the run does ~10^4 steps/s)
         os.kill(pid, signal.SIGKILL)
         out, err = p.communicate(timeout=60)
@@ -83,7 +73,7 @@ for seed in (1, 2, 3):
 s = tyre_scene("pause", 15.0)
 s["coupling"] = {"step_timeout": 1, "heartbeat_timeout": 2, "hello_timeout": 60}
 p = start(s)
-pid_of(s, "dem")
+pid_of(s["name"], "dem", tries=200)
 time.sleep(0.5)
 p.send_signal(signal.SIGSTOP)
 time.sleep(3)
@@ -99,7 +89,7 @@ no_orphans(s, "pause")
 s = tyre_scene("stopped", 1000.0)
 s["coupling"] = {"step_timeout": 60, "heartbeat_timeout": 2, "hello_timeout": 60}
 p = start(s)
-pid = pid_of(s, "dem")
+pid = pid_of(s["name"], "dem", tries=200)
 time.sleep(0.5)
 os.kill(pid, signal.SIGSTOP)
 t0 = time.time()

@@ -14,18 +14,9 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "e2e"))
-from common import COSIM, check, done, no_orphans, processes_with  # noqa: E402
+from common import COSIM, check, done, no_orphans, pid_of  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-
-
-def pid_of(marker, name):
-    for _ in range(500):
-        for pid, cmd in processes_with(marker):
-            if f"--name {name}" in cmd and "cosim run" not in cmd:
-                return pid
-        time.sleep(0.02)
-    return None
 
 
 out_dir = os.path.join(tempfile.mkdtemp(prefix="cosim-settle-"), "settle")
