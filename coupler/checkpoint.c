@@ -258,33 +258,42 @@ void cpl_checkpoint_free(cpl_ckpt *c) {
 int64_t cpl_checkpoint_step(const cpl_ckpt *c) { return c->step; }
 
 typedef struct read_ctx {
-  proto_h5 *f;
+  proto_h5in *f;
   cpl_ckpt *c;
   ckpt_part *part; /* reading one participant's arrays, else NULL */
   proto_err *err;
 } read_ctx;
 
+/* One dataset <group>/<name> as stored. Its name goes into a restore
+ * message: the names' grammar, and at most what a message frame holds. */
 static int read_one(read_ctx *x, const char *group, const char *name, ckpt_array *dst) {
   char path[CPL_PATH_LEN + PROTO_NAME_LEN];
   snprintf(path, sizeof path, "%s/%s", group, name);
-  return proto_h5_read_array(x->f, path, &dst->a, &dst->data, x->err);
+  if (proto_name_check(name, PROTO_NAME_DOTTED, "array name", x->err) < 0)
+    return proto_wrap(x->err, "%s:%s", x->c->path, group);
+  return proto_h5in_read_array(x->f, path, PROTO_MAX_FRAME_BYTES, &dst->a, &dst->data,
+                               x->err);
 }
 
 static int read_val(const char *name, void *ctx) {
   read_ctx *x = ctx;
   if (x->c->nvals == MAX_VALS)
-    return proto_fail(x->err, "%s: more than %d coupler arrays", x->c->path, MAX_VALS);
+    return proto_fail(x->err, "%s:%s: more than %d coupler arrays", x->c->path,
+                      G_COUPLER, MAX_VALS);
   return read_one(x, G_COUPLER, name, &x->c->vals[x->c->nvals++]) < 0 ? -1 : 0;
 }
 
 static int read_state_array(const char *name, void *ctx) {
   read_ctx *x = ctx;
   ckpt_part *p = x->part;
-  if (p->n == PROTO_MAX_ARRAYS)
-    return proto_fail(x->err, "%s: participant '%s' has more than %d state arrays",
-                      x->c->path, p->name, PROTO_MAX_ARRAYS);
   char group[CPL_PATH_LEN];
   snprintf(group, sizeof group, "%s/%s", G_PARTS, p->name);
+  if (p->n == PROTO_MAX_ARRAYS)
+    return proto_fail(x->err, "%s:%s: more than %d state arrays", x->c->path, group,
+                      PROTO_MAX_ARRAYS);
+  if (strncmp(name, PROTO_P_STATE, strlen(PROTO_P_STATE)) != 0)
+    return proto_fail(x->err, "%s:%s/%s: state arrays are named %s<x>", x->c->path,
+                      group, name, PROTO_P_STATE);
   return read_one(x, group, name, &p->arrays[p->n++]) < 0 ? -1 : 0;
 }
 
@@ -292,16 +301,20 @@ static int read_part(const char *name, void *ctx) {
   read_ctx *x = ctx;
   cpl_ckpt *c = x->c;
   if (c->nparts == CPL_MAX_PROCS)
-    return proto_fail(x->err, "%s: more than %d participants", c->path, CPL_MAX_PROCS);
+    return proto_fail(x->err, "%s:%s: more than %d participants", c->path, G_PARTS,
+                      CPL_MAX_PROCS);
+  if (proto_name_check(name, PROTO_NAME_PLAIN, "process name", x->err) < 0)
+    return proto_wrap(x->err, "%s:%s", c->path, G_PARTS);
   ckpt_part *p = &c->parts[c->nparts++];
   snprintf(p->name, sizeof p->name, "%s", name);
-  char group[CPL_PATH_LEN], *role = NULL;
+  char group[CPL_PATH_LEN];
   snprintf(group, sizeof group, "%s/%s", G_PARTS, name);
-  if (proto_h5_attr_get(x->f, group, A_ROLE, &role, x->err) < 0) return -1;
-  snprintf(p->role, sizeof p->role, "%s", role);
-  free(role);
+  int rc = proto_h5in_attr_str(x->f, group, A_ROLE, p->role, sizeof p->role, x->err);
+  if (rc == 1)
+    return proto_fail(x->err, "%s:%s: attribute %s missing", c->path, group, A_ROLE);
+  if (rc < 0) return -1;
   x->part = p;
-  int rc = proto_h5_list(x->f, group, read_state_array, x, x->err);
+  rc = proto_h5in_list(x->f, group, read_state_array, x, x->err);
   x->part = NULL;
   return rc < 0 ? -1 : 0;
 }
@@ -390,30 +403,49 @@ static int latest(const char *dir, char *out, size_t cap, proto_err *err) {
   return 0;
 }
 
+/* The root attributes: the magic, then the scene as run. */
+static int read_header(proto_h5in *f, cpl_ckpt *c, proto_err *err) {
+  char magic[sizeof CKPT_MAGIC + 1] = "", *config = NULL;
+  int rc = proto_h5in_attr_str(f, "/", A_MAGIC, magic, sizeof magic, err);
+  if (rc == 1 || (rc == 0 && strcmp(magic, CKPT_MAGIC) != 0))
+    return proto_fail(err, "%s: not a cosim checkpoint (its root attribute %s is not "
+                      "'%s')", c->path, A_MAGIC, CKPT_MAGIC);
+  if (rc == 0) rc = proto_h5in_attr_strdup(f, "/", A_CONFIG, &config, err);
+  if (rc == 1) rc = proto_fail(err, "%s:/: attribute %s missing", c->path, A_CONFIG);
+  if (rc == 0) c->config = proto_json_parse(config, c->path, err);
+  free(config);
+  return rc == 0 && c->config ? 0 : -1;
+}
+
+/* /coupler/step: one i8, the step the checkpoint was made after (>= 1). */
+static int read_step(cpl_ckpt *c, proto_err *err) {
+  const ckpt_array *st = find_val(c, V_STEP);
+  if (!st || st->a.dtype != PROTO_I8 || st->a.nbytes != sizeof(int64_t))
+    return proto_fail(err, "%s:%s/%s: %s; expected one i8 (the step)", c->path, G_COUPLER,
+                      V_STEP, st ? "another type or size" : "dataset missing");
+  memcpy(&c->step, st->data, sizeof c->step);
+  if (c->step < 1)
+    return proto_fail(err, "%s:%s/%s: step %lld (a checkpoint is made after a step >= 1)",
+                      c->path, G_COUPLER, V_STEP, (long long)c->step);
+  return 0;
+}
+
 cpl_ckpt *cpl_checkpoint_read(const char *path, const cpl_scene *s, proto_err *err) {
   cpl_ckpt *c = calloc(1, sizeof *c);
-  if (!c) return NULL;
+  if (!c) {
+    proto_fail(err, "out of memory");
+    return NULL;
+  }
   int rc = strcmp(path, CKPT_LATEST) == 0 ? latest(s->output_dir, c->path, sizeof c->path, err)
                                           : (snprintf(c->path, sizeof c->path, "%s", path), 0);
-  proto_h5 *f = rc == 0 ? proto_h5_open(c->path, 0, err) : NULL;
-  char *magic = NULL, *config = NULL;
-  rc = f ? proto_h5_attr_get(f, "/", A_MAGIC, &magic, err) : -1;
-  if (rc == 0 && strcmp(magic, CKPT_MAGIC) != 0)
-    rc = proto_fail(err, "%s: not a cosim checkpoint", c->path);
-  if (rc == 0 && proto_h5_attr_get(f, "/", A_CONFIG, &config, err) == 0)
-    c->config = proto_json_parse(config, c->path, err);
-  if (rc == 0 && !c->config) rc = -1;
+  proto_h5in *f = rc == 0 ? proto_h5in_open(c->path, err) : NULL;
+  rc = f ? read_header(f, c, err) : -1;
   read_ctx x = {f, c, NULL, err};
-  if (rc == 0) rc = proto_h5_list(f, G_COUPLER, read_val, &x, err);
-  if (rc == 0) rc = proto_h5_list(f, G_PARTS, read_part, &x, err);
-  const ckpt_array *st = rc == 0 ? find_val(c, V_STEP) : NULL;
-  if (rc == 0 && (!st || st->a.dtype != PROTO_I8 || st->a.nbytes != sizeof(int64_t)))
-    rc = proto_fail(err, "%s: no step", c->path);
-  if (rc == 0) memcpy(&c->step, st->data, sizeof c->step);
+  if (rc == 0) rc = proto_h5in_list(f, G_COUPLER, read_val, &x, err);
+  if (rc == 0) rc = proto_h5in_list(f, G_PARTS, read_part, &x, err);
+  if (rc == 0) rc = read_step(c, err);
   if (rc == 0) rc = same_scene(c, s, err);
-  free(magic);
-  free(config);
-  proto_h5_close(f, NULL);
+  proto_h5in_close(f);
   if (rc < 0) {
     cpl_checkpoint_free(c);
     return NULL;
@@ -466,9 +498,10 @@ static int restore_participants(cpl_runner *r) {
   return rc;
 }
 
-int cpl_checkpoint_restore(cpl_runner *r) {
+/* The coupler's state from the checkpoint: every piece this run carries
+ * must be there, of its type and size; apply: copied in. */
+static int coupler_values(cpl_runner *r, int apply) {
   const cpl_ckpt *c = r->ckpt;
-  if (restore_participants(r) < 0) return -1;
   int64_t step = 0, unconv = 0;
   double wall = 0;
   cpl_stateval v[MAX_VALS];
@@ -477,13 +510,22 @@ int cpl_checkpoint_restore(cpl_runner *r) {
     const ckpt_array *a = find_val(c, v[i].name);
     size_t want = (size_t)v[i].count * proto_dtype_size(v[i].dtype);
     if (!a || a->a.dtype != v[i].dtype || a->a.nbytes != want)
-      return proto_fail(&r->err, "--restart %s: the coupler's '%s' is %s there, %s of "
-                        "%zu bytes here (another scene, surface or scheme?)", c->path,
+      return proto_fail(&r->err, "--restart %s:%s/%s: %s there, %s of %zu bytes here "
+                        "(another scene, surface or scheme?)", c->path, G_COUPLER,
                         v[i].name, a ? "different" : "missing",
                         proto_dtype_name(v[i].dtype), want);
-    if (want) memcpy(v[i].data, a->data, want);
+    if (apply && want) memcpy(v[i].data, a->data, want);
   }
-  r->steps_unconverged = unconv;
-  r->wall_start = proto_now() - wall;
+  if (apply) {
+    r->steps_unconverged = unconv;
+    r->wall_start = proto_now() - wall;
+  }
   return 0;
+}
+
+int cpl_checkpoint_check(cpl_runner *r) { return coupler_values(r, 0); }
+
+int cpl_checkpoint_restore(cpl_runner *r) {
+  if (restore_participants(r) < 0) return -1;
+  return coupler_values(r, 1);
 }

@@ -272,9 +272,12 @@ static int one_step(cpl_runner *r, int64_t k, int output) {
   return -1;
 }
 
+int cpl_scheme_init(cpl_runner *r) {
+  return r->scene->scheme == CPL_SCHEME_IMPLICIT ? implicit_init(r) : 0;
+}
+
 int cpl_step_loop(cpl_runner *r) {
   const cpl_scene *s = r->scene;
-  if (s->scheme == CPL_SCHEME_IMPLICIT && implicit_init(r) < 0) return -1;
   if (r->ckpt && cpl_checkpoint_restore(r) < 0) return -1;
   cpl_inputs_current(r);
   double last_shown = proto_now(), start = proto_now();

@@ -472,6 +472,9 @@ static int prepare(cpl_runner *r) {
   if (rc == 0) rc = wait_hellos(r);
   if (rc == 0) rc = welcome_all(r);
   if (rc == 0) rc = check_rollback(r);
+  if (rc == 0) rc = cpl_scheme_init(r);
+  /* a checkpoint that does not fit is refused before results.h5 is touched */
+  if (rc == 0 && r->ckpt) rc = cpl_checkpoint_check(r);
   if (rc == 0) rc = open_output(r);
   if (rc == 0) {
     cpl_schedule_build(r);

@@ -182,6 +182,10 @@ int cpl_checkpoint_write(cpl_runner *r, int64_t k);
  * the scene continues it (the keys that decide the results agree). */
 cpl_ckpt *cpl_checkpoint_read(const char *path, const cpl_scene *s, proto_err *err);
 int64_t cpl_checkpoint_step(const cpl_ckpt *c);
+/* Checks the coupler's state in r->ckpt against this run (every piece
+ * there, of its type and size; after the scheme's set-up), before
+ * results.h5 is opened to continue. */
+int cpl_checkpoint_check(cpl_runner *r);
 /* Restores every participant and the coupler from r->ckpt (after the
  * handshake and the scheme's set-up). */
 int cpl_checkpoint_restore(cpl_runner *r);
@@ -212,7 +216,9 @@ void cpl_field_commit(cpl_runner *r, cpl_field_id id);
 int cpl_do_action(cpl_runner *r, cpl_action a, int64_t k);
 double cpl_vertical_load(const cpl_runner *r);
 
-/* loop.c: the loop over all steps. */
+/* loop.c: the scheme's set-up (implicit: its vectors and accelerator),
+ * after the handshake; then the loop over all steps. */
+int cpl_scheme_init(cpl_runner *r);
 int cpl_step_loop(cpl_runner *r);
 
 /* accel.c: acceleration of the implicit scheme on a vector of nf fields

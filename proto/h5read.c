@@ -7,6 +7,7 @@
  * value, and every error names "<file>:<object>". HDF5's own error printing
  * is off while a file is open. */
 #include "proto.h"
+#include "h5members.h"
 
 #include <hdf5.h>
 #include <math.h>
@@ -69,9 +70,13 @@ int proto_h5in_exists(proto_h5in *f, const char *obj) {
   return 1;
 }
 
-/* Opens a dataset and checks its class (numeric) and rank; dims out. */
+/* What a dataset's elements must be. */
+typedef enum { H5IN_NUMBERS, H5IN_INTEGERS } h5in_kind;
+
+/* Opens a dataset and checks its class (numeric) and rank (-1: any of 1 to
+ * PROTO_MAX_NDIM); dims out. */
 static hid_t open_dataset(proto_h5in *f, const char *obj, int rank,
-                          hsize_t *dims, int integer_only, proto_err *err) {
+                          hsize_t *dims, h5in_kind kind, proto_err *err) {
   if (!proto_h5in_exists(f, obj)) {
     proto_fail(err, "%s:%s: dataset missing", f->path, obj);
     return -1;
@@ -86,13 +91,16 @@ static hid_t open_dataset(proto_h5in *f, const char *obj, int rank,
   int r = space >= 0 && H5Sget_simple_extent_type(space) == H5S_SIMPLE
               ? H5Sget_simple_extent_ndims(space) : -1;
   int rc = 0;
-  if (cls != H5T_INTEGER && (integer_only || cls != H5T_FLOAT))
+  if (cls != H5T_INTEGER && (kind == H5IN_INTEGERS || cls != H5T_FLOAT))
     rc = proto_fail(err, "%s:%s: expected %s, got another HDF5 type", f->path, obj,
-                    integer_only ? "integers" : "numbers (integer or float)");
-  else if (r != rank)
+                    kind == H5IN_INTEGERS ? "integers" : "numbers (integer or float)");
+  else if (rank < 0 && (r < 1 || r > PROTO_MAX_NDIM))
+    rc = proto_fail(err, "%s:%s: has %d dimension(s), expected 1 to %d", f->path, obj,
+                    r, PROTO_MAX_NDIM);
+  else if (rank >= 0 && r != rank)
     rc = proto_fail(err, "%s:%s: has %d dimension(s), expected %d", f->path, obj,
                     r, rank);
-  else if (H5Sget_simple_extent_dims(space, dims, NULL) != rank)
+  else if (H5Sget_simple_extent_dims(space, dims, NULL) != r)
     rc = proto_fail(err, "%s:%s: cannot read its dimensions", f->path, obj);
   if (type >= 0) H5Tclose(type);
   if (space >= 0) H5Sclose(space);
@@ -152,7 +160,7 @@ static int read_any(proto_h5in *f, const char *obj, int rank, int64_t *dims,
   if (rank < 1 || rank > PROTO_H5IN_MAX_RANK)
     return proto_fail(err, "%s:%s: rank %d not supported", f->path, obj, rank);
   hsize_t hdims[PROTO_H5IN_MAX_RANK];
-  hid_t ds = open_dataset(f, obj, rank, hdims, integer, err);
+  hid_t ds = open_dataset(f, obj, rank, hdims, integer ? H5IN_INTEGERS : H5IN_NUMBERS, err);
   if (ds < 0) return -1;
   int64_t count = 0;
   int rc = check_dims(f, obj, rank, hdims, dims, max_elems, &count, err);
@@ -190,6 +198,101 @@ int proto_h5in_read_f8(proto_h5in *f, const char *obj, int rank, int64_t *dims,
 int proto_h5in_read_i4(proto_h5in *f, const char *obj, int rank, int64_t *dims,
                        int64_t max_elems, int32_t **out, proto_err *err) {
   return read_any(f, obj, rank, dims, max_elems, 1, (void **)out, err);
+}
+
+typedef struct list_ctx {
+  int (*fn)(const char *name, void *ctx);
+  void *ctx;
+  int stop;
+} list_ctx;
+
+static herr_t list_cb(hid_t g, const char *name, const H5L_info_t *info, void *data) {
+  (void)g, (void)info;
+  list_ctx *c = data;
+  c->stop = c->fn(name, c->ctx);
+  return c->stop ? 1 : 0;
+}
+
+herr_t proto_h5_members(hid_t g, int (*fn)(const char *name, void *ctx), void *ctx,
+                        int *fn_rc) {
+  list_ctx c = {fn, ctx, 0};
+  herr_t r = H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, list_cb, &c);
+  *fn_rc = c.stop;
+  return r;
+}
+
+int proto_h5in_list(proto_h5in *f, const char *group,
+                    int (*fn)(const char *name, void *ctx), void *ctx, proto_err *err) {
+  if (!proto_h5in_exists(f, group))
+    return proto_fail(err, "%s:%s: group missing", f->path, group);
+  hid_t g = H5Gopen2(f->file, group, H5P_DEFAULT);
+  if (g < 0) return proto_fail(err, "%s:%s: not a group", f->path, group);
+  int stop = 0;
+  herr_t r = proto_h5_members(g, fn, ctx, &stop);
+  H5Gclose(g);
+  if (stop < 0) return -1;
+  return r < 0 ? proto_fail(err, "%s:%s: cannot list its members (damaged)", f->path, group)
+               : 0;
+}
+
+/* The proto dtype a stored type is exactly (class, size and sign; the byte
+ * order HDF5 converts): -1 if none. */
+static int stored_dtype(hid_t type, proto_dtype *d, hid_t *mem) {
+  H5T_class_t cls = H5Tget_class(type);
+  size_t size = H5Tget_size(type);
+  H5T_sign_t sign = cls == H5T_INTEGER ? H5Tget_sign(type) : H5T_SGN_ERROR;
+  if (cls == H5T_FLOAT && size == 8) *d = PROTO_F8, *mem = H5T_IEEE_F64LE;
+  else if (sign == H5T_SGN_2 && size == 4) *d = PROTO_I4, *mem = H5T_STD_I32LE;
+  else if (sign == H5T_SGN_2 && size == 8) *d = PROTO_I8, *mem = H5T_STD_I64LE;
+  else if (sign == H5T_SGN_NONE && size == 1) *d = PROTO_U1, *mem = H5T_STD_U8LE;
+  else return -1;
+  /* a float must also be IEEE binary64 (its precision and exponent) */
+  if (cls == H5T_FLOAT && (H5Tget_precision(type) != 64 || H5Tget_ebias(type) != 1023))
+    return -1;
+  return 0;
+}
+
+int proto_h5in_read_array(proto_h5in *f, const char *obj, size_t max_bytes,
+                          proto_array *a, void **data, proto_err *err) {
+  memset(a, 0, sizeof *a);
+  *data = NULL;
+  hsize_t hdims[PROTO_MAX_NDIM];
+  hid_t ds = open_dataset(f, obj, -1, hdims, H5IN_NUMBERS, err);
+  if (ds < 0) return -1;
+  hid_t type = H5Dget_type(ds), mem = -1;
+  int rc = type >= 0 && stored_dtype(type, &a->dtype, &mem) == 0 ? 0
+         : proto_fail(err, "%s:%s: expected f8, i4, i8 or u1 elements, got another "
+                      "HDF5 type", f->path, obj);
+  if (type >= 0) H5Tclose(type);
+  hid_t space = H5Dget_space(ds); /* open_dataset checked it: 1 to PROTO_MAX_NDIM */
+  int rank = space >= 0 ? H5Sget_simple_extent_ndims(space) : -1;
+  if (space >= 0) H5Sclose(space);
+  if (rc == 0 && (rank < 1 || rank > PROTO_MAX_NDIM))
+    rc = proto_fail(err, "%s:%s: cannot read its dimensions", f->path, obj);
+  size_t el = rc == 0 ? proto_dtype_size(a->dtype) : 1;
+  int64_t count = 0, want[PROTO_MAX_NDIM] = {-1, -1, -1};
+  if (rc == 0)
+    rc = check_dims(f, obj, rank, hdims, want, (int64_t)(max_bytes / el), &count, err);
+  if (rc == 0) {
+    a->ndim = rank;
+    memcpy(a->shape, want, sizeof a->shape);
+    a->nbytes = (size_t)count * el;
+    const char *slash = strrchr(obj, '/');
+    snprintf(a->name, sizeof a->name, "%s", slash ? slash + 1 : obj);
+    *data = malloc(a->nbytes ? a->nbytes : 1);
+    if (!*data)
+      rc = proto_fail(err, "%s:%s: out of memory for %zu bytes", f->path, obj, a->nbytes);
+  }
+  if (rc == 0 && count > 0 && H5Dread(ds, mem, H5S_ALL, H5S_ALL, H5P_DEFAULT, *data) < 0)
+    rc = proto_fail(err, "%s:%s: cannot read (damaged)", f->path, obj);
+  H5Dclose(ds);
+  if (rc < 0) {
+    free(*data);
+    *data = NULL;
+    return -1;
+  }
+  a->data = *data;
+  return 0;
 }
 
 int proto_h5in_rank(proto_h5in *f, const char *obj, proto_err *err) {
@@ -248,8 +351,9 @@ int proto_h5in_attr_f8(proto_h5in *f, const char *obj, const char *name,
   return rc;
 }
 
-int proto_h5in_attr_str(proto_h5in *f, const char *obj, const char *name,
-                        char *out, size_t cap, proto_err *err) {
+int proto_h5in_attr_strdup(proto_h5in *f, const char *obj, const char *name,
+                           char **out, proto_err *err) {
+  *out = NULL;
   hid_t a, type;
   H5T_class_t cls;
   int rc = open_attr(f, obj, name, &a, &cls, &type, err);
@@ -264,23 +368,36 @@ int proto_h5in_attr_str(proto_h5in *f, const char *obj, const char *name,
     H5Tset_size(mem, H5T_VARIABLE);
     if (H5Aread(a, mem, &s) < 0 || !s)
       rc = proto_fail(err, "%s:%s: cannot read attribute %s", f->path, obj, name);
-    else
-      snprintf(out, cap, "%s", s);
+    else if (strlen(s) > H5IN_MAX_STRING)
+      rc = proto_fail(err, "%s:%s: attribute %s: a string of %zu bytes (at most %zu)",
+                      f->path, obj, name, strlen(s), H5IN_MAX_STRING);
+    else if (!(*out = strdup(s)))
+      rc = proto_fail(err, "%s:%s: out of memory", f->path, obj);
     if (s) H5free_memory(s);
   } else if (size == 0 || size > H5IN_MAX_STRING) {
-    rc = proto_fail(err, "%s:%s: attribute %s: a string of %zu bytes", f->path, obj,
-                    name, size);
+    rc = proto_fail(err, "%s:%s: attribute %s: a string of %zu bytes (at most %zu)",
+                    f->path, obj, name, size, H5IN_MAX_STRING);
   } else {
     s = calloc(size + 1, 1);
     H5Tset_size(mem, size + 1);
-    if (!s || H5Aread(a, mem, s) < 0)
+    if (!s || H5Aread(a, mem, s) < 0) {
       rc = proto_fail(err, "%s:%s: cannot read attribute %s", f->path, obj, name);
-    else
-      snprintf(out, cap, "%s", s);
-    free(s);
+      free(s);
+    } else {
+      *out = s;
+    }
   }
   H5Tclose(mem);
   H5Tclose(type);
   H5Aclose(a);
+  return rc;
+}
+
+int proto_h5in_attr_str(proto_h5in *f, const char *obj, const char *name,
+                        char *out, size_t cap, proto_err *err) {
+  char *s = NULL;
+  int rc = proto_h5in_attr_strdup(f, obj, name, &s, err);
+  if (rc == 0) snprintf(out, cap, "%s", s);
+  free(s);
   return rc;
 }

@@ -12,6 +12,7 @@
  * HDF5's automatic error printing is switched off; every failure returns -1
  * with a message "<file>:<object path>: <what> (HDF5: <innermost reason>)". */
 #include "proto.h"
+#include "h5members.h"
 
 #include <errno.h>
 #include <hdf5.h>
@@ -640,26 +641,6 @@ done:
 
 /* ------------------------------------------------------------- reading */
 
-int proto_h5_attr_get(proto_h5 *f, const char *group, const char *name,
-                      char **value, proto_err *err) {
-  char path[H5_PATH_CAP];
-  *value = NULL;
-  if (!f) return proto_fail(err, "proto_h5_attr_get: no file");
-  if (join_path(path, sizeof path, group, NULL, f->path, err) < 0) return -1;
-  hid_t obj = H5Oopen(f->file, path, H5P_DEFAULT);
-  if (obj < 0) return h5_fail(err, f->path, path, "cannot open object");
-  char *v[1] = {NULL};
-  int rc = H5Aexists(obj, name) > 0
-               ? read_str_attr(f, obj, path, name, -1, v, 1, err)
-               : proto_fail(err, "%s:%s: no attribute '%s'", f->path, path, name);
-  H5Oclose(obj);
-  H5Eclear2(H5E_DEFAULT);
-  if (rc < 0) return -1;
-  *value = strdup(v[0] ? v[0] : "");
-  free_strs(v, 1);
-  return *value ? 0 : proto_fail(err, "%s: out of memory", f->path);
-}
-
 int proto_h5_exists(proto_h5 *f, const char *path) {
   char full[H5_PATH_CAP];
   if (!f || join_path(full, sizeof full, path, NULL, f->path, NULL) < 0) return 0;
@@ -689,19 +670,6 @@ int proto_h5_unlink(proto_h5 *f, const char *path, proto_err *err) {
   return 0;
 }
 
-typedef struct list_ctx {
-  int (*fn)(const char *name, void *ctx);
-  void *ctx;
-  int stop;
-} list_ctx;
-
-static herr_t list_cb(hid_t g, const char *name, const H5L_info_t *info, void *data) {
-  (void)g, (void)info;
-  list_ctx *c = data;
-  c->stop = c->fn(name, c->ctx);
-  return c->stop ? 1 : 0;
-}
-
 int proto_h5_list(proto_h5 *f, const char *group,
                   int (*fn)(const char *name, void *ctx), void *ctx, proto_err *err) {
   char full[H5_PATH_CAP];
@@ -710,73 +678,9 @@ int proto_h5_list(proto_h5 *f, const char *group,
   if (!proto_h5_exists(f, full)) return 0;
   hid_t g = H5Gopen2(f->file, full, H5P_DEFAULT);
   if (g < 0) return h5_fail(err, f->path, full, "cannot open group");
-  list_ctx c = {fn, ctx, 0};
-  herr_t r = H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, list_cb, &c);
+  int stop = 0;
+  herr_t r = proto_h5_members(g, fn, ctx, &stop);
   H5Gclose(g);
-  if (r < 0) return h5_fail(err, f->path, full, "cannot list group");
-  return c.stop < 0 ? -1 : 0;
-}
-
-static int dtype_of(hid_t t, proto_dtype *d) {
-  H5T_class_t cls = H5Tget_class(t);
-  size_t size = H5Tget_size(t);
-  if (cls == H5T_FLOAT && size == 8) *d = PROTO_F8;
-  else if (cls == H5T_INTEGER && size == 4) *d = PROTO_I4;
-  else if (cls == H5T_INTEGER && size == 8) *d = PROTO_I8;
-  else if (cls == H5T_INTEGER && size == 1) *d = PROTO_U1;
-  else return -1;
-  return 0;
-}
-
-int proto_h5_read_array(proto_h5 *f, const char *path, proto_array *a, void **data,
-                        proto_err *err) {
-  char full[H5_PATH_CAP];
-  *data = NULL;
-  memset(a, 0, sizeof *a);
-  if (!f) return proto_fail(err, "proto_h5_read_array: no file");
-  if (join_path(full, sizeof full, path, NULL, f->path, err) < 0) return -1;
-  if (!proto_h5_exists(f, full))
-    return proto_fail(err, "%s:%s: no such dataset", f->path, full);
-  hid_t d = H5Dopen2(f->file, full, H5P_DEFAULT);
-  hid_t t = d >= 0 ? H5Dget_type(d) : H5I_INVALID_HID;
-  hid_t sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID;
-  hsize_t dims[PROTO_MAX_NDIM] = {0};
-  int rank = sp >= 0 ? H5Sget_simple_extent_ndims(sp) : -1;
-  int rc = -1;
-  size_t el = 0;
-  if (d < 0 || t < 0 || rank < 1 || rank > PROTO_MAX_NDIM || dtype_of(t, &a->dtype) < 0) {
-    if (d < 0) h5_fail(err, f->path, full, "cannot open dataset");
-    else proto_fail(err, "%s:%s: not a 1-3 dimensional array of f8, i4, i8 or u1",
-                    f->path, full);
-    goto done;
-  }
-  H5Sget_simple_extent_dims(sp, dims, NULL);
-  size_t count = 1;
-  for (int i = 0; i < rank; i++) {
-    a->shape[i] = (int64_t)dims[i];
-    count *= (size_t)dims[i];
-  }
-  a->ndim = rank;
-  hid_t mtype = dtype_h5(a->dtype, &el);
-  const char *slash = strrchr(full, '/');
-  snprintf(a->name, sizeof a->name, "%s", slash ? slash + 1 : full);
-  a->nbytes = count * el;
-  *data = malloc(a->nbytes + 1);
-  if (!*data) {
-    proto_fail(err, "%s:%s: out of memory (%zu bytes)", f->path, full, a->nbytes);
-    goto done;
-  }
-  if (count && H5Dread(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, *data) < 0) {
-    h5_fail(err, f->path, full, "cannot read dataset");
-    free(*data);
-    *data = NULL;
-    goto done;
-  }
-  a->data = *data;
-  rc = 0;
-done:
-  h5_close_id(sp);
-  h5_close_id(t);
-  h5_close_id(d);
-  return rc;
+  if (stop < 0) return -1;
+  return r < 0 ? h5_fail(err, f->path, full, "cannot list group") : 0;
 }

@@ -572,7 +572,8 @@ size_t proto_h5_buffer_bytes(const proto_h5 *f);
 int proto_h5_write_array(proto_h5 *f, const char *group, const proto_array *a,
                          proto_err *err);
 
-/* Reading back (checkpoints, continuing a results file). */
+/* Continuing a results file (its own writer); every other file is read
+ * through the HDF5 input layer below. */
 int proto_h5_exists(proto_h5 *f, const char *path); /* 1 if a link is there */
 int proto_h5_unlink(proto_h5 *f, const char *path, proto_err *err); /* absent: ok */
 /* Calls fn(name, ctx) for each member of group, in name order; fn returns
@@ -580,23 +581,16 @@ int proto_h5_unlink(proto_h5 *f, const char *path, proto_err *err); /* absent: o
  * group has no members. */
 int proto_h5_list(proto_h5 *f, const char *group,
                   int (*fn)(const char *name, void *ctx), void *ctx, proto_err *err);
-/* Reads a dataset into a new buffer (*data, caller frees): a points at it,
- * named by the last path element. */
-int proto_h5_read_array(proto_h5 *f, const char *path, proto_array *a, void **data,
-                        proto_err *err);
-/* A string attribute (*value: caller frees). */
-int proto_h5_attr_get(proto_h5 *f, const char *group, const char *name,
-                      char **value, proto_err *err);
 
 /* ------------------------------------------------------------- HDF5 input
  *
- * Reading HDF5 files made elsewhere (roads, springs, Green's functions,
- * saved beds), which may be damaged or hostile. Objects are looked up level
+ * Reading HDF5 files (roads, springs, Green's functions, saved beds,
+ * checkpoints), which may be damaged or hostile. Objects are looked up level
  * by level; a dataset's class must be numeric and its rank and dims are
  * checked against what the reader expects, its element count
  * (overflow-checked) against max_elems, before anything is allocated; its
- * values must be finite; an attribute must hold exactly one value. Errors
- * name "<file>:<object>: <what>". */
+ * values must be finite (read_f8); an attribute must hold exactly one value.
+ * Errors name "<file>:<object>: <what>". */
 typedef struct proto_h5in proto_h5in;
 #define PROTO_H5IN_MAX_RANK 4
 
@@ -622,6 +616,21 @@ int proto_h5in_attr_f8(proto_h5in *f, const char *obj, const char *name,
                        double *v, proto_err *err);
 int proto_h5in_attr_str(proto_h5in *f, const char *obj, const char *name,
                         char *out, size_t cap, proto_err *err);
+/* The same, whole (at most 1 MiB): *out malloc'ed, caller frees. */
+int proto_h5in_attr_strdup(proto_h5in *f, const char *obj, const char *name,
+                           char **out, proto_err *err);
+/* Calls fn(name, ctx) for each member of group, in name order; fn returns
+ * 0 to go on, 1 to stop, -1 to stop with an error (returned). A missing
+ * group is an error. */
+int proto_h5in_list(proto_h5in *f, const char *group,
+                    int (*fn)(const char *name, void *ctx), void *ctx, proto_err *err);
+/* Reads dataset obj as stored (a checkpoint's state, bit for bit): elements
+ * exactly f8, i4, i8 or u1, rank 1 to PROTO_MAX_NDIM, at most max_bytes,
+ * values as they are (NaN included: a state may hold "not yet" NaNs).
+ * *data is malloc'ed (caller frees); *a describes it (data = *data), named
+ * by obj's last element. */
+int proto_h5in_read_array(proto_h5in *f, const char *obj, size_t max_bytes,
+                          proto_array *a, void **data, proto_err *err);
 
 /* XDMF companion: describes snapshot groups of the HDF5 file so ParaView can
  * open them as a time series. Points (grains) or tetrahedra (a mesh). */
