@@ -360,6 +360,8 @@ int proto_h5in_attr_strdup(proto_h5in *f, const char *obj, const char *name,
   if (rc != 0) return rc;
   hid_t mem = H5Tcopy(H5T_C_S1);
   char *s = NULL;
+  /* HDF5 converts no text between ASCII and UTF-8: read it as it is stored */
+  if (cls == H5T_STRING) H5Tset_cset(mem, H5Tget_cset(type));
   int vlen = cls == H5T_STRING && H5Tis_variable_str(type) > 0;
   size_t size = cls == H5T_STRING && !vlen ? H5Tget_size(type) : 0;
   if (cls != H5T_STRING) {
