@@ -486,7 +486,8 @@ static int restore_participants(cpl_runner *r) {
   proto_msg_free(&m);
   for (int left = r->n; rc == 0 && left > 0; left--) {
     int from = -1;
-    if (cpl_receive(r, -1, r->scene->step_timeout, "step_timeout", NULL, &from) < 0) return -1;
+    if (cpl_receive(r, -1, r->scene->step_timeout, "step_timeout", NULL, &from) < 0)
+      return proto_wrap(&r->err, "--restart %s", c->path);
     const proto_msg *got = &r->peers[from].reply;
     if (strcmp(got->type, proto_msg_type(PROTO_MSG_RESTORED)) != 0 || got->step != c->step) {
       r->failed_peer = from;
@@ -523,9 +524,9 @@ static int coupler_values(cpl_runner *r, int apply) {
   return 0;
 }
 
-int cpl_checkpoint_check(cpl_runner *r) { return coupler_values(r, 0); }
-
 int cpl_checkpoint_restore(cpl_runner *r) {
-  if (restore_participants(r) < 0) return -1;
+  /* the coupler's own state first: nothing is sent for a checkpoint that
+   * does not fit */
+  if (coupler_values(r, 0) < 0 || restore_participants(r) < 0) return -1;
   return coupler_values(r, 1);
 }

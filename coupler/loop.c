@@ -278,7 +278,6 @@ int cpl_scheme_init(cpl_runner *r) {
 
 int cpl_step_loop(cpl_runner *r) {
   const cpl_scene *s = r->scene;
-  if (r->ckpt && cpl_checkpoint_restore(r) < 0) return -1;
   cpl_inputs_current(r);
   double last_shown = proto_now(), start = proto_now();
   for (int64_t k = r->k0 + 1; k <= s->n_steps; k++) {

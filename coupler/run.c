@@ -376,6 +376,28 @@ static int open_output(cpl_runner *r) {
   return rc;
 }
 
+/* A restart restores the coupler and every participant before results.h5
+ * is touched: a checkpoint that does not fit this run, or a state a
+ * participant refuses, leaves the earlier results as they were. The ready
+ * messages open_output declares the datasets from are kept aside meanwhile
+ * (the replies to `restore` land in the same slots). */
+static int restore(cpl_runner *r) {
+  if (!r->ckpt) return 0;
+  proto_msg *ready = calloc((size_t)r->n, sizeof *ready);
+  if (!ready) return proto_fail(&r->err, "out of memory");
+  for (int i = 0; i < r->n; i++) {
+    ready[i] = r->peers[i].reply;
+    memset(&r->peers[i].reply, 0, sizeof r->peers[i].reply);
+  }
+  int rc = cpl_checkpoint_restore(r);
+  for (int i = 0; i < r->n; i++) {
+    proto_msg_free(&r->peers[i].reply);
+    r->peers[i].reply = ready[i];
+  }
+  free(ready);
+  return rc;
+}
+
 /* --------------------------------------------------------------- teardown */
 
 static void say_stop(cpl_runner *r) {
@@ -473,8 +495,7 @@ static int prepare(cpl_runner *r) {
   if (rc == 0) rc = welcome_all(r);
   if (rc == 0) rc = check_rollback(r);
   if (rc == 0) rc = cpl_scheme_init(r);
-  /* a checkpoint that does not fit is refused before results.h5 is touched */
-  if (rc == 0 && r->ckpt) rc = cpl_checkpoint_check(r);
+  if (rc == 0) rc = restore(r);
   if (rc == 0) rc = open_output(r);
   if (rc == 0) {
     cpl_schedule_build(r);

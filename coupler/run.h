@@ -182,12 +182,10 @@ int cpl_checkpoint_write(cpl_runner *r, int64_t k);
  * the scene continues it (the keys that decide the results agree). */
 cpl_ckpt *cpl_checkpoint_read(const char *path, const cpl_scene *s, proto_err *err);
 int64_t cpl_checkpoint_step(const cpl_ckpt *c);
-/* Checks the coupler's state in r->ckpt against this run (every piece
- * there, of its type and size; after the scheme's set-up), before
- * results.h5 is opened to continue. */
-int cpl_checkpoint_check(cpl_runner *r);
-/* Restores every participant and the coupler from r->ckpt (after the
- * handshake and the scheme's set-up). */
+/* Restores the coupler and every participant from r->ckpt (after the
+ * handshake and the scheme's set-up, before results.h5 is opened): the
+ * coupler's state is checked against this run first (every piece there, of
+ * its type and size). */
 int cpl_checkpoint_restore(cpl_runner *r);
 void cpl_checkpoint_free(cpl_ckpt *c);
 /* Removes output.dir's checkpoints (a new results file starts: they belong
