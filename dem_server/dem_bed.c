@@ -3,8 +3,8 @@
  * caller (dem_settle); beds saved to and loaded from HDF5. */
 #include "dem_server/dem_internal.h"
 
-#include <hdf5.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -74,40 +74,41 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err) {
 
 /* ------------------------------------------------------------------ HDF5 */
 
-static int write_ds(hid_t f, const char *name, hid_t type, int rank, hsize_t n, hsize_t cols,
-                    const void *data) {
-  hsize_t dims[2] = {n, cols};
-  hid_t sp = H5Screate_simple(rank, dims, NULL);
-  hid_t ds = H5Dcreate2(f, name, type, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  herr_t rc = ds >= 0 ? H5Dwrite(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) : -1;
-  if (ds >= 0) H5Dclose(ds);
-  H5Sclose(sp);
-  return rc < 0 ? -1 : 0;
+/* Dataset "/<name>": n rows of cols columns ([n] when rank is 1). */
+static int write_ds(proto_h5 *f, const char *name, proto_dtype dtype, int rank, int64_t n,
+                    int64_t cols, const void *data, proto_err *err) {
+  proto_array a = {.dtype = dtype, .ndim = rank, .shape = {n, cols}, .data = data,
+                   .nbytes = (size_t)(n * cols) * proto_dtype_size(dtype)};
+  snprintf(a.name, sizeof a.name, "%s", name);
+  return proto_h5_write_array(f, "/", &a, err);
 }
 
 int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto_err *err) {
-  const size_t n = (size_t)s->n;
-  double *buf = malloc(sizeof(double) * 9 * n + 1);
-  int32_t *mat = malloc(sizeof(int32_t) * n + 1);
-  if (!buf || !mat) { free(buf); free(mat); return proto_fail(err, "%s: out of memory", path); }
-  hid_t f = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
-  int rc = f < 0 ? -1 : 0;
+  const int64_t n = s->n;
+  double *buf = malloc(sizeof(double) * 9 * (size_t)n + 1);
+  int32_t *mat = malloc(sizeof(int32_t) * (size_t)n + 1);
+  proto_h5 *f = buf && mat ? proto_h5_create(path, err) : NULL;
+  if (!f) {
+    free(buf);
+    free(mat);
+    return buf && mat ? -1 : proto_fail(err, "%s: out of memory", path);
+  }
   dem_gather(s, s->x, 3, buf);
   dem_gather(s, s->v, 3, buf + 3 * n);
   dem_gather(s, s->omega, 3, buf + 6 * n);
-  if (!rc) rc = write_ds(f, "x", H5T_NATIVE_DOUBLE, 2, n, 3, buf);
-  if (!rc) rc = write_ds(f, "v", H5T_NATIVE_DOUBLE, 2, n, 3, buf + 3 * n);
-  if (!rc) rc = write_ds(f, "omega", H5T_NATIVE_DOUBLE, 2, n, 3, buf + 6 * n);
+  int rc = write_ds(f, "x", PROTO_F8, 2, n, 3, buf, err);
+  if (!rc) rc = write_ds(f, "v", PROTO_F8, 2, n, 3, buf + 3 * n, err);
+  if (!rc) rc = write_ds(f, "omega", PROTO_F8, 2, n, 3, buf + 6 * n, err);
   dem_gather(s, s->radius, 1, buf);
-  if (!rc) rc = write_ds(f, "r", H5T_NATIVE_DOUBLE, 1, n, 1, buf);
+  if (!rc) rc = write_ds(f, "r", PROTO_F8, 1, n, 1, buf, err);
   for (int i = 0; i < s->n; i++) mat[s->id[i]] = s->material[i];
-  if (!rc) rc = write_ds(f, "material", H5T_NATIVE_INT32, 1, n, 1, mat);
+  if (!rc) rc = write_ds(f, "material", PROTO_I4, 1, n, 1, mat, err);
   const double worst = dem_worst_overlap(m, s);
-  if (!rc) rc = write_ds(f, DEM_BED_MAX_OVERLAP, H5T_NATIVE_DOUBLE, 1, 1, 1, &worst);
-  if (f >= 0 && H5Fclose(f) < 0) rc = -1;
+  if (!rc) rc = write_ds(f, DEM_BED_MAX_OVERLAP, PROTO_F8, 1, 1, 1, &worst, err);
+  if (proto_h5_close(f, rc ? NULL : err) < 0) rc = -1;
   free(buf);
   free(mat);
-  return rc ? proto_fail(err, "%s: cannot write the bed (HDF5 error)", path) : 0;
+  return rc ? proto_wrap(err, "%s: cannot write the bed", path) : 0;
 }
 
 /* A per-grain dataset of n rows and cols columns ([n] or [n, 1] when cols

@@ -3,7 +3,6 @@
 #include <complex.h>
 #include <errno.h>
 #include <fftw3.h>
-#include <hdf5.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -11,6 +10,10 @@
 
 #include "green/green.h"
 #include "green/h5util.h"
+
+/* The road file (FORMATS.md): /road/heights [Ny][Nx], attributes dx, dy. */
+#define G_ROAD "/road"
+#define D_HEIGHTS "heights"
 
 /* splitmix64: small, seedable, reproducible across platforms */
 static uint64_t splitmix64(uint64_t *s) {
@@ -259,14 +262,14 @@ int grn_surface_read_h5(const char *path, grn_surface *s, proto_err *err) {
   int rc = -1;
   double dx = 0, dy = 0;
   int64_t dims[2] = {-1, -1};
-  int ax = proto_h5in_attr_f8(f, "/road", "dx", &dx, err);
-  int ay = ax < 0 ? -1 : proto_h5in_attr_f8(f, "/road", "dy", &dy, err);
+  int ax = proto_h5in_attr_f8(f, G_ROAD, "dx", &dx, err);
+  int ay = ax < 0 ? -1 : proto_h5in_attr_f8(f, G_ROAD, "dy", &dy, err);
   if (ax < 0 || ay < 0) goto done;
   if (ax || ay || !(dx > 0) || !(dy > 0)) {
     proto_fail(err, "%s: /road needs attributes dx, dy > 0 (m)", path);
     goto done;
   }
-  if (proto_h5in_read_f8(f, "/road/heights", 2, dims, GRN_MAX_POINTS, &s->z, err) < 0)
+  if (proto_h5in_read_f8(f, G_ROAD "/" D_HEIGHTS, 2, dims, GRN_MAX_POINTS, &s->z, err) < 0)
     goto done;
   if (dims[0] < 2 || dims[1] < 2 || dims[0] > INT32_MAX || dims[1] > INT32_MAX) {
     proto_fail(err, "%s:/road/heights: need at least 2 x 2 heights, found %lld x %lld",
@@ -283,23 +286,18 @@ done:
 
 int grn_surface_write_h5(const char *path, const grn_surface *s,
                          const grn_surface_params *p, proto_err *err) {
-  hid_t f = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
-  if (f < 0)
-    return proto_fail(err, "%s: cannot create", path);
-  hid_t g = H5Gcreate2(f, "/road", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  hsize_t dims[2] = {(hsize_t)s->Ny, (hsize_t)s->Nx};
-  int rc = grn_h5_write(g, "heights", 2, dims, s->z, err);
-  grn_h5_attr_d(g, "dx", s->dx);
-  grn_h5_attr_d(g, "dy", s->dy);
-  if (p) {
-    grn_h5_attr_d(g, "hurst", p->hurst);
-    grn_h5_attr_d(g, "rms", p->rms);
-    grn_h5_attr_d(g, "lambda_short", p->lambda_short);
-    grn_h5_attr_d(g, "lambda_long", p->lambda_long);
-    grn_h5_attr_i(g, "seed", (long)p->seed);
+  proto_h5 *f = proto_h5_create(path, err);
+  if (!f) return -1;
+  const int64_t dims[2] = {s->Ny, s->Nx};
+  int rc = grn_h5_write(f, G_ROAD, D_HEIGHTS, 2, dims, s->z, err);
+  if (!rc) rc = proto_h5_attr_f8(f, G_ROAD, "dx", s->dx, err);
+  if (!rc) rc = proto_h5_attr_f8(f, G_ROAD, "dy", s->dy, err);
+  if (!rc && p) {
+    rc = proto_h5_attr_f8(f, G_ROAD, "hurst", p->hurst, err);
+    if (!rc) rc = proto_h5_attr_f8(f, G_ROAD, "rms", p->rms, err);
+    if (!rc) rc = proto_h5_attr_f8(f, G_ROAD, "lambda_short", p->lambda_short, err);
+    if (!rc) rc = proto_h5_attr_f8(f, G_ROAD, "lambda_long", p->lambda_long, err);
+    if (!rc) rc = proto_h5_attr_i8(f, G_ROAD, "seed", (int64_t)p->seed, err);
   }
-  H5Gclose(g);
-  if (H5Fclose(f) < 0 && rc == 0)
-    rc = proto_fail(err, "%s: write failed", path);
-  return rc;
+  return proto_h5_close(f, rc ? NULL : err) < 0 || rc ? -1 : 0;
 }

@@ -172,35 +172,33 @@ static hid_t vlen_str_type(void) {
   return t;
 }
 
+/* Writes (replacing) attribute name of type over space from data. */
+static int write_attr(proto_h5 *f, hid_t obj, const char *obj_path, const char *name,
+                      hid_t type, hid_t space, const void *data, proto_err *err) {
+  if (type < 0 || space < 0)
+    return h5_fail(err, f->path, obj_path, "cannot make attribute type");
+  htri_t exists = H5Aexists(obj, name);
+  if (exists > 0 && H5Adelete(obj, name) < 0) exists = -1;
+  if (exists < 0) return h5_fail(err, f->path, obj_path, "cannot replace attribute");
+  hid_t attr = H5Acreate2(obj, name, type, space, H5P_DEFAULT, H5P_DEFAULT);
+  int rc = 0;
+  if (attr < 0 || H5Awrite(attr, type, data) < 0) {
+    char what[96];
+    snprintf(what, sizeof what, "cannot write attribute '%.60s'", name);
+    rc = h5_fail(err, f->path, obj_path, what);
+  }
+  h5_close_id(attr);
+  return rc;
+}
+
 /* Writes (replacing) a string attribute: n < 0 scalar, else a 1-D array. */
 static int write_str_attr(proto_h5 *f, hid_t obj, const char *obj_path,
                           const char *name, int n, const char *const *values,
                           proto_err *err) {
-  int rc = -1;
   hsize_t dim = n < 0 ? 0 : (hsize_t)n;
   hid_t type = vlen_str_type();
   hid_t space = n < 0 ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &dim, NULL);
-  hid_t attr = H5I_INVALID_HID;
-  if (type < 0 || space < 0) {
-    h5_fail(err, f->path, obj_path, "cannot make string type");
-    goto done;
-  }
-  htri_t exists = H5Aexists(obj, name);
-  if (exists > 0 && H5Adelete(obj, name) < 0) exists = -1;
-  if (exists < 0) {
-    h5_fail(err, f->path, obj_path, "cannot replace attribute");
-    goto done;
-  }
-  attr = H5Acreate2(obj, name, type, space, H5P_DEFAULT, H5P_DEFAULT);
-  if (attr < 0 || H5Awrite(attr, type, (const void *)values) < 0) {
-    char what[96];
-    snprintf(what, sizeof what, "cannot write attribute '%.60s'", name);
-    h5_fail(err, f->path, obj_path, what);
-    goto done;
-  }
-  rc = 0;
-done:
-  h5_close_id(attr);
+  int rc = write_attr(f, obj, obj_path, name, type, space, (const void *)values, err);
   h5_close_id(space);
   h5_close_id(type);
   return rc;
@@ -340,28 +338,62 @@ int proto_h5_close(proto_h5 *f, proto_err *err) {
   return rc;
 }
 
+/* Opens the object at group ("/" = root) for its attributes: an existing
+ * one (group or dataset) as it is, a missing one made a group. */
+static hid_t attr_object(proto_h5 *f, const char *group, const char *name, char *path,
+                         proto_err *err) {
+  if (!f) {
+    proto_fail(err, "HDF5 attribute: no file");
+    return H5I_INVALID_HID;
+  }
+  if (join_path(path, H5_PATH_CAP, group, NULL, f->path, err) < 0) return H5I_INVALID_HID;
+  if (!name || !name[0]) {
+    proto_fail(err, "%s:%s: attribute needs a name", f->path, path);
+    return H5I_INVALID_HID;
+  }
+  htri_t exists = strcmp(path, "/") == 0 ? 1 : H5Lexists(f->file, path, H5P_DEFAULT);
+  if (exists <= 0) {
+    H5Eclear2(H5E_DEFAULT); /* a missing parent is fine: we make it */
+    if (make_groups(f, path, 0, err) < 0) return H5I_INVALID_HID;
+  }
+  hid_t obj = H5Oopen(f->file, path, H5P_DEFAULT);
+  if (obj < 0) h5_fail(err, f->path, path, "cannot open object");
+  return obj;
+}
+
 int proto_h5_attr_str(proto_h5 *f, const char *group, const char *name,
                       const char *value, proto_err *err) {
   char path[H5_PATH_CAP];
-  if (!f) return proto_fail(err, "proto_h5_attr_str: no file");
-  if (join_path(path, sizeof path, group, NULL, f->path, err) < 0) return -1;
-  if (!name || !name[0] || !value)
-    return proto_fail(err, "%s:%s: attribute needs a name and a value",
-                      f->path, path);
-  /* An existing object (group or dataset) takes the attribute as is;
-   * a missing one becomes a group. */
-  htri_t exists = strcmp(path, "/") == 0
-                      ? 1
-                      : H5Lexists(f->file, path, H5P_DEFAULT);
-  if (exists <= 0) {
-    H5Eclear2(H5E_DEFAULT); /* a missing parent is fine: we make it */
-    if (make_groups(f, path, 0, err) < 0) return -1;
-  }
-  hid_t obj = H5Oopen(f->file, path, H5P_DEFAULT);
-  if (obj < 0) return h5_fail(err, f->path, path, "cannot open object");
+  if (!value) return proto_fail(err, "%s: attribute '%s' without a value",
+                                f ? f->path : "HDF5", name ? name : "");
+  hid_t obj = attr_object(f, group, name, path, err);
+  if (obj < 0) return -1;
   int rc = write_str_attr(f, obj, path, name, -1, &value, err);
   H5Oclose(obj);
   return rc;
+}
+
+/* A scalar number attribute stored as type (memory: the same). */
+static int attr_scalar(proto_h5 *f, const char *group, const char *name, hid_t type,
+                       const void *v, proto_err *err) {
+  char path[H5_PATH_CAP];
+  hid_t obj = attr_object(f, group, name, path, err);
+  if (obj < 0) return -1;
+  hid_t space = H5Screate(H5S_SCALAR);
+  int rc = write_attr(f, obj, path, name, type, space, v, err);
+  h5_close_id(space);
+  H5Oclose(obj);
+  return rc;
+}
+
+int proto_h5_attr_f8(proto_h5 *f, const char *group, const char *name, double v,
+                     proto_err *err) {
+  return attr_scalar(f, group, name, H5T_IEEE_F64LE, &v, err);
+}
+
+int proto_h5_attr_i8(proto_h5 *f, const char *group, const char *name, int64_t v,
+                     proto_err *err) {
+  return attr_scalar(f, group, name, H5T_STD_I64LE, &v, err);
 }
 
 /* -------------------------------------------------------------- series */

@@ -551,9 +551,15 @@ int proto_h5_flush(proto_h5 *f, proto_err *err);
 /* Flushes and closes; the handle is freed either way. -1 (err may be NULL)
  * if anything failed. HDF5 never closes a file again at exit. */
 int proto_h5_close(proto_h5 *f, proto_err *err);
-/* Stores a string attribute (e.g. the config) on a group ("/" = root). */
+/* Stores a string attribute (e.g. the config) on an object ("/" = root; a
+ * missing one becomes a group): variable-length UTF-8. */
 int proto_h5_attr_str(proto_h5 *f, const char *group, const char *name,
                       const char *value, proto_err *err);
+/* A number (f8) or an integer (i8) attribute, likewise (one value). */
+int proto_h5_attr_f8(proto_h5 *f, const char *group, const char *name, double v,
+                     proto_err *err);
+int proto_h5_attr_i8(proto_h5 *f, const char *group, const char *name, int64_t v,
+                     proto_err *err);
 /* "/dem/series" with the given columns; parent groups made as needed. */
 proto_series *proto_h5_series(proto_h5 *f, const char *path, int ncols,
                               const char *const *columns, proto_err *err);
