@@ -1,11 +1,11 @@
 /* fuzz_h5 — the HDF5 readers (road heights, Green's functions, springs,
- * saved beds), structure-aware: the input is a small text that describes a
+ * saved beds, checkpoints), structure-aware: the input is a small text that describes a
  * file; the harness writes that file with the HDF5 library and runs the
  * reader on it. Mutating the description reaches every shape, type,
  * attribute and value case of our readers (raw-byte mutations of an HDF5
  * file mostly exercise the HDF5 library's own parser instead).
  *
- *   reader road|green|springs|bed
+ *   reader road|green|springs|bed|checkpoint
  *   grid NX NY DX DY                   the block's grid (green, springs)
  *   group PATH
  *   dset PATH TYPE D1 [D2 ...] FILL    TYPE f8 f4 i4 i8 u1 str; FILL
@@ -14,6 +14,9 @@
  *   attr OBJ NAME TYPE N V|TEXT        TYPE f8 i4 str vstr; N values (0 = null
  *                                      dataspace, -1 = scalar)
  *
+ * A checkpoint is read against CHECKPOINT_SCENE: the seed's root attribute
+ * "config" is that text, so the reader gets past its scene check.
+ *
  * Shapes are kept either small (data written) or beyond every reader's
  * limit (not written, so they cost the file nothing): the band in between,
  * legal but larger than the fuzzer's memory limit, is not generated. */
@@ -21,13 +24,35 @@
 #include <math.h>
 
 #include "contact_block/blk.h"
+#include "coupler/run.h"
 #include "dem_server/dem.h"
 #include "fuzz.h"
 #include "green/green.h"
 
 enum { MAX_RANK = 4, MAX_WRITTEN = 1 << 16, MAX_LINE = 512 };
-enum { R_ROAD, R_GREEN, R_SPRINGS, R_BED, N_READERS };
-static const char *const readers[N_READERS] = {"road", "green", "springs", "bed"};
+enum { R_ROAD, R_GREEN, R_SPRINGS, R_BED, R_CHECKPOINT, N_READERS };
+static const char *const readers[N_READERS] = {"road", "green", "springs", "bed",
+                                               "checkpoint"};
+
+/* The scene a checkpoint is read against (two spring blocks; one line, as
+ * the seed's config attribute holds it). */
+#define CHECKPOINT_SCENE                                                               \
+  "{\"name\": \"f\", \"time\": {\"dt\": 1e-05, \"end\": 0.01}, \"output\": "         \
+  "{\"dir\": \"f\", \"every\": 10}, \"scenario\": {\"kind\": \"indentation\", "         \
+  "\"profile\": \"linear\", \"depth\": 1e-05, \"ramp_time\": 0.01}, \"processes\": "   \
+  "{\"left\": {\"exec\": \"block_stub\"}, \"right\": {\"exec\": \"block_stub\"}}}"
+
+static const cpl_scene *checkpoint_scene(void) {
+  static cpl_scene s; /* parsed once, kept for the process's life */
+  static int state = 0; /* 0 not yet, 1 parsed, -1 failed */
+  if (state == 0) {
+    proto_err err = {{0}};
+    cJSON *root = proto_json_parse(CHECKPOINT_SCENE, "fuzz scene", &err);
+    state = root && cpl_scene_from_json(&s, root, "fuzz scene", 0, NULL, &err) == 0 ? 1 : -1;
+    if (state < 0) fprintf(stderr, "fuzz_h5: the checkpoint scene: %s\n", err.msg);
+  }
+  return state > 0 ? &s : NULL;
+}
 
 typedef struct grid {
   int nx, ny;
@@ -202,6 +227,11 @@ static void run(int reader, const char *path, const grid *g) {
     memset(&m, 0, sizeof m);
     dem_bed_load(&m, path, &err);
     dem_model_free(&m);
+  } else if (reader == R_CHECKPOINT) {
+    const cpl_scene *sc = checkpoint_scene();
+    cpl_ckpt *c = sc ? cpl_checkpoint_read(path, sc, &err) : NULL;
+    if (c && cpl_checkpoint_step(c) < 1) __builtin_trap(); /* the reader refuses it */
+    cpl_checkpoint_free(c);
   }
   for (const char *c = err.msg; *c; c++)
     if (*c == 0x1b) __builtin_trap();
