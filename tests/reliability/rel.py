@@ -62,3 +62,19 @@ def cosim(*args, timeout=600, env=None):
         e.update(env)
     p = subprocess.run([COSIM, *args], capture_output=True, text=True, timeout=timeout, env=e)
     return p.returncode, p.stdout, p.stderr
+
+
+# The road of configs/tread_block.json as a body pushed by a force.
+FORCE_ROAD = {"kind": "indentation", "profile": "force", "road_mass": 0.05, "road_force": 50}
+
+
+def two_spring_blocks(s):
+    """The tread-block scene s as two spring blocks (block_stub) under the
+    force-driven road, implicit scheme (IQN-ILS): a quick scene whose
+    checkpoints hold the coupler's fields, road and accelerator history and
+    each block's state."""
+    s["scenario"] = dict(FORCE_ROAD)
+    s["coupling"] = {"scheme": "implicit"}
+    s["processes"] = {"left": {"exec": "block_stub", "stiffness": 1e5, "gap": -1e-5},
+                      "right": {"exec": "block_stub", "stiffness": 3e5, "gap": -1e-5}}
+    return s

@@ -17,7 +17,7 @@ import tempfile
 import h5py
 import numpy as np
 
-from rel import ROOT, check, cosim
+from rel import ROOT, check, cosim, two_spring_blocks
 from common import done, write
 
 DT = 1.953125e-5
@@ -39,15 +39,8 @@ def snapshot(d):
     return out
 
 
-# two spring blocks under a force-driven road, implicit (IQN-ILS): the
-# checkpoint holds the coupler's fields, road and accelerator, and each
-# block's state
-s = json.load(open(os.path.join(ROOT, "configs", "tread_block.json")))
+s = two_spring_blocks(json.load(open(os.path.join(ROOT, "configs", "tread_block.json"))))
 s["name"] = f"bad_checkpoint_{os.getpid()}"
-s["scenario"] = {"kind": "indentation", "profile": "force", "road_mass": 0.05, "road_force": 50}
-s["coupling"] = {"scheme": "implicit"}
-s["processes"] = {"left": {"exec": "block_stub", "stiffness": 1e5, "gap": -1e-5},
-                  "right": {"exec": "block_stub", "stiffness": 3e5, "gap": -1e-5}}
 s["time"]["end"] = 400 * DT
 s["output"]["every"] = 50
 s["checkpoint"] = {"every": 100, "keep": 4}

@@ -18,13 +18,13 @@ import subprocess
 import tempfile
 import time
 
-from rel import COSIM, ROOT, check, cosim, differences
+from rel import COSIM, FORCE_ROAD, ROOT, check, cosim, differences, two_spring_blocks
 from common import done, processes_with, write
 
 SCENE = os.path.join(ROOT, "configs", "tread_block.json")
 N = 160  # of 343 steps
 DT = 1.953125e-5
-FORCE = {"kind": "indentation", "profile": "force", "road_mass": 0.05, "road_force": 50}
+FORCE = FORCE_ROAD
 
 
 def scene(name, **changes):
@@ -71,9 +71,7 @@ check(rc == 1 and "processes.block.green.zeta" in err,
 
 # after a crash: kill a block once a checkpoint exists, resume from the latest
 # (two spring blocks under the force-driven road, implicit: a quick scene)
-s = scene("restart_crash", scenario=FORCE, coupling={"scheme": "implicit"})
-s["processes"] = {"left": {"exec": "block_stub", "stiffness": 1e5, "gap": -1e-5},
-                  "right": {"exec": "block_stub", "stiffness": 3e5, "gap": -1e-5}}
+s = two_spring_blocks(scene("restart_crash"))
 s["time"]["end"] = 8000 * DT
 s["output"]["every"] = 100
 s["checkpoint"] = {"every": 1000, "keep": 2}
