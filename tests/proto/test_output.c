@@ -64,6 +64,10 @@ static void test_write(const char *h5path) {
   CHECK(proto_h5_attr_str(f, "/", "config", "{\"dt\": 1e-4}", &err) == 0);
   CHECK(proto_h5_attr_str(f, "/dem", "note", "made on demand", &err) == 0);
   CHECK(proto_h5_attr_str(f, "/dem", "note", "replaced", &err) == 0);
+  CHECK(proto_h5_attr_f8(f, "/dem", "dx", 2.5e-4, &err) == 0);
+  CHECK(proto_h5_attr_i8(f, "/dem", "seed", INT64_C(1) << 40, &err) == 0);
+  CHECK(proto_h5_attr_i8(f, "/dem", "seed", 7, &err) == 0); /* replaced */
+  CHECK(proto_h5_attr_f8(f, "/dem", "", 1, &err) == -1 && strstr(err.msg, "a name"));
 
   /* 600 rows cross two buffer boundaries; the rest waits for close. */
   const char *cols[] = {"t", "kinetic_energy", "contacts"};
@@ -239,6 +243,73 @@ static void test_xdmf(const char *xpath) {
   CHECK(strstr(err.msg, "/nonexistent-dir/r.xdmf") != NULL);
 }
 
+typedef struct names {
+  int n;
+  char name[8][16];
+} names;
+
+static int collect(const char *name, void *ctx) {
+  names *c = ctx;
+  if (c->n == 8) return -1;
+  snprintf(c->name[c->n++], sizeof c->name[0], "%s", name);
+  return 0;
+}
+
+/* What test_write wrote, back through the HDF5 input layer: every dtype
+ * bit for bit, the members in name order, attributes; its limits. */
+static void test_h5in(const char *h5path) {
+  proto_err err = {{0}};
+  proto_h5in *f = proto_h5in_open(h5path, &err);
+  CHECK(f != NULL);
+  if (!f) return;
+  names c = {0};
+  CHECK(proto_h5in_list(f, "/dem/steps/12", collect, &c, &err) == 0);
+  CHECK(c.n == 5 && !strcmp(c.name[0], "flags") && !strcmp(c.name[1], "ids") &&
+        !strcmp(c.name[2], "none") && !strcmp(c.name[3], "tets") && !strcmp(c.name[4], "x"));
+  static const struct { const char *name; proto_dtype dtype; int ndim; int64_t shape0; size_t nbytes; }
+      want[5] = {{"flags", PROTO_U1, 1, 5, 5}, {"ids", PROTO_I8, 1, 2, 16},
+                 {"none", PROTO_F8, 2, 0, 0}, {"tets", PROTO_I4, 3, 2, 32},
+                 {"x", PROTO_F8, 2, 4, 96}};
+  for (int i = 0; i < 5; i++) {
+    char obj[64];
+    snprintf(obj, sizeof obj, "/dem/steps/12/%s", want[i].name);
+    proto_array a;
+    void *data = NULL;
+    CHECK(proto_h5in_read_array(f, obj, 1 << 20, &a, &data, &err) == 0);
+    CHECK(!strcmp(a.name, want[i].name) && a.dtype == want[i].dtype &&
+          a.ndim == want[i].ndim && a.shape[0] == want[i].shape0 &&
+          a.nbytes == want[i].nbytes && a.data == data);
+    free(data);
+  }
+  proto_array a;
+  void *data = NULL;
+  CHECK(proto_h5in_read_array(f, "/dem/steps/12/x", 1 << 20, &a, &data, &err) == 0);
+  CHECK(data && ((const double *)data)[11] == 11.25 && a.shape[1] == 3);
+  free(data);
+  CHECK(proto_h5in_read_array(f, "/dem/steps/12/ids", 1 << 20, &a, &data, &err) == 0);
+  CHECK(data && ((const int64_t *)data)[0] == INT64_C(1) << 40 && ((const int64_t *)data)[1] == -3);
+  free(data);
+  CHECK(proto_h5in_read_array(f, "/dem/steps/12/x", 95, &a, &data, &err) == -1);
+  CHECK(data == NULL && strstr(err.msg, "/dem/steps/12/x: shape") && strstr(err.msg, "holds more than the 11"));
+  CHECK(proto_h5in_read_array(f, "/dem/steps/12", 1 << 20, &a, &data, &err) == -1);
+  CHECK(strstr(err.msg, "/dem/steps/12: not a dataset"));
+  CHECK(proto_h5in_read_array(f, "/dem/steps/9/x", 1 << 20, &a, &data, &err) == -1);
+  CHECK(strstr(err.msg, h5path) && strstr(err.msg, "/dem/steps/9/x: dataset missing"));
+  CHECK(proto_h5in_list(f, "/dem/steps/9", collect, &c, &err) == -1);
+  CHECK(strstr(err.msg, "/dem/steps/9: group missing"));
+  CHECK(proto_h5in_list(f, "/dem/steps/12/x", collect, &c, &err) == -1);
+  CHECK(strstr(err.msg, "/dem/steps/12/x: not a group"));
+  char *config = NULL;
+  CHECK(proto_h5in_attr_strdup(f, "/", "config", &config, &err) == 0);
+  CHECK(config && !strcmp(config, "{\"dt\": 1e-4}"));
+  free(config);
+  CHECK(proto_h5in_attr_strdup(f, "/", "absent", &config, &err) == 1 && config == NULL);
+  double v = 0;
+  CHECK(proto_h5in_attr_f8(f, "/dem", "dx", &v, &err) == 0 && v == 2.5e-4);
+  CHECK(proto_h5in_attr_f8(f, "/dem", "seed", &v, &err) == 0 && v == 7);
+  proto_h5in_close(f);
+}
+
 int main(void) {
   snprintf(dir, sizeof dir, "/tmp/cosim_test_output_XXXXXX");
   if (!mkdtemp(dir)) {
@@ -250,6 +321,7 @@ int main(void) {
   path_in(xpath, sizeof xpath, "results.xdmf");
   test_write(h5path);
   test_read(h5path);
+  test_h5in(h5path);
   test_xdmf(xpath);
   if (getenv("KEEP_OUTPUT")) {
     printf("%s\n", dir);
