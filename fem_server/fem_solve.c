@@ -15,7 +15,7 @@ struct fem_factor {
   /* the assembly this workspace belongs to (fem_static_solve checks it) */
   const int32_t *colptr, *rowind;
   const double *kval;
-  int32_t n_eq, n_dof;
+  int32_t n_eq, n_dof, nnz;
   cholmod_common c;
   cholmod_factor *L;
   cholmod_dense *X, *Y, *E; /* cholmod_solve2 workspaces, reused */
@@ -107,6 +107,7 @@ static fem_factor *factor_new(const fem_model *md, proto_err *err) {
   f->kval = md->kval;
   f->n_eq = md->n_eq;
   f->n_dof = md->n_dof;
+  f->nnz = md->colptr[md->n_eq];
   cholmod_start(&f->c);
   f->c.print = 0;
   f->rhs = malloc(sizeof *f->rhs * (size_t)md->n_eq);
@@ -235,7 +236,7 @@ int fem_static_solve(const fem_model *md, fem_factor **factor, fem_solver_kind k
   if (!*factor && !(*factor = factor_new(md, err))) return -1;
   fem_factor *f = *factor;
   if (f->colptr != md->colptr || f->rowind != md->rowind || f->kval != md->kval ||
-      f->n_eq != md->n_eq || f->n_dof != md->n_dof)
+      f->n_eq != md->n_eq || f->n_dof != md->n_dof || f->nnz != md->colptr[md->n_eq])
     return proto_fail(err, "static solve: the solver workspace belongs to another model or an "
                       "earlier assembly (fem_factor_free it after fem_model_assemble)");
   reduced_rhs(md, f, b);

@@ -68,9 +68,19 @@ static void mesh_errors(void) {
   fem_factor *fac = NULL;
   expect_error(fem_static_solve(&md, &fac, FEM_CHOLMOD, 0, b, u, NULL, &err), &err, "not positive definite",
                "unconstrained body");
+  /* the solver workspace belongs to one assembly */
+  OK(fem_model_fix_group(&md, "xmin", 7, &err));
+  OK(fem_model_assemble(&md, &err));
+  expect_error(fem_static_solve(&md, &fac, FEM_CHOLMOD, 0, b, u, NULL, &err), &err,
+               "earlier assembly", "solver workspace of an earlier assembly");
+  fem_factor_free(&fac);
+  OK(fem_static_solve(&md, &fac, FEM_CHOLMOD, 0, b, u, NULL, &err));
+  fem_factor_free(&fac);
+  /* the stable step needs the state's scratch */
+  fem_state st = {0};
+  expect_error(fem_stable_dt(&md, &st, 10, &err), &err, "fem_state_init first", "stable step without a state");
   free(b);
   free(u);
-  fem_factor_free(&fac);
   fem_model_free(&md);
 }
 
