@@ -316,7 +316,8 @@ void fem_state_reset(const fem_model *md, fem_state *st, const double *u);
 
 /* Largest eigenvalue of M^-1 K over the free DOFs by power iteration with a
  * Rayleigh quotient (converged to rel. 1e-6 or max_iter); sets
- * st->omega_max and st->dt_crit = 2/omega_max (nothing else of st). */
+ * st->omega_max and st->dt_crit = 2/omega_max. Call after fem_state_init:
+ * it uses st->work as scratch and leaves the rest of st as it was. */
 int fem_stable_dt(const fem_model *md, fem_state *st, int max_iter,
                   proto_err *err);
 
