@@ -16,7 +16,7 @@ static void expect_error(const char *name, const char *json, const char *want) {
   if (!j) { fprintf(stderr, "bad JSON in %s\n", name); exit(2); }
   int rc = dem_model_from_json(&m, j, "processes.dem", &err);
   if (rc == 0) {
-    rc = dem_state_init(&m, &s, &err);
+    rc = dem_state_init(&m, &s, 0, &err);
     if (rc == 0) dem_state_free(&s);
     dem_model_free(&m);
   }
