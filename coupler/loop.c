@@ -213,13 +213,24 @@ static void publish_progress(cpl_runner *r, int64_t k, double rate) {
   proto_msg_free(&m);
 }
 
+/* One status line on a terminal; else (a batch run's log) a line per tenth
+ * of the run, so a long run shows where it is and when it will end. */
 static void show_progress(cpl_runner *r, int64_t k, double rate, int final) {
-  if (!r->opts->progress) return;
-  double eta = rate > 0 ? (double)(r->scene->n_steps - k) / rate : 0;
-  fprintf(stderr, "\r  step %lld/%lld  t = %.4g s  %.0f steps/s  ETA %.0f s   %s",
-          (long long)k, (long long)r->scene->n_steps, (double)k * r->scene->dt,
-          rate, eta, final ? "\n" : "");
-  fflush(stderr);
+  if (r->opts->quiet) return;
+  const int64_t n = r->scene->n_steps;
+  double eta = rate > 0 ? (double)(n - k) / rate : 0;
+  if (r->opts->progress) {
+    fprintf(stderr, "\r  step %lld/%lld  t = %.4g s  %.0f steps/s  ETA %.0f s   %s",
+            (long long)k, (long long)n, (double)k * r->scene->dt, rate, eta, final ? "\n" : "");
+    fflush(stderr);
+    return;
+  }
+  int tenth = n > 0 ? (int)(10 * k / n) : 10;
+  if (tenth <= r->progress_shown) return;
+  r->progress_shown = tenth;
+  printf("cosim: step %lld/%lld (%d %%), t = %.4g s, %.0f steps/s, ETA %.0f s\n", (long long)k,
+         (long long)n, 10 * tenth, (double)k * r->scene->dt, rate, eta);
+  fflush(stdout);
 }
 
 /* The coupler's own series: wall time and, for the implicit scheme, the

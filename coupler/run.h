@@ -152,6 +152,7 @@ typedef struct cpl_runner {
   cpl_zap *zap;
   cpl_ckpt *ckpt;  /* the checkpoint a restart continues from */
   int64_t k0;      /* the last step done before this run (restart), else 0 */
+  int progress_shown; /* tenths of the run shown in a batch log (loop.c) */
 } cpl_runner;
 
 /* liveness.c: receives the next message from `expect` (a peer index, or -1

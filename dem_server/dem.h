@@ -105,7 +105,6 @@ typedef struct dem_model {
   dem_mesh meshes[DEM_MAX_MESHES];
   int surface_material; /* material of the coupled FEM surface */
   double gravity[3];
-  double dt;             /* DEM step actually used (s) */
   double rayleigh_time;  /* over the smallest grain, notes §2 */
   double skin;           /* neighbour-list skin (m) */
   double overlap_tolerance;   /* initial overlap allowed, fraction of the smaller radius */
@@ -132,6 +131,7 @@ typedef struct dem_state {
   int n;
   int64_t step;
   double t;
+  double dt; /* DEM step (s): dem_state_set_dt, which a new coupling step re-splits */
   /* per grain (slot order, see id) */
   double *x, *v, *omega, *q; /* q: quaternion [n*4] (w, x, y, z), body→world; identity
                               * unless the model's `orientation` is on */
@@ -157,37 +157,44 @@ typedef struct dem_state {
 
 /* ---- model ---- */
 /* Reads a config section `processes.<name>` (key path `path`). Accepts and
- * ignores "exec". Needs no run information; dem_model_set_dt() finishes it. */
+ * ignores "exec". Needs no run information; refuses a dt above the stability
+ * limit (dem_model_dt without a coupling step). */
 int dem_model_from_json(dem_model *m, const cJSON *section, const char *path,
                         proto_err *err);
-/* Chooses the DEM step: the configured dt, or dt_fraction·T_R; when
- * coupling_dt > 0 it is split into equal sub-steps not larger than that.
- * Refuses a step above the stability limit (with the limit in the message). */
-int dem_model_set_dt(dem_model *m, double coupling_dt, proto_err *err);
+/* The DEM step: the configured dt, or dt_fraction·T_R; when coupling_dt > 0
+ * it is split into equal sub-steps not larger than that. Refuses a step above
+ * the stability limit (with the limit and the key in the message). The model
+ * is not changed: the step lives in the state (dem_state_set_dt). */
+int dem_model_dt(const dem_model *m, double coupling_dt, double *dt, proto_err *err);
 /* Adds the coupled FEM surface as a mesh wall (world positions at t = 0). */
 int dem_model_set_surface(dem_model *m, int n_nodes, const double *x0, int n_tri,
                           const int32_t *tri, proto_err *err);
 void dem_model_free(dem_model *m);
 double dem_rayleigh_time(double r, double density, double E, double nu);
-/* Smallest Rayleigh time over the model's grains (call after replacing grains,
- * then dem_model_set_dt). */
+/* Smallest Rayleigh time over the model's grains (set m->rayleigh_time to it
+ * after replacing grains, before dem_state_init). */
 double dem_model_rayleigh(const dem_model *m);
 /* Stability limit: largest dt accepted, as a fraction of T_R. */
 #define DEM_DT_LIMIT_FRACTION 0.5
 
 /* ---- state ---- */
-/* Allocates everything the run needs, checks the initial configuration
- * (overlaps, grains outside walls/domain) and computes the initial forces. */
-int dem_state_init(const dem_model *m, dem_state *s, proto_err *err);
+/* Allocates everything the run needs, sets the step (dem_state_set_dt with
+ * coupling_dt, 0 = none), checks the initial configuration (overlaps, grains
+ * outside walls/domain) and computes the initial forces (the tangential
+ * springs take vt·dt: they depend on the step). */
+int dem_state_init(const dem_model *m, dem_state *s, double coupling_dt, proto_err *err);
+/* s->dt = dem_model_dt(m, coupling_dt): call when the coupling step changes.
+ * On failure s->dt is unchanged. */
+int dem_state_set_dt(const dem_model *m, dem_state *s, double coupling_dt, proto_err *err);
 void dem_state_free(dem_state *s);
-/* One DEM step of m->dt. Fails (with where and why) on NaN, runaway overlap. */
+/* One DEM step of s->dt. Fails (with where and why) on NaN, runaway overlap. */
 int dem_step(const dem_model *m, dem_state *s, proto_err *err);
 /* Call first in main(): unless GOMP_SPINCOUNT or OMP_WAIT_POLICY is set,
  * sets GOMP_SPINCOUNT=10000 and re-executes the program (libgomp reads it
  * when loaded): threads waiting at a barrier then sleep soon instead of
  * spinning on a core that another process needs (dem_threads.c). */
 void dem_openmp_env(char **argv);
-/* Advances by `duration` in equal steps of m->dt (duration/m->dt rounded). */
+/* Advances by `duration` in equal steps of s->dt (duration/s->dt rounded). */
 int dem_advance(const dem_model *m, dem_state *s, double duration, proto_err *err);
 /* Sets coupled mesh nodes: positions at the current time and velocities. */
 void dem_mesh_set_nodes(const dem_model *m, dem_state *s, int mesh,

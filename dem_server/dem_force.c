@@ -196,7 +196,7 @@ static void batch_flush(const dem_model *m, dem_state *s, pair_batch *b, row_sum
   int ci = r->i, cnt = r->cnt;
   double f0 = r->f[0], f1 = r->f[1], f2 = r->f[2], t0 = r->t[0], t1 = r->t[1], t2 = r->t[2];
   double u = r->u, ratio = r->ratio;
-  batch_hertz(b, m->dt, m->limit_force);
+  batch_hertz(b, s->dt, m->limit_force);
   for (int q = 0; q < b->n; q++) {
     const int i = b->i[q], k = b->k[q], j = b->j[q];
     if (i != ci) {
@@ -314,7 +314,7 @@ static void batch_wall_hertz(wall_batch *restrict b, double dt, int clamp) {
  * pair sums) and to the chunk's plane totals, in batch order. */
 static void wall_flush(const dem_model *m, dem_state *s, wall_batch *b, double *part, dem_chunk_sum *sum) {
   struct dem_work *w = s->work;
-  batch_wall_hertz(b, m->dt, m->limit_force);
+  batch_wall_hertz(b, s->dt, m->limit_force);
   for (int q = 0; q < b->n; q++) {
     const int i = b->i[q], p = b->p[q];
     double *f = &s->force[3 * i], *t = &s->torque[3 * i];
@@ -379,7 +379,7 @@ static void plane_screen(const dem_model *m, dem_state *s, int i, wall_batch *b,
  * returns their kinetic energy (summed in grain order). */
 static double kick_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
   const struct dem_work *w = s->work;
-  const double dt = m->dt, half = 0.5 * dt, *g = m->gravity;
+  const double dt = s->dt, half = 0.5 * dt, *g = m->gravity;
   double ke = 0;
   if (m->orientation) /* over the step with the mid-step ω (still ω^{n+1/2} here) */
     for (int i = lo; i < hi; i++)

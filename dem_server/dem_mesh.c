@@ -558,7 +558,7 @@ int dem_mesh_grain(const dem_model *m, dem_state *s, int i, double *u) {
                c[k].zeta[2] * vn[3 * tn[2] + d]);
     const dem_pair_law *l = &m->law[s->material[i]][me->material];
     double up;
-    double Fn = dem_hertz(l, delta, r, mass, n, vc, m->dt, shear, F, nxf, &up);
+    double Fn = dem_hertz(l, delta, r, mass, n, vc, s->dt, shear, F, nxf, &up);
     double tr[3] = {0, 0, 0};
     if (m->has_rolling && l->mu_roll > 0) {
       dem_rolling(l, Fn, r, &s->omega[3 * i], tr);

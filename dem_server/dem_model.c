@@ -405,7 +405,8 @@ int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, pr
     if (m->radius[i] < rmin) rmin = m->radius[i];
   m->rayleigh_time = dem_model_rayleigh(m);
   m->skin = ex->skin >= 0 ? ex->skin : 0.5 * rmin;
-  if (dem_model_set_dt(m, 0.0, err) == 0) return 0;
+  double dt;
+  if (dem_model_dt(m, 0.0, &dt, err) == 0) return 0;
 fail:
   dem_model_free(m);
   return -1;
@@ -421,8 +422,8 @@ double dem_model_rayleigh(const dem_model *m) {
   return tr;
 }
 
-int dem_model_set_dt(dem_model *m, double coupling_dt, proto_err *err) {
-  dem_model_config *ex = &m->cfg;
+int dem_model_dt(const dem_model *m, double coupling_dt, double *out, proto_err *err) {
+  const dem_model_config *ex = &m->cfg;
   double dt = ex->dt_given > 0 ? ex->dt_given : ex->dt_fraction * m->rayleigh_time;
   if (coupling_dt > 0) {
     double nsub = ceil(coupling_dt / dt * (1 - 1e-12));
@@ -433,7 +434,7 @@ int dem_model_set_dt(dem_model *m, double coupling_dt, proto_err *err) {
     return proto_fail(err, "%s.%s: dt = %.4g s is above the stability limit %.4g s (%.2f x Rayleigh time "
                       "%.4g s of the smallest grain); lower dt or dt_fraction",
                       m->key_path, ex->dt_given > 0 ? "dt" : "dt_fraction", dt, limit, DEM_DT_LIMIT_FRACTION, m->rayleigh_time);
-  m->dt = dt;
+  *out = dt;
   return 0;
 }
 

@@ -214,7 +214,7 @@ int dem_sleep_partners(const dem_model *m, dem_state *s, proto_err *err) {
 void dem_sleep_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi) {
   struct dem_work *w = s->work;
   const double v2max = m->sleep.velocity * m->sleep.velocity, *g = m->gravity;
-  const int32_t rest_steps = (int32_t)ceil(m->sleep.time / m->dt - 1e-9);
+  const int32_t rest_steps = (int32_t)ceil(m->sleep.time / s->dt - 1e-9);
   int awake = 0;
   for (int i = lo; i < hi; i++) {
     if (w->asleep[i]) {

@@ -112,9 +112,19 @@ void dem_grain_constants(const dem_model *m, dem_state *s, int i, int g) {
   s->fix_rotation[i] = m->fix_rotation[g];
 }
 
-int dem_state_init(const dem_model *m, dem_state *s, proto_err *err) {
+int dem_state_set_dt(const dem_model *m, dem_state *s, double coupling_dt, proto_err *err) {
+  double dt;
+  if (dem_model_dt(m, coupling_dt, &dt, err)) return -1;
+  if (!(dt > 0)) /* a model built by hand without its Rayleigh time */
+    return proto_fail(err, "%s: time step not set (dt %g s, Rayleigh time %g s)", m->key_path, dt,
+                      m->rayleigh_time);
+  s->dt = dt;
+  return 0;
+}
+
+int dem_state_init(const dem_model *m, dem_state *s, double coupling_dt, proto_err *err) {
   memset(s, 0, sizeof *s);
-  if (m->dt <= 0) return proto_fail(err, "dem: time step not set");
+  if (dem_state_set_dt(m, s, coupling_dt, err)) return -1;
   if (alloc_state(m, s, err)) goto fail;
   for (int i = 0; i < s->n; i++) {
     memcpy(&s->x[3 * i], &m->x0[3 * i], 3 * sizeof(double));
@@ -167,16 +177,16 @@ static int check_health(const dem_model *m, const dem_state *s, double max_jump,
     if (!isfinite(x[0] + x[1] + x[2] + v[0] + v[1] + v[2]))
       return proto_fail(err, "step %lld (t = %.6g s): grain %d has a non-finite position or velocity",
                         (long long)s->step, s->t, (int)s->id[i]);
-    if (sqrt(dem_dot(v, v)) * m->dt > s->radius[i])
+    if (sqrt(dem_dot(v, v)) * s->dt > s->radius[i])
       return proto_fail(err, "step %lld (t = %.6g s): grain %d at (%g, %g, %g) moves %.3g m per step, "
                         "more than its radius: unstable (dt = %.3g s = %.3g Rayleigh times)",
                         (long long)s->step, s->t, (int)s->id[i], x[0], x[1], x[2],
-                        sqrt(dem_dot(v, v)) * m->dt, m->dt, m->dt / m->rayleigh_time);
+                        sqrt(dem_dot(v, v)) * s->dt, s->dt, s->dt / m->rayleigh_time);
     if (w->ratio[i] > m->max_overlap_ratio)
       return proto_fail(err, "step %lld (t = %.6g s): grain %d at (%g, %g, %g) overlaps by %.3g of its "
                         "radius (max_overlap_ratio %.3g): unstable or too soft (dt = %.3g s = %.3g "
                         "Rayleigh times)", (long long)s->step, s->t, (int)s->id[i], x[0], x[1], x[2],
-                        w->ratio[i], m->max_overlap_ratio, m->dt, m->dt / m->rayleigh_time);
+                        w->ratio[i], m->max_overlap_ratio, s->dt, s->dt / m->rayleigh_time);
   }
   return proto_fail(err, "step %lld (t = %.6g s): non-finite kinetic energy", (long long)s->step, s->t);
 }
@@ -191,7 +201,7 @@ static int check_health(const dem_model *m, const dem_state *s, double max_jump,
  *      threads. */
 int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
-  const double dt = m->dt, half = 0.5 * dt, lim2 = 0.25 * m->skin * m->skin;
+  const double dt = s->dt, half = 0.5 * dt, lim2 = 0.25 * m->skin * m->skin;
   const double *g = m->gravity;
   int rebuild = 0, jumped = 0;
   dem_threads_begin(s);
@@ -231,7 +241,7 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
 }
 
 int dem_advance(const dem_model *m, dem_state *s, double duration, proto_err *err) {
-  long long n = llround(duration / m->dt);
+  long long n = llround(duration / s->dt);
   for (long long k = 0; k < n; k++)
     if (dem_step(m, s, err)) return -1;
   return 0;

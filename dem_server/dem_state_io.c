@@ -7,7 +7,9 @@
  * with its springs and the reference positions that decide the next rebuild,
  * the plane and mesh contact springs with their keys, the mesh nodes, the
  * clock and the last forces (the next half kick uses them). Everything else in
- * the work struct is scratch or recomputed each step. */
+ * the work struct is scratch or recomputed each step. Not the step s->dt: the
+ * importing state keeps its own, which its coupling step decides
+ * (dem_state_set_dt). */
 #include "dem_server/dem_internal.h"
 
 #include <limits.h>

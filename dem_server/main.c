@@ -41,9 +41,8 @@ static int configure(void *user, const proto_run_info *info, const cJSON *sectio
   snprintf(a->name, sizeof a->name, "%s", info->name ? info->name : "dem");
   /* the initial configuration too (overlaps, grains outside): also for --check-config */
   dem_state probe;
-  if (dem_state_init(&a->model, &probe, err)) return -1;
+  if (dem_state_init(&a->model, &probe, info->dt, err)) return -1;
   dem_state_free(&probe);
-  if (info->dt > 0 && dem_model_set_dt(&a->model, info->dt, err)) return -1;
   return 0;
 }
 
@@ -95,8 +94,8 @@ static int report_bed_top(dem_app *a, cJSON *h, proto_err *err) {
 
 static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_err *err) {
   dem_app *a = user;
-  dem_model *m = &a->model;
-  if (add_surface(a, welcome, err) || dem_state_init(m, &a->state, err)) return -1;
+  const dem_model *m = &a->model;
+  if (add_surface(a, welcome, err) || dem_state_init(m, &a->state, a->run_dt, err)) return -1;
   a->have_state = 1;
   log_threads(a);
   /* a restart's state (dem_state_import into a fresh state, bitwise) takes
@@ -129,11 +128,11 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   if (dem_ready_declare(m, ready, err)) return -1;
   cJSON *h = proto_msg_header(ready);
   if (report_bed_top(a, h, err) < 0) return -1;
-  cJSON_AddNumberToObject(h, "dem_dt", m->dt);
+  cJSON_AddNumberToObject(h, "dem_dt", a->state.dt);
   cJSON_AddNumberToObject(h, "rayleigh_time", m->rayleigh_time);
   cJSON_AddNumberToObject(h, "grains", m->n_grains);
   fprintf(stderr, "dem_server: %d grains, %d walls, dt = %.4g s = %.3g Rayleigh times\n",
-          m->n_grains, m->n_walls, m->dt, m->dt / m->rayleigh_time);
+          m->n_grains, m->n_walls, a->state.dt, a->state.dt / m->rayleigh_time);
   return 0;
 }
 
@@ -168,11 +167,11 @@ static void to_mean(double *sum, size_t n, long long nsub) {
 static int step(void *user, proto_peer *peer, const proto_step_info *info, const proto_msg *req,
                 proto_msg *reply, proto_err *err) {
   dem_app *a = user;
-  dem_model *m = &a->model;
+  const dem_model *m = &a->model;
   dem_state *s = &a->state;
   const double dt = info->dt;
   if (fabs(dt - a->run_dt) > 1e-12 * dt) { /* coupling step changed: re-split it */
-    if (dem_model_set_dt(m, dt, err)) return -1;
+    if (dem_state_set_dt(m, s, dt, err)) return -1;
     a->run_dt = dt;
   }
   const size_t nn3 = a->surface >= 0 ? 3 * (size_t)m->meshes[a->surface].n_nodes : 0;
@@ -180,9 +179,9 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
   if (a->surface >= 0) /* checked against the role table by the participant loop */
     dem_mesh_set_nodes(m, s, a->surface, proto_msg_data(req, PROTO_A_X),
                        proto_msg_data(req, PROTO_A_V));
-  /* equal sub-steps m->dt = dt/nsub (dem_model_set_dt): the impulse/dt of a
+  /* equal sub-steps s->dt = dt/nsub (dem_state_set_dt): the impulse/dt of a
    * force sampled once per sub-step is the mean of the samples */
-  long long nsub = llround(dt / m->dt);
+  long long nsub = llround(dt / s->dt);
   if (nsub < 1) nsub = 1;
   for (long long k = 0; k < nsub; k++) {
     if (dem_step(m, s, err)) return proto_wrap(err, "coupling step %lld", (long long)info->k);

@@ -9,9 +9,12 @@
  *   fem_mesh   nodes, tetrahedra (TET4 or TET10, Gmsh node order) and named
  *              surface groups (lists of element faces)
  *   fem_model  the scene, fixed during a run: mesh, material, element data,
- *              lumped mass, constraints, K in compressed sparse columns, the
- *              kept factorisation, the stable time step
- *   fem_state  what changes: displacement u, velocity v, internal force ...
+ *              lumped mass, constraints, K in compressed sparse columns;
+ *              const once fem_model_assemble has built it
+ *   fem_state  what changes: displacement u, velocity v, internal force ...,
+ *              and the stable time step found for the run (fem_stable_dt)
+ *   fem_factor the static solver's own workspace: the kept factorisation and
+ *              its scratch, owned by the caller (fem_static_solve)
  * DOF vectors are flat arrays of length 3*n_nodes (node-major: x,y,z).
  * Units SI. Every fallible call takes a proto_err and returns -1 on error.
  */
@@ -145,8 +148,6 @@ double fem_wave_speed_p(const fem_material *mat); /* sqrt((lambda+2mu)/rho) */
 
 typedef enum fem_solver_kind { FEM_CHOLMOD = 0, FEM_PCG = 1 } fem_solver_kind;
 
-typedef struct fem_factor fem_factor; /* CHOLMOD handles (fem_solve.c) */
-
 typedef struct fem_model {
   fem_mesh mesh;          /* owned */
   fem_material mat;
@@ -171,9 +172,6 @@ typedef struct fem_model {
   double *kval;           /* [nnz] */
   int32_t *n2e_ptr;       /* [n_nodes+1] node -> (elem*npe+local) */
   int32_t *n2e;
-  fem_factor *factor;     /* kept factorisation, NULL before the first solve */
-  double omega_max;       /* sqrt(lambda_max(M^-1 K)), 0 until computed */
-  double dt_crit;         /* 2/omega_max, s */
 } fem_model;
 
 /* Takes ownership of *mesh (left zeroed). Checks the mesh and material,
@@ -195,12 +193,14 @@ void fem_model_fix_node(fem_model *md, int32_t node, int comp_mask,
  * sum_e V_e mu dev:dev + sum_a kappa V_a theta_a^2 / 2, so K stays symmetric
  * (it couples nodes two elements apart). Call before fem_model_assemble. */
 int fem_model_set_anp(fem_model *md, proto_err *err);
-/* Numbers the free DOFs and assembles K (CSC, upper). Drops a kept factor. */
+/* Numbers the free DOFs and assembles K (CSC, upper). The last step that
+ * writes the model: from here on every call takes it const. A fem_factor of
+ * an earlier assembly is stale (fem_static_solve refuses it: free it). */
 int fem_model_assemble(fem_model *md, proto_err *err);
 
 /* Scratch of the force kernel, so that the model stays const once built
  * (one per concurrent user of a model: fem_state and the static solver's
- * kept factor each own one). */
+ * fem_factor each own one). */
 typedef struct fem_work {
   double *elem_force; /* [n_elems*npe*3] element forces before the node gather;
                          ANP: V_e/4 theta_e per element first */
@@ -238,12 +238,20 @@ typedef struct fem_solve_stats {
   double memory_peak;      /* bytes, solver's own peak (CHOLMOD / PCG) */
 } fem_solve_stats;
 
+/* The static solver's workspace for one assembled model: CHOLMOD's common
+ * and kept factorisation, the right-hand-side and PCG scratch, a fem_work
+ * (fem_solve.c). Owned by the caller, who starts with NULL. */
+typedef struct fem_factor fem_factor;
+
 /* Solves K u = b with u = u_fixed on fixed DOFs (b full; the fixed part of b
- * is ignored). CHOLMOD keeps its factor in md->factor for later solves.
+ * is ignored). *factor is the caller's workspace: NULL at the first call
+ * (created then), kept for later solves of the same assembled model (CHOLMOD
+ * reuses its factorisation; a workspace of another model or an earlier
+ * assembly is an error); release it with fem_factor_free.
  * PCG: Jacobi, tolerance rtol (<= 0: 1e-10). stats may be NULL. */
-int fem_static_solve(fem_model *md, fem_solver_kind kind, double rtol,
-                     const double *b, double *u, fem_solve_stats *stats,
-                     proto_err *err);
+int fem_static_solve(const fem_model *md, fem_factor **factor,
+                     fem_solver_kind kind, double rtol, const double *b,
+                     double *u, fem_solve_stats *stats, proto_err *err);
 void fem_factor_free(fem_factor **f);
 /* Which BLAS the process uses (from /proc/self/maps), e.g. "openblas". */
 const char *fem_blas_name(void);
@@ -276,6 +284,11 @@ typedef struct fem_state {
   double work_ext;      /* work of b since the start */
   double work_abs;      /* sum of |work| increments (instability bound) */
   double kinetic, strain; /* 1/2 v.Mv, 1/2 u.Ku at t */
+  /* the stable step: a property of the model, found once per run by
+   * fem_stable_dt and kept here so that the model stays const (0 until
+   * then; fem_state_reset keeps them) */
+  double omega_max;     /* sqrt(lambda_max(M^-1 K)), rad/s */
+  double dt_crit;       /* 2/omega_max, s */
   double dt_sub;        /* last sub-step used */
   int64_t n_sub;        /* sub-steps taken so far */
   fem_frame frame;      /* frame motion over the coming advance (zeroed by
@@ -303,13 +316,15 @@ void fem_state_reset(const fem_model *md, fem_state *st, const double *u);
 
 /* Largest eigenvalue of M^-1 K over the free DOFs by power iteration with a
  * Rayleigh quotient (converged to rel. 1e-6 or max_iter); sets
- * md->omega_max and md->dt_crit = 2/omega_max. */
-int fem_stable_dt(fem_model *md, int max_iter, proto_err *err);
+ * st->omega_max and st->dt_crit = 2/omega_max. Call after fem_state_init:
+ * it uses st->work as scratch and leaves the rest of st as it was. */
+int fem_stable_dt(const fem_model *md, fem_state *st, int max_iter,
+                  proto_err *err);
 
 /* Advances st by `span` seconds with central differences (eq. 32, leapfrog
  * form, damping C = alpha M), external force st->b held constant, in the
  * frame st->frame (fictitious forces, fem_explicit.c):
- * n = ceil(span/(safety*dt_crit)) equal sub-steps, or a forced dt_sub > 0
+ * n = ceil(span/(safety*st->dt_crit)) equal sub-steps, or a forced dt_sub > 0
  * (span/dt_sub rounded up). Stops with an error naming the limit when the
  * discrete energy exceeds 10x (energy0 + work_abs) or is not finite. */
 int fem_explicit_advance(const fem_model *md, fem_state *st, double span,

@@ -74,11 +74,11 @@ void fem_state_reset(const fem_model *md, fem_state *st, const double *u) {
   st->n_sub = 0;
 }
 
-int fem_stable_dt(fem_model *md, int max_iter, proto_err *err) {
+int fem_stable_dt(const fem_model *md, fem_state *st, int max_iter, proto_err *err) {
+  if (!st->work.elem_force) return proto_fail(err, "stable time step: fem_state_init first");
   size_t n = (size_t)md->n_dof;
   double *x = malloc(sizeof *x * n), *y = malloc(sizeof *y * n);
-  fem_work w = {0};
-  if (!x || !y || fem_work_init(md, &w, err)) {
+  if (!x || !y) {
     free(x);
     free(y);
     return proto_fail(err, "out of memory (power iteration)");
@@ -91,7 +91,7 @@ int fem_stable_dt(fem_model *md, int max_iter, proto_err *err) {
   double lam = 0, lam_old = 0;
   int it;
   for (it = 1; it <= max_iter; it++) {
-    fem_internal_force(md, &w, x, y);
+    fem_internal_force(md, &st->work, x, y); /* the state's scratch: u, fint untouched */
     double xKx = 0, xMx = 0, nrm = 0;
     for (size_t i = 0; i < n; i++) {
       if (md->fixed[i]) continue;
@@ -112,11 +112,10 @@ int fem_stable_dt(fem_model *md, int max_iter, proto_err *err) {
   }
   free(x);
   free(y);
-  fem_work_free(&w);
   if (!(lam > 0) || !isfinite(lam))
     return proto_fail(err, "stable time step: power iteration gave lambda_max = %g", lam);
-  md->omega_max = sqrt(lam);
-  md->dt_crit = 2.0 / md->omega_max;
+  st->omega_max = sqrt(lam);
+  st->dt_crit = 2.0 / st->omega_max;
   return 0;
 }
 
@@ -127,11 +126,11 @@ static int unstable(const fem_model *md, const fem_state *st, double dt, int64_t
       return proto_fail(err, "explicit run diverged at t = %.6g s (sub-step %lld of %lld): "
                         "non-finite displacement at node %d; dt_sub = %.4g s, stable limit "
                         "dt_crit = 2/omega_max = %.4g s", st->t, (long long)k, (long long)n,
-                        i / 3, dt, md->dt_crit);
+                        i / 3, dt, st->dt_crit);
   return proto_fail(err, "explicit run unstable at t = %.6g s (sub-step %lld of %lld): discrete "
                     "energy %.4g J exceeds 10x (initial %.4g J + work %.4g J); dt_sub = %.4g s "
                     "vs stable limit dt_crit = 2/omega_max = %.4g s", st->t, (long long)k,
-                    (long long)n, st->energy, st->energy0, st->work_abs, dt, md->dt_crit);
+                    (long long)n, st->energy, st->energy0, st->work_abs, dt, st->dt_crit);
 }
 
 /* Solves A v = r for a node whose fixed components have v = 0: their rows
@@ -196,9 +195,9 @@ static double node_step_rotating(const fem_model *md, fem_state *st, int32_t a, 
 int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double safety,
                          double dt_sub, proto_err *err) {
   if (!(span > 0)) return proto_fail(err, "explicit advance: span %g must be > 0", span);
-  if (!(md->dt_crit > 0) && !(dt_sub > 0))
+  if (!(st->dt_crit > 0) && !(dt_sub > 0))
     return proto_fail(err, "explicit advance: stable step not computed (fem_stable_dt)");
-  double target = dt_sub > 0 ? dt_sub : safety * md->dt_crit;
+  double target = dt_sub > 0 ? dt_sub : safety * st->dt_crit;
   int64_t n = (int64_t)ceil(span / target - 1e-9);
   if (n < 1) n = 1;
   const double dt = span / n, alpha = md->mat.damping;

@@ -41,7 +41,6 @@ void fem_model_free(fem_model *md) {
   free(md->n2e_ptr);
   free(md->n2e);
   free(md->node_vol);
-  fem_factor_free(&md->factor);
   memset(md, 0, sizeof *md);
 }
 
@@ -204,7 +203,6 @@ static int csc_fill(fem_model *md, int32_t *nb_ptr, int32_t *nb, int32_t *cnt, p
 }
 
 int fem_model_assemble(fem_model *md, proto_err *err) {
-  fem_factor_free(&md->factor);
   free(md->eq); free(md->colptr); free(md->rowind); free(md->kval);
   md->colptr = md->rowind = NULL;
   md->kval = NULL;

@@ -26,8 +26,9 @@ static const char *const ST_U = "u", *const ST_V = "v", *const ST_V_HALF = "v_ha
 
 typedef struct server {
   fem_config cfg;
-  fem_model md;
+  fem_model md;         /* built by configure, const from then on */
   fem_state st;
+  fem_factor *factor;   /* static solver's kept factorisation (NULL before the first solve) */
   double span;          /* coupling step, s */
   double *b_static;     /* [n_dof] pressure loads (rim frame) */
   double *b_qs;         /* [n_dof] quasi-static right-hand side */
@@ -142,7 +143,7 @@ static int alloc_snapshots(server *s, proto_err *err) {
 static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_err *err) {
   (void)welcome;
   server *s = user;
-  fem_model *md = &s->md;
+  const fem_model *md = &s->md;
   const char *path = s->cfg.path;
   size_t nd = (size_t)md->n_dof;
   s->b_static = calloc(nd, sizeof *s->b_static);
@@ -155,7 +156,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   fem_load_gravity(md, s->cfg.gravity, s->b_qs);
   if (s->cfg.initial_static || s->cfg.mode == FEM_QUASI_STATIC) {
     fem_solve_stats ss;
-    if (fem_static_solve(md, s->cfg.solver, 1e-10, s->b_qs, u0, &ss, err))
+    if (fem_static_solve(md, &s->factor, s->cfg.solver, 1e-10, s->b_qs, u0, &ss, err))
       return proto_wrap(err, "%s: initial static solve", path);
     fprintf(stderr, "%s: static solve K u0 = b0: %d equations, %s (BLAS: %s), analyze %.3f s, "
             "factor %.3f s, solve %.3f s, %d iterations, residual %.1e\n", path, md->n_eq,
@@ -164,15 +165,15 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   }
   fem_state_reset(md, &s->st, u0);
   if (s->cfg.mode == FEM_EXPLICIT) {
-    if (fem_stable_dt(md, s->cfg.power_iterations, err)) return -1;
-    double dt = s->cfg.dt_sub > 0 ? s->cfg.dt_sub : s->cfg.safety * md->dt_crit;
-    if (s->cfg.dt_sub > md->dt_crit && !s->cfg.allow_unstable)
+    if (fem_stable_dt(md, &s->st, s->cfg.power_iterations, err)) return -1;
+    double dt = s->cfg.dt_sub > 0 ? s->cfg.dt_sub : s->cfg.safety * s->st.dt_crit;
+    if (s->cfg.dt_sub > s->st.dt_crit && !s->cfg.allow_unstable)
       return proto_fail(err, "%s.dt_sub: %.4g s exceeds the stable limit dt_crit = 2/omega_max = "
-                        "%.4g s (set allow_unstable to force it)", path, s->cfg.dt_sub, md->dt_crit);
+                        "%.4g s (set allow_unstable to force it)", path, s->cfg.dt_sub, s->st.dt_crit);
     fprintf(stderr, "%s: %d nodes, %d %s elements; stable step dt_crit = 2/omega_max = %.4g s "
             "(power iteration), sub-step %.4g s (safety %.2f), %lld sub-steps per coupling step "
             "of %.4g s\n", path, md->mesh.n_nodes, md->mesh.n_elems,
-            md->npe == 10 ? "tet10" : "tet4", md->dt_crit, dt, s->cfg.safety,
+            md->npe == 10 ? "tet10" : "tet4", s->st.dt_crit, dt, s->cfg.safety,
             s->span > 0 ? (long long)((s->span / dt) + 0.999999) : 0LL, s->span);
   }
   if (build_surface(s, err) || alloc_snapshots(s, err)) return -1;
@@ -187,7 +188,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
     return proto_fail(err, "out of memory");
   cJSON *h = proto_msg_header(ready);
   cJSON *info = cJSON_AddObjectToObject(h, "fem");
-  cJSON_AddNumberToObject(info, "dt_crit", md->dt_crit);
+  cJSON_AddNumberToObject(info, "dt_crit", s->st.dt_crit);
   cJSON_AddNumberToObject(info, "nodes", md->mesh.n_nodes);
   cJSON_AddNumberToObject(info, "elements", md->mesh.n_elems);
   cJSON_AddNumberToObject(info, "equations", md->n_eq);
@@ -229,7 +230,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
                 const proto_msg *req, proto_msg *reply, proto_err *err) {
   (void)peer;
   server *s = user;
-  fem_model *md = &s->md;
+  const fem_model *md = &s->md;
   /* checked against the role table by the participant loop */
   const double *f = proto_msg_data(req, PROTO_A_NODAL_FORCE);
   const double *R = proto_msg_data(req, PROTO_A_RIM_R);
@@ -258,7 +259,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
               frame, so no Coriolis; frame loads at the previous u (lag) */
     fem_load_frame(md, &s->st.frame, s->st.u, b);
     memcpy(s->u_prev, s->st.u, sizeof *s->u_prev * (size_t)md->n_dof);
-    if (fem_static_solve(md, s->cfg.solver, 1e-10, b, s->st.u, NULL, err)) return -1;
+    if (fem_static_solve(md, &s->factor, s->cfg.solver, 1e-10, b, s->st.u, NULL, err)) return -1;
     for (int32_t i = 0; i < md->n_dof; i++) s->st.v[i] = (s->st.u[i] - s->u_prev[i]) / span;
     fem_internal_force(md, &s->st.work, s->st.u, s->st.fint);
     double se = 0, ke = 0;
@@ -350,6 +351,7 @@ static int state_load(void *user, const proto_msg *state, proto_err *err) {
 static void finish(void *user) {
   server *s = user;
   fem_state_free(&s->st);
+  fem_factor_free(&s->factor);
   fem_model_free(&s->md);
   free(s->b_static); free(s->b_qs); free(s->u_prev);
   free(s->surf_node); free(s->surf_tri); free(s->surf_x0);

@@ -1,6 +1,8 @@
 /* fem_solve.c — static solve K u = b over the free DOFs: CHOLMOD (supernodal
  * Cholesky, factor kept for reuse) or Jacobi-preconditioned CG. Dirichlet
- * DOFs are eliminated: K_ff u_f = b_f - K_fc u_c. */
+ * DOFs are eliminated: K_ff u_f = b_f - K_fc u_c. What the solver keeps
+ * between solves (factorisation, scratch) is its own fem_factor, owned by
+ * the caller: the model stays const. */
 #include "fem_server/fem.h"
 
 #include <math.h>
@@ -10,6 +12,10 @@
 #include <suitesparse/cholmod.h>
 
 struct fem_factor {
+  /* the assembly this workspace belongs to (fem_static_solve checks it) */
+  const int32_t *colptr, *rowind;
+  const double *kval;
+  int32_t n_eq, n_dof, nnz;
   cholmod_common c;
   cholmod_factor *L;
   cholmod_dense *X, *Y, *E; /* cholmod_solve2 workspaces, reused */
@@ -75,7 +81,7 @@ static double norm2(const double *x, int32_t n) {
 }
 
 /* rhs = b_f - (K u_c)_f, using the factor's scratch. */
-static void reduced_rhs(fem_model *md, fem_factor *f, const double *b) {
+static void reduced_rhs(const fem_model *md, fem_factor *f, const double *b) {
   int any = 0;
   for (int32_t i = 0; i < md->n_dof; i++) {
     f->full[i] = md->fixed[i] ? md->u_fixed[i] : 0;
@@ -96,6 +102,12 @@ static fem_factor *factor_new(const fem_model *md, proto_err *err) {
     proto_fail(err, "out of memory");
     return NULL;
   }
+  f->colptr = md->colptr;
+  f->rowind = md->rowind;
+  f->kval = md->kval;
+  f->n_eq = md->n_eq;
+  f->n_dof = md->n_dof;
+  f->nnz = md->colptr[md->n_eq];
   cholmod_start(&f->c);
   f->c.print = 0;
   f->rhs = malloc(sizeof *f->rhs * (size_t)md->n_eq);
@@ -108,15 +120,16 @@ static fem_factor *factor_new(const fem_model *md, proto_err *err) {
   return f;
 }
 
-/* A cholmod_sparse view of the model's CSC arrays (no copy). */
+/* A cholmod_sparse view of the model's CSC arrays (no copy). cholmod_sparse
+ * has no const members; analyze and factorize only read A. */
 static cholmod_sparse csc_view(const fem_model *md) {
   cholmod_sparse A;
   memset(&A, 0, sizeof A);
   A.nrow = A.ncol = (size_t)md->n_eq;
   A.nzmax = (size_t)md->colptr[md->n_eq];
-  A.p = md->colptr;
-  A.i = md->rowind;
-  A.x = md->kval;
+  A.p = (void *)md->colptr;
+  A.i = (void *)md->rowind;
+  A.x = (void *)md->kval;
   A.stype = 1; /* upper triangle stored */
   A.itype = CHOLMOD_INT;
   A.xtype = CHOLMOD_REAL;
@@ -126,7 +139,7 @@ static cholmod_sparse csc_view(const fem_model *md) {
   return A;
 }
 
-static int cholmod_path(fem_model *md, fem_factor *f, fem_solve_stats *st, proto_err *err) {
+static int cholmod_path(const fem_model *md, fem_factor *f, fem_solve_stats *st, proto_err *err) {
   cholmod_sparse A = csc_view(md);
   if (!f->L) {
     double t0 = proto_now();
@@ -216,12 +229,16 @@ static int pcg_path(const fem_model *md, const double *rhs, double *x, double *w
   return 0;
 }
 
-int fem_static_solve(fem_model *md, fem_solver_kind kind, double rtol, const double *b,
-                     double *u, fem_solve_stats *stats, proto_err *err) {
+int fem_static_solve(const fem_model *md, fem_factor **factor, fem_solver_kind kind, double rtol,
+                     const double *b, double *u, fem_solve_stats *stats, proto_err *err) {
   if (!md->colptr) return proto_fail(err, "static solve before fem_model_assemble");
   if (stats) memset(stats, 0, sizeof *stats);
-  if (!md->factor && !(md->factor = factor_new(md, err))) return -1;
-  fem_factor *f = md->factor;
+  if (!*factor && !(*factor = factor_new(md, err))) return -1;
+  fem_factor *f = *factor;
+  if (f->colptr != md->colptr || f->rowind != md->rowind || f->kval != md->kval ||
+      f->n_eq != md->n_eq || f->n_dof != md->n_dof || f->nnz != md->colptr[md->n_eq])
+    return proto_fail(err, "static solve: the solver workspace belongs to another model or an "
+                      "earlier assembly (fem_factor_free it after fem_model_assemble)");
   reduced_rhs(md, f, b);
   double t0 = proto_now();
   const double *xf;

@@ -63,7 +63,7 @@ typedef struct lgd_sim lgd_sim;
 
 /* dem_server's reader (dem_model_from_json) on every rank of comm, but only
  * rank 0 keeps the grains: the others hold one stand-in grain and rank 0's
- * grain-dependent values (Rayleigh time, dt, skin, settling settings). Such a
+ * grain-dependent values (Rayleigh time, hence dt, skin, settling settings). Such a
  * model is only for lgd_open (which takes the grain count from rank 0).
  * Collective; errors agreed (rank 0's message). */
 int lgd_model_from_json(dem_model *m, const cJSON *section, const char *path, MPI_Comm comm,
@@ -78,9 +78,11 @@ int lgd_check_model(const dem_model *m, proto_err *err);
  * only rank 0's grains are read: lgd_model_from_json), computes the initial forces and, when
  * the model asks for it (generated bed, settle_max_steps > 0), settles the bed
  * and then restarts the clock at t = 0 (and saves the bed if asked). The model
- * must outlive the sim; lgd_step may change its dt (dem_model_set_dt). */
-int lgd_open(lgd_sim **out, MPI_Comm comm, dem_model *m, const lgd_options *o,
-             proto_err *err);
+ * must outlive the sim and is not changed by it. The DEM step is the sim's:
+ * dem_model_dt(m, coupling_dt) (0 = no coupling step), re-split by lgd_step
+ * when the coupling step changes. */
+int lgd_open(lgd_sim **out, MPI_Comm comm, const dem_model *m, double coupling_dt,
+             const lgd_options *o, proto_err *err);
 /* One coupling step of length dt: the coupled surface (if any) starts at x with
  * node velocities v (every rank passes them) and moves with v through the
  * sub-steps, as in dem_server. */
@@ -91,6 +93,8 @@ const lgd_out *lgd_result(const lgd_sim *s);
  * (arrays [n_grains*3]; NULL allowed on other ranks). */
 int lgd_gather(lgd_sim *s, double *x, double *v, double *omega, proto_err *err);
 const lgd_timing *lgd_time(const lgd_sim *s);
+/* The DEM step LIGGGHTS integrates with now (s). */
+double lgd_dt(const lgd_sim *s);
 /* Triangles LIGGGHTS holds for model mesh k (after lgd_open). */
 int lgd_mesh_triangles(const lgd_sim *s, int mesh);
 /* The edge/corner activity LIGGGHTS uses now for mesh k ([n_tri*3] each, on

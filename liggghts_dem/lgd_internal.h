@@ -99,9 +99,10 @@ typedef struct lgd_script {
   char *text;
   size_t len, cap;
 } lgd_script;
-/* face_tolerance: LIGGGHTS mesh `precision`, 0 = chosen from the grain size. */
-int lgd_script_build(const dem_model *m, const char *dir, double face_tolerance, lgd_script *s,
-                     proto_err *err);
+/* face_tolerance: LIGGGHTS mesh `precision`, 0 = chosen from the grain size;
+ * dt: the DEM step (dem_model_dt). */
+int lgd_script_build(const dem_model *m, const char *dir, double face_tolerance, double dt,
+                     lgd_script *s, proto_err *err);
 void lgd_script_free(lgd_script *s);
 /* Y* per type pair [ntypes*ntypes] (caller frees). */
 double *lgd_estar_table(const dem_model *m, int ntypes);

@@ -49,7 +49,6 @@ int lgd_model_from_json(dem_model *m, const cJSON *section, const char *path, MP
    * skin, and the settling and saving settings of a generated bed */
   MPI_Bcast(&m->rayleigh_time, 1, MPI_DOUBLE, 0, comm);
   MPI_Bcast(&m->skin, 1, MPI_DOUBLE, 0, comm);
-  MPI_Bcast(&m->dt, 1, MPI_DOUBLE, 0, comm);
   MPI_Bcast(&m->cfg, (int)sizeof m->cfg, MPI_BYTE, 0, comm);
   return 0;
 }

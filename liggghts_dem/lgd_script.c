@@ -243,7 +243,8 @@ static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const c
   return rc ? proto_fail(err, "LIGGGHTS input: out of memory") : 0;
 }
 
-int lgd_script_build(const dem_model *m, const char *dir, double tol, lgd_script *s, proto_err *err) {
+int lgd_script_build(const dem_model *m, const char *dir, double tol, double dt, lgd_script *s,
+                     proto_err *err) {
   memset(s, 0, sizeof *s);
   if (lgd_check_model(m, err)) return -1;
   char data[600];
@@ -269,7 +270,7 @@ int lgd_script_build(const dem_model *m, const char *dir, double tol, lgd_script
   snprintf(model, sizeof model, "model hertz tangential history%s", m->has_rolling ? " rolling_friction cdt" : "");
   /* limit_force: LIGGGHTS' `limitForce on` (F_n never attractive), after the
    * pair style's model and last in each wall fix (LIGGGHTS' keyword order) */
-  rc = rc || add(s, "pair_style gran %s%s\npair_coeff * *\ntimestep %.17g\n", model, LIMIT_FORCE(m), m->dt);
+  rc = rc || add(s, "pair_style gran %s%s\npair_coeff * *\ntimestep %.17g\n", model, LIMIT_FORCE(m), dt);
   const double *g = m->gravity, gm = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
   if (gm > 0) rc = rc || add(s, "fix lgd_gravity all gravity %.17g vector %.17g %.17g %.17g\n", gm, g[0], g[1], g[2]);
   if (rc) return proto_fail(err, "LIGGGHTS input: out of memory");

@@ -19,7 +19,7 @@ static const char RUN_ONE[] = "run 1 pre no post no";
 _Static_assert(LGD_SHIM_TIMERS == LGD_LIG_TIMERS, "the shim's timer order is lgd_timing.lig's");
 
 struct lgd_sim {
-  dem_model *m;
+  const dem_model *m;
   MPI_Comm comm;
   int rank, nproc;
   void *lmp;
@@ -33,7 +33,7 @@ struct lgd_sim {
   double *wall_local, *mesh_acc;
   lgd_rows rows;
   lgd_out out;
-  double t, coupling_dt, lig_dt; /* lig_dt: the step LIGGGHTS integrates with */
+  double t, coupling_dt, dt; /* dt: the DEM step, the one LIGGGHTS integrates with */
   int mesh_tri[DEM_MAX_MESHES];
   int plane_axis[DEM_MAX_PLANES];
   int32_t *near;          /* (grain index, plane) pairs within r + skin of a plane */
@@ -58,6 +58,8 @@ static int agree(MPI_Comm comm, int rc, proto_err *err) {
 
 const lgd_out *lgd_result(const lgd_sim *s) { return &s->out; }
 const lgd_timing *lgd_time(const lgd_sim *s) { return &s->time; }
+
+double lgd_dt(const lgd_sim *s) { return s->dt; }
 
 int lgd_mesh_triangles(const lgd_sim *s, int mesh) {
   return mesh >= 0 && mesh < s->m->n_meshes ? s->mesh_tri[mesh] : -1;
@@ -129,7 +131,7 @@ static int make_script(lgd_sim *s, const lgd_options *o, char *dir, size_t dirca
       rc = proto_fail(err, "%s: cannot create a directory for the LIGGGHTS input", dir);
       dir[0] = 0;
     } else {
-      rc = lgd_script_build(s->m, dir, o ? o->face_tolerance : 0, &sc, err);
+      rc = lgd_script_build(s->m, dir, o ? o->face_tolerance : 0, s->dt, &sc, err);
       len = rc ? 0 : (long)sc.len;
     }
   }
@@ -210,7 +212,8 @@ static int save_bed(lgd_sim *s, proto_err *err) {
   return agree(s->comm, rc, err);
 }
 
-int lgd_open(lgd_sim **out, MPI_Comm comm, dem_model *m, const lgd_options *o, proto_err *err) {
+int lgd_open(lgd_sim **out, MPI_Comm comm, const dem_model *m, double coupling_dt, const lgd_options *o,
+             proto_err *err) {
   *out = NULL;
   lgd_sim *s = calloc(1, sizeof *s);
   int rc = s ? 0 : proto_fail(err, "out of memory");
@@ -219,10 +222,10 @@ int lgd_open(lgd_sim **out, MPI_Comm comm, dem_model *m, const lgd_options *o, p
   MPI_Comm_dup(comm, &s->comm);
   MPI_Comm_rank(s->comm, &s->rank);
   MPI_Comm_size(s->comm, &s->nproc);
-  s->coupling_dt = 0;
-  s->lig_dt = m->dt;
+  s->coupling_dt = 0; /* the first lgd_step re-splits its step: the same dt, no change */
   s->frozen_activity = o ? o->frozen_activity : 0;
-  rc = lgd_check_model(m, err);
+  rc = dem_model_dt(m, coupling_dt, &s->dt, err);
+  if (!rc) rc = lgd_check_model(m, err);
   if (!rc) rc = alloc_sim(s, err);
   char dir[600], *text = NULL;
   if (agree(s->comm, rc, err) || make_script(s, o, dir, sizeof dir, &text, err)) {
@@ -411,7 +414,7 @@ static int check_grains(lgd_sim *s, proto_err *err) {
   double **x = lammps_extract_atom(s->lmp, "x"), **v = lammps_extract_atom(s->lmp, "v");
   double *r = lammps_extract_atom(s->lmp, "radius");
   int *tag = lammps_extract_atom(s->lmp, "id");
-  const double dt2 = m->dt * m->dt;
+  const double dt2 = s->dt * s->dt;
   for (int i = 0; i < n; i++) {
     const double *p = x[i], *u = v[i], v2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
     if (__builtin_expect(!(v2 * dt2 <= r[i] * r[i]) || !isfinite(p[0] + p[1] + p[2]), 0)) {
@@ -420,28 +423,29 @@ static int check_grains(lgd_sim *s, proto_err *err) {
         return proto_fail(err, "t = %.6g s: grain %d has a non-finite position or velocity", s->t, tag[i] - 1);
       return proto_fail(err, "t = %.6g s: grain %d at (%g, %g, %g) moves %.3g m per step, more than its "
                         "radius: unstable (dt = %.3g s = %.3g Rayleigh times)", s->t, tag[i] - 1, p[0], p[1],
-                        p[2], speed * m->dt, m->dt, m->dt / m->rayleigh_time);
+                        p[2], speed * s->dt, s->dt, s->dt / m->rayleigh_time);
     }
   }
   return 0;
 }
 
-static int change_dt(lgd_sim *s, double dt, proto_err *err) {
-  if (dem_model_set_dt(s->m, dt, err)) return -1;
-  s->coupling_dt = dt;
-  if (s->m->dt == s->lig_dt) return 0;
+static int change_dt(lgd_sim *s, double coupling_dt, proto_err *err) {
+  double dt;
+  if (dem_model_dt(s->m, coupling_dt, &dt, err)) return -1;
+  s->coupling_dt = coupling_dt;
+  if (dt == s->dt) return 0;
   char cmd[64];
-  snprintf(cmd, sizeof cmd, "timestep %.17g", s->m->dt);
+  snprintf(cmd, sizeof cmd, "timestep %.17g", dt);
   lammps_command(s->lmp, cmd);
   /* `run N pre no` keeps the integrators' old dt: one set-up run makes them
    * take the new one (../shared/notes/liggghts.md §5) */
   lammps_command(s->lmp, "run 0 post no");
-  s->lig_dt = s->m->dt;
+  s->dt = dt;
   return 0;
 }
 
 int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err *err) {
-  dem_model *m = s->m;
+  const dem_model *m = s->m;
   lgd_timing *tm = &s->time;
   const double t_start = MPI_Wtime();
   double t0;
@@ -450,7 +454,7 @@ int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err 
   else if (s->surface >= 0 && (!x || !v)) rc = proto_fail(err, "the coupled surface needs node positions and velocities");
   else if (fabs(dt - s->coupling_dt) > 1e-12 * dt) rc = change_dt(s, dt, err);
   if (agree(s->comm, rc, err)) return -1;
-  const long long nsub = llround(dt / m->dt) < 1 ? 1 : llround(dt / m->dt);
+  const long long nsub = llround(dt / s->dt) < 1 ? 1 : llround(dt / s->dt);
   memset(s->wall_local, 0, sizeof(double) * 3 * (size_t)m->n_walls);
   memset(s->mesh_acc, 0, sizeof(double) * 3 * (size_t)m->n_meshes);
   char sid[LGD_ID_LEN];
@@ -467,7 +471,7 @@ int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err 
     if (s->surface >= 0) {
       /* the surface moves with its node velocities through the step, and the
        * forces of each sub-step see it where it is (dem_mesh_move) */
-      for (size_t a = 0; a < 3 * (size_t)s->n_nodes; a++) s->node_x[a] += s->node_v[a] * m->dt;
+      for (size_t a = 0; a < 3 * (size_t)s->n_nodes; a++) s->node_x[a] += s->node_v[a] * s->dt;
       /* LIGGGHTS decided edge/corner activity once, on the initial shape:
        * re-decide it by its own rule on this shape (lgd_topo.c) */
       if (!s->frozen_activity) lgd_topo_activity(&s->topo, s->node_x, s->edge_on, s->corner_on);
@@ -528,7 +532,7 @@ int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err 
   else if (ratio > m->max_overlap_ratio)
     rc = proto_fail(err, "t = %.6g s: a contact overlaps by %.3g of the grain radius (max_overlap_ratio %.3g): "
                     "unstable or too soft (dt = %.3g s = %.3g Rayleigh times)", s->t, ratio,
-                    m->max_overlap_ratio, m->dt, m->dt / m->rayleigh_time);
+                    m->max_overlap_ratio, s->dt, s->dt / m->rayleigh_time);
   return rc; /* the same on every rank: computed from reduced values */
 }
 

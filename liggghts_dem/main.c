@@ -56,10 +56,9 @@ static int do_configure(app *a, const char *json, double dt, proto_err *err) {
   if (!rc) rc = lgd_check_model(&a->model, err);
   if (!rc && a->rank == 0) { /* dem_server's initial checks: overlaps, grains outside */
     dem_state probe;
-    rc = dem_state_init(&a->model, &probe, err);
+    rc = dem_state_init(&a->model, &probe, dt, err); /* and the step of this coupling step */
     if (!rc) dem_state_free(&probe);
   }
-  if (!rc && dt > 0) rc = dem_model_set_dt(&a->model, dt, err);
   a->run_dt = dt;
   return rc;
 }
@@ -79,7 +78,7 @@ static int do_init(app *a, int64_t n_nodes, const double *x0, int64_t n_tri, con
   MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
   if (any < 0) return -1; /* deterministic: every rank failed alike */
   lgd_options o = {.screen = a->rank == 0 ? a->screen : NULL};
-  if (lgd_open(&a->sim, MPI_COMM_WORLD, m, &o, err)) return -1;
+  if (lgd_open(&a->sim, MPI_COMM_WORLD, m, a->run_dt, &o, err)) return -1;
   if (a->rank != 0) return 0;
   const size_t n = (size_t)m->n_grains;
   a->wall_row = calloc(1 + 3 * (size_t)m->n_walls, sizeof(double));
@@ -233,12 +232,13 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   cJSON *h = proto_msg_header(ready);
   int ranks;
   MPI_Comm_size(MPI_COMM_WORLD, &ranks);
-  cJSON_AddNumberToObject(h, "dem_dt", m->dt);
+  const double dt = lgd_dt(a->sim);
+  cJSON_AddNumberToObject(h, "dem_dt", dt);
   cJSON_AddNumberToObject(h, "rayleigh_time", m->rayleigh_time);
   cJSON_AddNumberToObject(h, "grains", m->n_grains);
   cJSON_AddNumberToObject(h, "mpi_ranks", ranks);
   fprintf(stderr, "liggghts_dem: %d grains, %d walls, dt = %.4g s = %.3g Rayleigh times, %d MPI rank%s, "
-          "LIGGGHTS screen in %s\n", m->n_grains, m->n_walls, m->dt, m->dt / m->rayleigh_time, ranks,
+          "LIGGGHTS screen in %s\n", m->n_grains, m->n_walls, dt, dt / m->rayleigh_time, ranks,
           ranks > 1 ? "s" : "", a->screen);
   return 0;
 }

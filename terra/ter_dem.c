@@ -125,7 +125,7 @@ static void move_mesh(const dem_model *m, dem_state *s, int mesh, double dz, con
 
 static int build(cJSON *sec, const char *path, dem_model *m, dem_state *s, proto_err *err) {
   int rc = dem_model_from_json(m, sec, path, err);
-  if (rc == 0 && dem_state_init(m, s, err)) {
+  if (rc == 0 && dem_state_init(m, s, 0, err)) {
     dem_model_free(m);
     rc = -1;
   }
@@ -155,7 +155,7 @@ static int settle(const dem_model *m, dem_state *s, double ke, int64_t max_steps
   if (dem_settle(m, s, ke, max_steps, log ? settle_progress : NULL, log, err)) return -1;
   if (log)
     fprintf(log, "terra: %d grains settled in %lld steps of %.3g s (%.1f s wall, %.3g grain-steps/s), "
-            "KE %.3g J per grain\n", s->n, (long long)(s->step - k0), m->dt, proto_now() - t0,
+            "KE %.3g J per grain\n", s->n, (long long)(s->step - k0), s->dt, proto_now() - t0,
             rate(s, k0, t0), s->kinetic_energy / s->n);
   return 0;
 }
@@ -274,13 +274,13 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
   ter_series_meta(out, "seed", "%llu", (unsigned long long)sp->seed);
   ter_series_meta(out, "surface_z_m", "%.6g", z_surf);
   ter_series_meta(out, "top_grain_diameter_m", "%.6g", d_top);
-  ter_series_meta(out, "dt_s", "%.6g", m.dt);
+  ter_series_meta(out, "dt_s", "%.6g", s.dt);
   double bed_top = 0;
   for (int i = 0; i < s.n; i++) bed_top = fmax(bed_top, s.x[3 * i + 2] + s.radius[i]);
   ter_series_meta(out, "bed_max_height_m", "%.6g", bed_top);
   if (log)
     fprintf(log, "terra: plate %.3g m, surface at %.4g m (top grains %.3g mm), %d grains, dt %.3g s\n",
-            b, z_surf, 1e3 * d_top, s.n, m.dt);
+            b, z_surf, 1e3 * d_top, s.n, s.dt);
   /* push: bins of dz sinkage */
   double acc[5] = {0, 0, 0, 0, 0}, t0 = proto_now();
   int nacc = 0, bin = 0;
@@ -409,7 +409,7 @@ int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log
     return proto_wrap(err, "shear test");
   }
   m.rayleigh_time = dem_model_rayleigh(&m);
-  if (dem_model_set_dt(&m, 0, err) || dem_state_init(&m, &s, err)) {
+  if (dem_state_init(&m, &s, 0, err)) { /* its dt checked against the new grains */
     dem_model_free(&m);
     return proto_wrap(err, "shear test");
   }
@@ -430,7 +430,7 @@ int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log
     if (dem_step(&m, &s, err)) goto fail;
     double v[3] = {0, 0, servo_velocity(&sv, s.wall_force[3 * w_plat + 2])};
     move_mesh(&m, &s, w_plat, 0, v, xbuf, vbuf);
-    held = fabs(sv.N_filt / sv.N_target - 1) < TER_CONSOLIDATE_TOL ? held + m.dt : 0;
+    held = fabs(sv.N_filt / sv.N_target - 1) < TER_CONSOLIDATE_TOL ? held + s.dt : 0;
     if (s.t - t_cons0 > TER_CONSOLIDATE_MAX) {
       proto_fail(err, "the platen did not hold sigma_n within %g %% in %g s (at %g Pa)",
                  100 * TER_CONSOLIDATE_TOL, TER_CONSOLIDATE_MAX, sv.N_filt / A0);
@@ -449,7 +449,7 @@ int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log
   ter_series_meta(out, "specimen_height_m", "%.6g", z_plat0);
   ter_series_meta(out, "speed_m_s", "%.6g", sp->speed);
   ter_series_meta(out, "seed", "%llu", (unsigned long long)sp->seed);
-  ter_series_meta(out, "dt_s", "%.6g", m.dt);
+  ter_series_meta(out, "dt_s", "%.6g", s.dt);
   ter_series_meta(out, "servo", "v_z = -%.4g m/s x (N_target - N)/N_target, |v_z| <= %.4g m/s", sv.gain, sv.vmax);
   if (log)
     fprintf(log, "terra: shear box %d grains, specimen %.4g m high, consolidated to %.4g Pa in %.3g s\n",

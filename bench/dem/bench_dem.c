@@ -87,8 +87,8 @@ int main(int argc, char **argv) {
     return 1;
   }
   m.rayleigh_time = dem_model_rayleigh(&m);
-  if (dem_model_set_dt(&m, 0, &err) || dem_state_init(&m, &s, &err)) { fprintf(stderr, "%s\n", err.msg); return 1; }
-  printf("dt = %.4g s = %.4g Rayleigh times\nthreads: %s\n", m.dt, m.dt / m.rayleigh_time, s.threads_why);
+  if (dem_state_init(&m, &s, 0, &err)) { fprintf(stderr, "%s\n", err.msg); return 1; }
+  printf("dt = %.4g s = %.4g Rayleigh times\nthreads: %s\n", s.dt, s.dt / m.rayleigh_time, s.threads_why);
   FILE *ke = argc > 7 && strcmp(argv[7], "-") ? fopen(argv[7], "w") : NULL;
   double t0 = omp_get_wtime(), c0 = cpu_now();
   for (long k = 1; k <= nsettle + nrun; k++) {

@@ -21,7 +21,7 @@ int main(int argc, char **argv) {
   dem_model m;
   dem_state s;
   cJSON *j = cJSON_Parse(json);
-  if (dem_model_from_json(&m, j, "impact", &err) || dem_state_init(&m, &s, &err)) {
+  if (dem_model_from_json(&m, j, "impact", &err) || dem_state_init(&m, &s, 0, &err)) {
     fprintf(stderr, "%s\n", err.msg);
     return 1;
   }

@@ -85,8 +85,7 @@ int main(int argc, char **argv) {
   int32_t *tri;
   if (read_mesh(argv[2], c0, &nn, &x0, &nt, &tri)) { fprintf(stderr, "%s: bad mesh file\n", argv[2]); return 1; }
   m.rayleigh_time = dem_model_rayleigh(&m);
-  if (dem_model_set_dt(&m, 0, &err) || dem_model_set_surface(&m, nn, x0, nt, tri, &err) ||
-      dem_state_init(&m, &s, &err)) {
+  if (dem_model_set_surface(&m, nn, x0, nt, tri, &err) || dem_state_init(&m, &s, 0, &err)) {
     fprintf(stderr, "%s\n", err.msg);
     return 1;
   }
@@ -99,7 +98,7 @@ int main(int argc, char **argv) {
   const double vd[3] = {0, 0, -vdesc}, vm[3] = {vx, 0, 0};
   for (long k = 0; k < ndesc + nmove; k++) {
     if (k < ndesc ? k == 0 : (k - ndesc) % couple == 0) {
-      const double td = (k < ndesc ? k : ndesc) * m.dt, tm = (k < ndesc ? 0 : k - ndesc) * m.dt;
+      const double td = (k < ndesc ? k : ndesc) * s.dt, tm = (k < ndesc ? 0 : k - ndesc) * s.dt;
       const double c[3] = {c0[0] + vx * tm, c0[1], c0[2] - vdesc * td};
       place(nn, x0, c0, c, k < ndesc ? 0 : omega * tm, k < ndesc ? vd : vm, k < ndesc ? 0 : omega, x, v);
       dem_mesh_set_nodes(&m, &s, mesh, x, v);

@@ -75,13 +75,13 @@ int main(int argc, char **argv) {
   snprintf(tmp, sizeof tmp, "/tmp");
   lgd_options o = {.tmp_dir = tmp};
   t0 = MPI_Wtime();
-  if (lgd_open(&sim, MPI_COMM_WORLD, &m, &o, &err)) {
+  if (lgd_open(&sim, MPI_COMM_WORLD, &m, 0, &o, &err)) {
     fprintf(stderr, "rank %d: %s\n", rank, err.msg);
     MPI_Abort(MPI_COMM_WORLD, 2);
   }
   const double t_open = MPI_Wtime() - t0, mem_open = rss_sum();
   for (int k = 0; k < settle; k++)
-    if (lgd_step(sim, m.dt, NULL, NULL, &err)) {
+    if (lgd_step(sim, lgd_dt(sim), NULL, NULL, &err)) {
       fprintf(stderr, "rank %d: %s\n", rank, err.msg);
       MPI_Abort(MPI_COMM_WORLD, 2);
     }
@@ -89,7 +89,7 @@ int main(int argc, char **argv) {
   MPI_Barrier(MPI_COMM_WORLD);
   t0 = MPI_Wtime();
   for (int k = 0; k < timed; k++)
-    if (lgd_step(sim, m.dt, NULL, NULL, &err)) {
+    if (lgd_step(sim, lgd_dt(sim), NULL, NULL, &err)) {
       fprintf(stderr, "rank %d: %s\n", rank, err.msg);
       MPI_Abort(MPI_COMM_WORLD, 2);
     }

@@ -4,7 +4,10 @@
 # Records in bench/results/terra/, tables and PNGs: bench/results/terra.md.
 #
 # usage: bench/terra/run_terra.sh [BUILD_DIR] [stage...]
-#   stages: deep paper fine coarse checks fit (default: all, in that order)
+#   stages: deep paper fine coarse checks fit (default: all, in that order) on
+#   configs/default.json's 5 MPa grains; scene20: the paper scene's own grains
+#   (configs/tire_soil_paper.json: 20 MPa, its pair friction), plates on its bed
+#   depth (38 mm on the floor), fine shear box, fit and reference curves at 80 N
 # Runs that already have their record are skipped (delete it to redo).
 # COSIM_LOCK=FILE wraps every DEM run in `flock FILE` (machines shared with
 # other heavy jobs); THREADS (default 1: on a busy machine OpenMP threads wait for each other) sets the DEM's OpenMP threads.
@@ -92,6 +95,27 @@ m=s['processes']['dem']['materials'][0]; m['E']*=2; json.dump(s,open(sys.argv[2]
       done
     done
     /usr/bin/python3 "$root/bench/terra/plot_terra.py" "$root/bench/results"
+    ;;
+  scene20)
+    # the paper scene's grains, bed and plate (tread) material; one packing
+    p20=$root/configs/tire_soil_paper.json
+    for bc in 0.060:0.36 0.110:0.50 0.165:0.66; do
+      b=${bc%:*}; L=${bc#*:}
+      run "$out/plate_paper20_b${b}_s1.csv" plate "$p20" --width "$b" --container "$L" \
+        --depth-factor 1 --speed 0.02 --zmax 0.025 --seed 1
+    done
+    for sig in 2500 5000 10000 20000; do
+      run "$out/shear_fine20_sig${sig}_s1.csv" shear "$p20" --sigma "$sig" --dmin 0.006555 \
+        --dmax 0.0078 --length 0.2 --box-width 0.2 --height 0.1 --speed 0.02 --jmax 0.03 \
+        --dj 0.00025 --seed 1
+    done
+    "$terra" fit --plate "$out/plate_paper20_b0.060_s1.csv" --plate "$out/plate_paper20_b0.110_s1.csv" \
+      --plate "$out/plate_paper20_b0.165_s1.csv" \
+      --shear "$out/shear_fine20_sig2500_s1.csv" --shear "$out/shear_fine20_sig5000_s1.csv" \
+      --shear "$out/shear_fine20_sig10000_s1.csv" --shear "$out/shear_fine20_sig20000_s1.csv" \
+      --out "$root/bench/results/tire_soil_terra_params_paper20.json"
+    "$terra" curve --params "$root/bench/results/tire_soil_terra_params_paper20.json" --radius 0.272 \
+      --width 0.165 --load 80 --slips 0:0.3:0.01 --out "$root/bench/results/tire_soil_terra_reference_paper20_W80.csv"
     ;;
   *) echo "unknown stage '$st'" >&2; exit 1 ;;
   esac

@@ -1,12 +1,19 @@
 """bench/results/tire_soil.md from the timed runs of bench/tire_soil/run_paper.sh.
 
-    PYTHONPATH=python /usr/bin/python3 bench/tire_soil/report.py WORK_DIR [--sweep DIR] [NAME...]
+    PYTHONPATH=python /usr/bin/python3 bench/tire_soil/report.py WORK_DIR
+        [--sweep LABEL=DIR]... [--sens NAME,NAME,...] [NAME...]
 
 NAME (default: paper deep) are run dirs in WORK_DIR with NAME.time and NAME.log
-beside them; a missing one is reported as not run. --sweep: a `cosim sweep`
-output dir whose summary.csv and summary.png go into the report. Writes
+beside them; a missing one is reported as not run. --sweep (repeatable): a
+`cosim sweep` output dir (LABEL: its rig) whose summary.csv goes into the
+report; all sweeps are drawn side by side, like seed 000 fig. 15, beside
+their terramechanics reference (the sweep's reference.csv). --sens: timed runs
+of one scene that differ in the coupling step or scheme; the first is the
+reference, the finest step is taken as "exact" and each run's traction means
+are compared with it over a common window (error against run time). Writes
 bench/results/tire_soil.md (then bench/tire_soil/findings.md, hand-written,
-appended as is), tire_soil.json, tire_soil_<NAME>.png, tire_soil_sweep.png."""
+appended as is), tire_soil.json, tire_soil_<NAME>.png, tire_soil_sweep.png,
+tire_soil_sensitivity.png."""
 import json
 import math
 import os
@@ -53,7 +60,8 @@ def one(work, name):
     loop = LOOP_RE.search(log)
     fin = FINISHED_RE.search(log)
     grains, settle_steps, settle_s = settle_seconds(run)
-    res = {"name": name, "scene": t.get("scene"), "rc": int(t.get("rc", -1)),
+    res = {"name": name, "scene": t.get("scene"), "args": t.get("args", ""),
+           "rc": int(t.get("rc", -1)),
            "wall_s": float(t.get("wall_s", "nan")), "load_before": t.get("load_before"),
            "load_after": t.get("load_after"), "loop_table": loop.group(0).strip() if loop else "",
            "steps": int(fin.group(1)) if fin else None, "grains": grains,
@@ -121,40 +129,188 @@ def table(res):
     return rows
 
 
-def sweep_section(d):
+def read_summary(d):
+    """(window notes, header, rows) of a sweep's summary.csv."""
     lines = open(os.path.join(d, "summary.csv")).read().splitlines()
     notes = [l[2:] for l in lines if l.startswith("# window")]
     rows = [l.split(",") for l in lines if not l.startswith("#")]
-    head, body = rows[0], rows[1:]
+    return notes, rows[0], rows[1:]
+
+
+def sweep_section(label, d):
+    notes, head, body = read_summary(d)
     keep = [0] + [i for i, c in enumerate(head) if c.endswith(("_mean", "_min", "_max"))
                   or c in ("travel_start_s", "window_t0_s", "window_t1_s")]
-    md = ["## Slip sweep", "", f"`cosim sweep` output `{os.path.basename(os.path.normpath(d))}`; "
+    md = [f"### rig: {label}", "", f"`cosim sweep` output `{os.path.basename(os.path.normpath(d))}`; "
           + "; ".join(notes) + ".", "",
           "| " + " | ".join(head[i] for i in keep) + " |", "|" + "---|" * len(keep)]
+
     def cell(v):
         try:
             return f"{float(v):.4g}"
         except ValueError:
             return v
     md += ["| " + " | ".join(cell(r[i]) for i in keep) + " |" for r in body]
-    png = os.path.join(d, "summary.png")
-    if os.path.exists(png):
-        shutil.copy(png, os.path.join(RESULTS, "tire_soil_sweep.png"))
-        md += ["", "![sweep](tire_soil_sweep.png)"]
     return md + [""]
+
+
+def read_reference(path):
+    with open(path) as f:
+        body = [l for l in f if not l.startswith("#")]
+    return np.genfromtxt(body, delimiter=",", names=True)
+
+
+def sweep_plot(sweeps, path):
+    """Seed 000 fig. 15: T_H, |T_R|, T_P over slip (mean, min-max), one panel
+    per rig, with the terramechanics T/r, T/r - DP and DP dashed."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(sweeps), figsize=(6.5 * len(sweeps), 4.8), sharey=True,
+                             squeeze=False)
+    styles = [("T_H", "T_H", "tab:blue", 1), ("T_R", "|T_R|", "tab:red", -1),
+              ("T_P", "T_P", "tab:green", 1)]
+    for ax, (label, d) in zip(axes[0], sweeps):
+        _, head, body = read_summary(d)
+        col = {c: i for i, c in enumerate(head)}
+        slip = np.array([float(r[0]) for r in body])
+        for j, (q, name, color, sign) in enumerate(styles):
+            m = np.array([sign * float(r[col[q + "_mean"]]) for r in body])
+            a = np.array([sign * float(r[col[q + "_min"]]) for r in body])
+            b = np.array([sign * float(r[col[q + "_max"]]) for r in body])
+            lo, hi = np.minimum(a, b), np.maximum(a, b)
+            at = slip + (j - 1) * 0.004
+            ax.errorbar(at, m, yerr=[m - lo, hi - m], fmt="o-", color=color, capsize=3, lw=1,
+                        label=f"DEM-FEM {name}: mean, min-max")
+        load = np.array([float(r[col["vertical_load_mean"]]) for r in body])
+        for x, w in zip(slip, load):
+            ax.annotate(f"{w:.0f} N", (x, 0), textcoords="offset points", xytext=(0, -22),
+                        ha="center", fontsize=7, color="0.35")
+        ref = os.path.join(d, "reference.csv")
+        if os.path.exists(ref):
+            r = read_reference(ref)
+            ax.plot(r["s"], r["T_over_r"], "--", color="tab:blue", label="terramechanics T/r")
+            ax.plot(r["s"], r["T_over_r"] - r["DP"], "--", color="tab:red",
+                    label="terramechanics T/r - DP")
+            ax.plot(r["s"], r["DP"], "--", color="tab:green", label="terramechanics DP")
+        ax.axhline(0, color="0.6", lw=0.8)
+        ax.set_xlabel("slip s (grey: mean vertical load of the run)")
+        ax.set_title(f"rig: {label}", fontsize=10)
+        ax.legend(fontsize=6.5, loc="upper left")
+    axes[0][0].set_ylabel("force (N)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+SENS_Q = ["T_H", "T_R", "T_P", "vertical_load"]
+
+
+def sens_one(work, name):
+    """One sensitivity run: its scheme, step, loop time and the traction
+    series (None if it did not run)."""
+    run = os.path.join(work, name)
+    if not os.path.exists(run + ".time"):
+        return None
+    t = read_time(run + ".time")
+    res = {"name": name, "args": t.get("args", ""), "rc": int(t.get("rc", -1)),
+           "wall_s": float(t.get("wall_s", "nan")), "load": f"{t.get('load_before')} / {t.get('load_after')}"}
+    if not os.path.exists(os.path.join(run, "results.h5")):
+        return res
+    with Results(run) as r:
+        tr = r.series("coupler", "traction")
+        res["scheme"] = r.scene["coupling"]["scheme"]
+        res["dt"] = r.scene["time"]["dt"]
+        res["t"], res["q"] = tr["t"].copy(), {q: tr[q].copy() for q in SENS_Q}
+        res["loop_s"] = float(r.timing["wall"].sum())
+        res["steps"] = len(r.timing["wall"])
+        sc = r.scene["scenario"]
+        reached = np.nonzero(tr["vertical_load"] >= sc["sinkage_force"])[0]
+        res["start"] = float(tr["t"][reached[0]]) if len(reached) else math.nan
+        res["speed"] = sc["omega"] * sc["radius"] * (1 - sc["slip"])
+    if res["rc"] != 0:
+        log = open(run + ".log", errors="replace").read().strip().splitlines()
+        res["error"] = next((l for l in log if "failed:" in l), log[-1] if log else "")
+    return res
+
+
+def sens_section(work, names):
+    runs = [sens_one(work, n) for n in names]
+    ok = [r for r in runs if r and r["rc"] == 0 and "t" in r]
+    md = ["## How the figures move with the coupling step and scheme", ""]
+    if not ok:
+        return md + ["No sensitivity run finished.", ""], {}
+    t1 = min(r["t"][-1] for r in ok)
+    for r in ok:  # each run's own steady window, cut at the common end
+        t0 = r["start"] + DEFAULT_SKIP_TRAVEL_M / r["speed"]
+        m = (r["t"] >= t0) & (r["t"] <= t1 + 1e-12)
+        r["window"] = (t0, t1)
+        r["mean"] = {q: float(r["q"][q][m].mean()) if m.any() else math.nan for q in SENS_Q}
+    exact = min(ok, key=lambda r: (r["dt"], r["scheme"] != "implicit"))
+    md += [f"Each run from the same saved bed, load rig, 5 % slip; means over its travel from "
+           f"{DEFAULT_SKIP_TRAVEL_M} m to t = {t1:.3f} s. Difference: against the finest run "
+           f"(`{exact['name']}`, {exact['scheme']}, dt = {exact['dt'] * 1e6:g} µs). Loop time: the "
+           "coupled loop's wall time (the coupler's timing table) for the common simulated time.", "",
+           "| run | scheme | dt (µs) | loop wall (s) | ms/step | " +
+           " | ".join(f"{q} mean (N)" for q in SENS_Q) + " | " +
+           " | ".join(f"Δ{q} (N)" for q in SENS_Q[:3]) + " |",
+           "|" + "---|" * (5 + len(SENS_Q) + 3)]
+    for r in runs:
+        if r is None:
+            continue
+        if r not in ok:
+            md.append(f"| {r['name']} | {r.get('scheme', '?')} | "
+                      f"{r['dt'] * 1e6 if 'dt' in r else float('nan'):g} | failed: "
+                      f"{r.get('error', 'rc ' + str(r['rc']))} |" + " |" * (len(SENS_Q) + 4))
+            continue
+        ms = 1e3 * r["loop_s"] / r["steps"]
+        r["loop_common"] = ms * 1e-3 * (t1 / r["dt"])
+        md.append(f"| {r['name']} | {r['scheme']} | {r['dt'] * 1e6:g} | {r['loop_common']:.0f} | "
+                  f"{ms:.2f} | " + " | ".join(f"{r['mean'][q]:.2f}" for q in SENS_Q) + " | " +
+                  " | ".join(f"{r['mean'][q] - exact['mean'][q]:+.2f}" for q in SENS_Q[:3]) + " |")
+    sens_plot(ok, exact, os.path.join(RESULTS, "tire_soil_sensitivity.png"))
+    md += ["", "![sensitivity](tire_soil_sensitivity.png)", ""]
+    return md, {r["name"]: {k: v for k, v in r.items() if k not in ("t", "q")} for r in runs if r}
+
+
+def sens_plot(ok, exact, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    for q, color in [("T_H", "tab:blue"), ("T_R", "tab:red"), ("T_P", "tab:green")]:
+        for r in ok:
+            if r is exact:
+                continue
+            ax.scatter(r["loop_common"], abs(r["mean"][q] - exact["mean"][q]), color=color,
+                       label=q if r is next(x for x in ok if x is not exact) else None)
+            ax.annotate(f"{r['scheme']} {r['dt'] * 1e6:g} µs", (r["loop_common"],
+                        abs(r["mean"][q] - exact["mean"][q])), fontsize=6, xytext=(3, 3),
+                        textcoords="offset points")
+    ax.set_xlabel("coupled loop wall time for the common window (s)")
+    ax.set_ylabel(f"|mean - mean of {exact['name']}| (N)")
+    ax.set_title("traction means: difference from the finest run against run time", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def main():
     args = sys.argv[1:]
-    sweep_dir = None
-    if "--sweep" in args:
+    sweeps, sens = [], []
+    while "--sweep" in args:
         i = args.index("--sweep")
-        sweep_dir = args[i + 1]
+        label, _, d = args[i + 1].partition("=")
+        sweeps.append((label, d))
+        del args[i:i + 2]
+    if "--sens" in args:
+        i = args.index("--sens")
+        sens = args[i + 1].split(",")
         del args[i:i + 2]
     work = args[0]
     names = args[1:] or ["paper", "deep"]
     done = {n: one(work, n) for n in names}
-    json.dump(done, open(os.path.join(RESULTS, "tire_soil.json"), "w"), indent=1, default=str)
     md = ["# The paper's tyre on soil at full scale: wall time and traction", "",
           "`bash bench/tire_soil/run_paper.sh build WORK paper` (and `SCENE=configs/tire_soil_paper_deep.json "
           "... deep`), then `PYTHONPATH=python /usr/bin/python3 bench/tire_soil/report.py WORK`. "
@@ -169,7 +325,8 @@ def main():
         if res is None:
             md += ["**Not run** (no timed run in this report).", ""]
             continue
-        md.append(f"Scene `{res['scene']}`: {res['grains']} grains; load average before "
+        md.append(f"Scene `{res['scene']}`{' with `' + res['args'] + '`' if res['args'] else ''}: "
+                  f"{res['grains']} grains; load average before "
                   f"{res['load_before']}, after {res['load_after']} (2 cores, shared with other "
                   "jobs: the wall times are upper bounds for an idle machine).")
         md.append("")
@@ -192,8 +349,18 @@ def main():
                "```", res["loop_table"], "```", ""]
         md += ["Traction over the steady window (`/coupler/traction`; T_R is negative: against the travel):",
                ""] + table(res) + ["", f"![{n}](tire_soil_{n}.png)", ""]
-    if sweep_dir:
-        md += sweep_section(sweep_dir)
+    if sweeps:
+        md += ["## Slip sweep", ""]
+        for label, d in sweeps:
+            md += sweep_section(label, d)
+        sweep_plot(sweeps, os.path.join(RESULTS, "tire_soil_sweep.png"))
+        md += ["![sweep](tire_soil_sweep.png)", ""]
+    sens_json = {}
+    if sens:
+        sens_md, sens_json = sens_section(work, sens)
+        md += sens_md
+    json.dump({"runs": done, "sensitivity": sens_json}, open(os.path.join(RESULTS, "tire_soil.json"), "w"),
+              indent=1, default=str)
     findings = os.path.join(os.path.dirname(os.path.abspath(__file__)), "findings.md")
     if os.path.exists(findings):
         md += [open(findings).read().rstrip()]

@@ -11,7 +11,7 @@ static inline void scene(const char *json, dem_model *m, dem_state *s) {
   proto_err err = {{0}};
   cJSON *j = cJSON_Parse(json);
   if (!j) { fprintf(stderr, "bad test JSON: %s\n", json); exit(2); }
-  if (dem_model_from_json(m, j, "processes.dem", &err) || dem_state_init(m, s, &err)) {
+  if (dem_model_from_json(m, j, "processes.dem", &err) || dem_state_init(m, s, 0, &err)) {
     fprintf(stderr, "setup: %s\n", err.msg);
     exit(2);
   }

@@ -20,7 +20,7 @@ static int load(const char *path, char *msg) {
   cJSON *j = cJSON_Parse(json);
   int rc = dem_model_from_json(&m, j, "processes.dem", &err);
   if (!rc) {
-    rc = dem_state_init(&m, &s, &err);
+    rc = dem_state_init(&m, &s, 0, &err);
     if (!rc) dem_state_free(&s);
     dem_model_free(&m);
   }

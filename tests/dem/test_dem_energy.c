@@ -70,8 +70,8 @@ int main(int argc, char **argv) {
     contact_steps += s.contacts > 0;
     if (s.contacts == 0 && d > worst_free) worst_free = d; /* no contact: no shadow-energy term */
   }
-  printf("dt = %.3g s = %.3g T_R; %d steps, %lld steps with contacts, %lld rebuilds\n", m.dt,
-         m.dt / m.rayleigh_time, steps, (long long)contact_steps, (long long)s.rebuilds);
+  printf("dt = %.3g s = %.3g T_R; %d steps, %lld steps with contacts, %lld rebuilds\n", s.dt,
+         s.dt / m.rayleigh_time, steps, (long long)contact_steps, (long long)s.rebuilds);
   CHECK(contact_steps > steps / 20, "too few contacts to test anything (%lld)", (long long)contact_steps);
   printf("max |E(t) - E(0)| / E(0) = %.3g at any step, %.3g at contact-free steps\n", worst, worst_free);
   CHECK(worst <= 1e-6, "energy drift %.3g > 1e-6", worst);

@@ -1,7 +1,10 @@
 /* Bad input gives a clear error naming the key (and a non-zero status from
  * the library call): overlapping grains, radius <= 0, nu >= 0.5, grains
- * outside the domain, dt above the stability limit, unknown keys, types. */
+ * outside the domain, dt above the stability limit, unknown keys, types.
+ * And the step rule (dem_state_init / dem_state_set_dt): dt_fraction × T_R
+ * split into equal sub-steps of a coupling step, refused above the limit. */
 #include "dem_test.h"
+#include <math.h>
 #include <string.h>
 
 #define MAT "\"materials\":[{\"density\":2600,\"E\":1e7,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.5}]"
@@ -16,7 +19,7 @@ static void expect_error(const char *name, const char *json, const char *want) {
   if (!j) { fprintf(stderr, "bad JSON in %s\n", name); exit(2); }
   int rc = dem_model_from_json(&m, j, "processes.dem", &err);
   if (rc == 0) {
-    rc = dem_state_init(&m, &s, &err);
+    rc = dem_state_init(&m, &s, 0, &err);
     if (rc == 0) dem_state_free(&s);
     dem_model_free(&m);
   }
@@ -26,7 +29,45 @@ static void expect_error(const char *name, const char *json, const char *want) {
   CHECK(rc == 0 || strstr(err.msg, want), "%s: message lacks '%s'", name, want);
 }
 
+/* The step is the state's: without a coupling step dt_fraction × T_R (T_R of
+ * notes §2 computed here), with one the fewest equal sub-steps not longer than
+ * that; a coupling step may change it; a step above the limit is refused,
+ * naming the key, and leaves the state's step as it was. */
+static void check_step_rule(void) {
+  dem_model m;
+  dem_state s;
+  proto_err err = {{0}};
+  cJSON *j = cJSON_Parse("{" MAT ",\"dt_fraction\":0.1,\"particles\":[" P(0, 0, 0, 0.005) "]}");
+  CHECK(dem_model_from_json(&m, j, "processes.dem", &err) == 0, "%s", err.msg);
+  cJSON_Delete(j);
+  const double G = 1e7 / (2 * 1.3), tr = M_PI * 0.005 * sqrt(2600 / G) / (0.1631 * 0.3 + 0.8766);
+  const double own = 0.1 * tr; /* 4.4e-5 s */
+  CHECK(dem_state_init(&m, &s, 0, &err) == 0, "%s", err.msg);
+  CHECK_REL("dt without a coupling step", s.dt, own, 1e-14);
+  dem_state_free(&s);
+  const double coupling[3] = {1e-4, 4 * own, 1e-5}; /* 3 sub-steps, exactly 4, one shorter step */
+  const double nsub[3] = {3, 4, 1};
+  CHECK(dem_state_init(&m, &s, coupling[0], &err) == 0, "%s", err.msg);
+  for (int k = 0; k < 3; k++) {
+    CHECK(k == 0 || dem_state_set_dt(&m, &s, coupling[k], &err) == 0, "%s", err.msg);
+    printf("coupling step %.4g s: dt = %.6g s (%.0f sub-steps)\n", coupling[k], s.dt, coupling[k] / s.dt);
+    CHECK_REL("dt = coupling step / sub-steps", s.dt, coupling[k] / nsub[k], 1e-14);
+  }
+  m.cfg.dt_given = 0.6 * tr; /* a model edited by hand: refused, the state keeps its step */
+  CHECK(dem_state_set_dt(&m, &s, 0, &err) != 0, "dt above the limit accepted");
+  CHECK_MSG(err, "processes.dem.dt: dt = ");
+  CHECK_MSG(err, "above the stability limit");
+  CHECK(s.dt == coupling[2] / nsub[2], "a refused step changed the state's dt to %g", s.dt);
+  dem_state_free(&s);
+  m.cfg.dt_given = 0;
+  m.rayleigh_time = 0; /* grains replaced without their Rayleigh time */
+  CHECK(dem_state_init(&m, &s, 0, &err) != 0, "a zero step accepted");
+  CHECK_MSG(err, "processes.dem: time step not set");
+  dem_model_free(&m);
+}
+
 int main(void) {
+  check_step_rule();
   expect_error("overlapping grains", "{" MAT "," BOX ",\"particles\":[" P(0.05, 0.05, 0.05, 0.01) ","
                P(0.065, 0.05, 0.05, 0.01) "]}", "grains 0 and 1 overlap");
   expect_error("radius 0", "{" MAT ",\"particles\":[" P(0, 0, 0, 0.01) "," P(1, 0, 0, 0) "]}",

@@ -99,7 +99,7 @@ static void run(int limit_force, double rolling, int couple) {
     }
   double x[NA * NW * 3], v[NA * NW * 3];
   surface_nodes(&g, 0, x, v);
-  if (dem_model_set_surface(&m, NA * NW, x, nt, tri, &err) || dem_state_init(&m, &s, &err)) {
+  if (dem_model_set_surface(&m, NA * NW, x, nt, tri, &err) || dem_state_init(&m, &s, 0, &err)) {
     fprintf(stderr, "setup: %s\n", err.msg);
     exit(2);
   }
@@ -114,7 +114,7 @@ static void run(int limit_force, double rolling, int couple) {
       fprintf(stderr, "step %d: %s\n", k, err.msg);
       exit(2);
     }
-    for (int d = 0; d < 3; d++) g.c[d] += g.v[d] * m.dt;
+    for (int d = 0; d < 3; d++) g.c[d] += g.v[d] * s.dt;
     /* sums: grains (orbital about c + spin), surface nodes */
     double Fg[3] = {0}, Tg[3] = {0}, Fm[3] = {0}, Tm[3] = {0}, mag = 0, tmag = 0;
     for (int i = 0; i < s.n; i++) {

@@ -50,7 +50,7 @@ static void make(int threads, int seed, dem_model *m, dem_state *s) {
   double x[3 * FOOT_NODES], v[3 * FOOT_NODES];
   foot(0, x, v);
   if (!j || dem_model_from_json(m, j, "processes.dem", &err) ||
-      dem_model_set_surface(m, FOOT_NODES, x, 2 * FOOT_N * FOOT_N, tri, &err) || dem_state_init(m, s, &err)) {
+      dem_model_set_surface(m, FOOT_NODES, x, 2 * FOOT_N * FOOT_N, tri, &err) || dem_state_init(m, s, 0, &err)) {
     fprintf(stderr, "setup: %s\n", err.msg);
     exit(2);
   }
@@ -63,7 +63,7 @@ static void run(const dem_model *m, dem_state *s, int k0, int k1) {
   double x[3 * FOOT_NODES], v[3 * FOOT_NODES];
   for (int k = k0; k < k1; k++) {
     if (k % COUPLING == 0) {
-      foot(k * m->dt, x, v);
+      foot(k * s->dt, x, v);
       dem_mesh_set_nodes(m, s, m->n_meshes - 1, x, v);
     }
     if (dem_step(m, s, &err)) { fprintf(stderr, "step %d: %s\n", k, err.msg); exit(1); }

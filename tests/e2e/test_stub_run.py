@@ -47,6 +47,8 @@ def run_scheme(scheme):
     check(rc == 0, f"{scheme}: run exits 0 (got {rc}: {err})")
     check("results:" in out and "results.h5" in out, f"{scheme}: run prints where its results are")
     check("Loop time" in out and "dem.compute" in out, f"{scheme}: the timing table is printed")
+    # not a terminal: progress as a line per tenth of the run, the last at the end
+    check("cosim: step 200/200 (100 %)" in out, f"{scheme}: a batch run's log shows its progress")
     no_orphans(s, f"{scheme} run")
     return s
 

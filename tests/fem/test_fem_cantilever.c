@@ -21,7 +21,8 @@ static double tip_deflection(int nx, int tet10, int *ndof) {
   double *b = calloc(md.n_dof, sizeof *b), *u = calloc(md.n_dof, sizeof *u);
   const double t[3] = {0, 0, -P / (B * Hh)};
   OK(fem_load_traction(&md, "xmax", t, b, &err));
-  OK(fem_static_solve(&md, FEM_CHOLMOD, 0, b, u, NULL, &err));
+  fem_factor *fac = NULL;
+  OK(fem_static_solve(&md, &fac, FEM_CHOLMOD, 0, b, u, NULL, &err));
   double fz = 0;
   for (int32_t i = 0; i < md.n_dof; i += 3) fz += b[i + 2];
   CHECK(fabs(fz + P) < 1e-9 * P, "tip load sums to %g, not %g", fz, -P);
@@ -34,6 +35,7 @@ static double tip_deflection(int nx, int tet10, int *ndof) {
   free(nodes);
   free(b);
   free(u);
+  fem_factor_free(&fac);
   fem_model_free(&md);
   return s / nn;
 }

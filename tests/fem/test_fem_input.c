@@ -65,8 +65,20 @@ static void mesh_errors(void) {
   OK(fem_model_assemble(&md, &err));
   double *b = calloc(md.n_dof, sizeof *b), *u = calloc(md.n_dof, sizeof *u);
   b[0] = 1;
-  expect_error(fem_static_solve(&md, FEM_CHOLMOD, 0, b, u, NULL, &err), &err, "not positive definite",
+  fem_factor *fac = NULL;
+  expect_error(fem_static_solve(&md, &fac, FEM_CHOLMOD, 0, b, u, NULL, &err), &err, "not positive definite",
                "unconstrained body");
+  /* the solver workspace belongs to one assembly */
+  OK(fem_model_fix_group(&md, "xmin", 7, &err));
+  OK(fem_model_assemble(&md, &err));
+  expect_error(fem_static_solve(&md, &fac, FEM_CHOLMOD, 0, b, u, NULL, &err), &err,
+               "earlier assembly", "solver workspace of an earlier assembly");
+  fem_factor_free(&fac);
+  OK(fem_static_solve(&md, &fac, FEM_CHOLMOD, 0, b, u, NULL, &err));
+  fem_factor_free(&fac);
+  /* the stable step needs the state's scratch */
+  fem_state st = {0};
+  expect_error(fem_stable_dt(&md, &st, 10, &err), &err, "fem_state_init first", "stable step without a state");
   free(b);
   free(u);
   fem_model_free(&md);

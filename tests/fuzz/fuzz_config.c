@@ -59,7 +59,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     memset(&m, 0, sizeof m);
     if (dem_model_from_json(&m, section, paths[part], &err) == 0) {
       dem_state probe;
-      if (dem_state_init(&m, &probe, &err) == 0) dem_state_free(&probe);
+      if (dem_state_init(&m, &probe, 0, &err) == 0) dem_state_free(&probe);
     }
     dem_model_free(&m);
   } else if (part == P_FEM) {

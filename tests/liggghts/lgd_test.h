@@ -66,7 +66,7 @@ static inline void lgd_grid(int n, double L, double z0, double s, double *x0, in
 typedef void (*twin_motion)(double t, int n_nodes, const double *x0, double *x, double *v, void *ctx);
 
 typedef struct twin {
-  dem_model ml, md; /* one model per engine (lgd may change its dt) */
+  dem_model ml, md; /* one model per engine */
   dem_state sd;
   lgd_sim *sim;
   int surface, nn;
@@ -91,11 +91,9 @@ static inline void twin_open_tol(twin *w, const char *json, int nn, const double
         dem_model_set_surface(&w->md, nn, x0, nt, tri, &err))
       die("surface", &err);
   }
-  if (dem_model_set_dt(&w->ml, coupling_dt, &err) || dem_model_set_dt(&w->md, coupling_dt, &err))
-    die("dt", &err);
-  if (dem_state_init(&w->md, &w->sd, &err)) die("dem_server state", &err);
+  if (dem_state_init(&w->md, &w->sd, coupling_dt, &err)) die("dem_server state", &err);
   lgd_options o = {.frozen_activity = frozen, .face_tolerance = tolerance};
-  if (lgd_open(&w->sim, MPI_COMM_WORLD, &w->ml, &o, &err)) die("liggghts", &err);
+  if (lgd_open(&w->sim, MPI_COMM_WORLD, &w->ml, coupling_dt, &o, &err)) die("liggghts", &err);
   w->nn = nn;
   w->coupling_dt = coupling_dt;
   const size_t n3 = 3 * (size_t)(nn > 0 ? nn : 1);
@@ -120,7 +118,7 @@ static inline void twin_step(twin *w, twin_motion motion, void *ctx) {
     motion(w->t, w->nn, me->x0, w->x, w->v, ctx);
     dem_mesh_set_nodes(&w->md, &w->sd, w->surface, w->x, w->v);
   }
-  const long long nsub = llround(w->coupling_dt / w->md.dt);
+  const long long nsub = llround(w->coupling_dt / w->sd.dt);
   memset(w->dem_nodal, 0, sizeof(double) * 3 * (size_t)w->nn);
   memset(w->dem_wall, 0, sizeof(double) * 3 * (size_t)w->md.n_walls);
   for (long long k = 0; k < nsub; k++) {

@@ -104,7 +104,7 @@ int main(int argc, char **argv) {
   model_from_json(g_json, &m);
   lgd_sim *sim;
   proto_err err = {{0}};
-  if (lgd_open(&sim, MPI_COMM_WORLD, &m, NULL, &err)) die("open", &err);
+  if (lgd_open(&sim, MPI_COMM_WORLD, &m, 0, NULL, &err)) die("open", &err);
   for (int k = 0; k < NS; k++) {
     static uint8_t le[3 * MAX_TRI], lc[3 * MAX_TRI], oe[3 * MAX_TRI], oc[3 * MAX_TRI];
     lgd_topo topo;

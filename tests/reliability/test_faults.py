@@ -40,6 +40,17 @@ def start(s, *args):
                             stderr=subprocess.PIPE, text=True)
 
 
+def wait_handshaken(s, p, limit=60):
+    """Until every participant has passed its handshake (results.h5 is
+    opened then: coupler/run.c): a participant stopped before its hello
+    would be named by hello_timeout, not by its silence."""
+    path = os.path.join(s["output"]["dir"], "results.h5")
+    t0 = time.time()
+    while not os.path.exists(path) and p.poll() is None and time.time() - t0 < limit:
+        time.sleep(0.05)
+    check(os.path.exists(path), f"{s['name']}: the run passed its handshake within {limit} s")
+
+
 def rows_consistent(s, what):
     f = h5(s)
     names = ["/dem/series", "/fem/series", "/coupler/series", "/coupler/traction"]
@@ -58,6 +69,7 @@ for seed in (1, 2, 3):
         s = tyre_scene(f"kill{seed}{victim}", 1000.0)
         p = start(s)
         pid = pid_of(s["name"], victim, tries=200)
+        wait_handshaken(s, p)
         time.sleep(rng.uniform(0.2, 0.8))  # a random step (the run does ~10^4 steps/s)
         os.kill(pid, signal.SIGKILL)
         out, err = p.communicate(timeout=60)
@@ -90,6 +102,7 @@ s = tyre_scene("stopped", 1000.0)
 s["coupling"] = {"step_timeout": 60, "heartbeat_timeout": 2, "hello_timeout": 60}
 p = start(s)
 pid = pid_of(s["name"], "dem", tries=200)
+wait_handshaken(s, p)
 time.sleep(0.5)
 os.kill(pid, signal.SIGSTOP)
 t0 = time.time()
