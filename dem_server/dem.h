@@ -24,10 +24,15 @@
 #define DEM_MAX_PLANES 64
 #define DEM_MAX_MESHES 8
 #define DEM_MESH_SLOTS 6 /* mesh contacts kept per grain */
-/* "sleep" defaults: at rest below 2 mm/s for 20 ms, 5 cm from moving meshes */
+/* "sleep" defaults: at rest below 2 mm/s for 20 ms, 5 cm from moving meshes;
+ * woken when pressed beyond 0.02 of the smaller radius: a settled bed's
+ * grains rest at overlaps of ~0.004 (20 MPa) to 0.01 (5 MPa) of their radius
+ * at the bottom of 0.13 m of grains, so 0.02 means the load on the contact
+ * has grown 3-10x (Hertz: F ~ overlap^1.5) since the grain fell asleep */
 #define DEM_SLEEP_VELOCITY 2e-3
 #define DEM_SLEEP_TIME 0.02
 #define DEM_SLEEP_DISTANCE 0.05
+#define DEM_SLEEP_OVERLAP 0.02
 
 typedef struct dem_material {
   double density, E, nu, G; /* G = E/(2(1+nu)) unless given */
@@ -77,10 +82,11 @@ typedef struct dem_mesh {
  * `time` and farther than `distance` from every moving mesh's box stops
  * (not integrated; its contacts with other sleeping grains frozen); it wakes
  * when a grain faster than `velocity` or a mesh (box within `distance`)
- * comes to it. */
+ * comes to it, or an awake grain presses into it beyond `overlap` of the
+ * smaller radius. */
 typedef struct dem_sleep_config {
   int on;
-  double velocity, time, distance;
+  double velocity, time, distance, overlap;
 } dem_sleep_config;
 
 /* Config values kept as given (the derived ones live in dem_model). */

@@ -76,12 +76,15 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
 
 /* screen_block with sleeping grains ("sleep" on): pairs of two sleeping
  * grains are frozen (neither evaluated nor reset); a sleeping grain touched
- * by an awake one moving faster than the sleep velocity is woken. */
+ * by an awake one moving faster than the sleep velocity, or pressed by it
+ * beyond sleep.overlap of the smaller radius, is woken (a sleeping grain is a
+ * fixed one: under a slowly growing load its overlap would grow without
+ * bound instead of the load spreading into the bed). */
 static int screen_block_sleep(const dem_model *m, const dem_state *s, struct dem_work *w, int i, int k0,
                               int k1, pair_batch *restrict b) {
   const double *restrict x = s->x, *restrict rad = s->radius;
   const uint8_t *restrict sl = w->asleep;
-  const double vs2 = m->sleep.velocity * m->sleep.velocity;
+  const double vs2 = m->sleep.velocity * m->sleep.velocity, wake_ov = m->sleep.overlap;
   const double xi0 = x[3 * i], xi1 = x[3 * i + 1], xi2 = x[3 * i + 2], ri = rad[i];
   const int si = sl[i];
   int q = b->n, live = 0;
@@ -96,7 +99,9 @@ static int screen_block_sleep(const dem_model *m, const dem_state *s, struct dem
     w->pair_touch[k] = (uint8_t)touch;
     if (touch && (si | sl[j])) {
       const int mover = si ? j : i;
-      if (dem_dot(&s->v[3 * mover], &s->v[3 * mover]) > vs2) dem_wake(w, si ? i : j);
+      const double rmin = ri < rj ? ri : rj, d = sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+      if (dem_dot(&s->v[3 * mover], &s->v[3 * mover]) > vs2 || rsum - d > wake_ov * rmin)
+        dem_wake(w, si ? i : j);
     }
     b->j[q] = j; b->k[q] = k;
     b->d[0][q] = d0; b->d[1][q] = d1; b->d[2][q] = d2;
@@ -438,8 +443,10 @@ static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
     plane_screen(m, s, i, &b, part, sum);
   }
   wall_flush(m, s, &b, part, sum);
+  /* a sleeping grain's row counts when it was evaluated (an awake partner):
+   * its pairs with awake grains are live contacts */
   for (int i = lo; i < hi; i++)
-    if (!(asleep && asleep[i])) sum->ratio = w->ratio[i] > sum->ratio ? w->ratio[i] : sum->ratio;
+    if (!(asleep && asleep[i] && w->row_frozen[i])) sum->ratio = w->ratio[i] > sum->ratio ? w->ratio[i] : sum->ratio;
   if (m->n_meshes > 0) /* gravity is added as an acceleration in the kick */
     for (int i = lo; i < hi; i++)
       for (int a = 0; a < 3 && !(asleep && asleep[i]); a++) {
