@@ -101,8 +101,10 @@ m=s['processes']['dem']['materials'][0]; m['E']*=2; json.dump(s,open(sys.argv[2]
     p20=$root/configs/tire_soil_paper.json
     for bc in 0.060:0.36 0.110:0.50 0.165:0.66; do
       b=${bc%:*}; L=${bc#*:}
+      # to 12 mm: deeper, the 20 MPa grains of the 38 mm bed are pressed into the floor
+      # (b = 0.06 m: 21 kPa at 7.5 mm, 282 kPa at 15 mm and a bottom grain at half its radius)
       run "$out/plate_paper20_b${b}_s1.csv" plate "$p20" --width "$b" --container "$L" \
-        --depth-factor 1 --speed 0.02 --zmax 0.025 --seed 1
+        --depth-factor 1 --speed 0.02 --zmax 0.012 --seed 1
     done
     for sig in 2500 5000 10000 20000; do
       run "$out/shear_fine20_sig${sig}_s1.csv" shear "$p20" --sigma "$sig" --dmin 0.006555 \
