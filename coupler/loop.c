@@ -228,8 +228,8 @@ static void show_progress(cpl_runner *r, int64_t k, double rate, int final) {
   int tenth = n > 0 ? (int)(10 * k / n) : 10;
   if (tenth <= r->progress_shown) return;
   r->progress_shown = tenth;
-  printf("cosim: step %lld/%lld (%d %%), t = %.4g s, %.0f steps/s, ETA %.0f s\n", (long long)k,
-         (long long)n, 10 * tenth, (double)k * r->scene->dt, rate, eta);
+  printf("cosim: step %lld/%lld (%.0f %%), t = %.4g s, %.0f steps/s, ETA %.0f s\n", (long long)k,
+         (long long)n, 100.0 * (double)k / (double)n, (double)k * r->scene->dt, rate, eta);
   fflush(stdout);
 }
 
