@@ -18,19 +18,20 @@ import json
 import math
 import os
 import re
-import shutil
 import sys
 
 import numpy as np
 
 from cosim import Results
-from cosim.sweep_cli import QUANTITIES, DEFAULT_SKIP_TRAVEL_M, summarise_run
+from cosim.sweep_cli import (QUANTITIES, DEFAULT_SKIP_TRAVEL_M, draw, read_summary,
+                              summarise_run, travel_window)
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 RESULTS = os.path.join(ROOT, "bench", "results")
 SETTLED_RE = re.compile(r"bed of (\d+) grains settled in (\d+) steps \(([\d.]+) s\)")
 LOOP_RE = re.compile(r"^Loop time .*?(?=^results:|\Z)", re.S | re.M)
 SMOOTH_S = 5e-3  # running mean drawn over the raw rows
+SLIP_KEY = "scenario.slip"
 FINISHED_RE = re.compile(r"finished: (\d+) steps, t = ([\d.e+-]+) s, ([\d.]+) s wall")
 
 
@@ -129,8 +130,8 @@ def table(res):
     return rows
 
 
-def read_summary(d):
-    """(window notes, header, rows) of a sweep's summary.csv."""
+def summary_table(d):
+    """(window notes, header, rows as text) of a sweep's summary.csv."""
     lines = open(os.path.join(d, "summary.csv")).read().splitlines()
     notes = [l[2:] for l in lines if l.startswith("# window")]
     rows = [l.split(",") for l in lines if not l.startswith("#")]
@@ -138,7 +139,7 @@ def read_summary(d):
 
 
 def sweep_section(label, d):
-    notes, head, body = read_summary(d)
+    notes, head, body = summary_table(d)
     keep = [0] + [i for i, c in enumerate(head) if c.endswith(("_mean", "_min", "_max"))
                   or c in ("travel_start_s", "window_t0_s", "window_t1_s")]
     md = [f"### rig: {label}", "", f"`cosim sweep` output `{os.path.basename(os.path.normpath(d))}`; "
@@ -154,49 +155,23 @@ def sweep_section(label, d):
     return md + [""]
 
 
-def read_reference(path):
-    with open(path) as f:
-        body = [l for l in f if not l.startswith("#")]
-    return np.genfromtxt(body, delimiter=",", names=True)
-
-
 def sweep_plot(sweeps, path):
-    """Seed 000 fig. 15: T_H, |T_R|, T_P over slip (mean, min-max), one panel
-    per rig, with the terramechanics T/r, T/r - DP and DP dashed."""
+    """Seed 000 fig. 15, one panel per rig (cosim.sweep_cli.draw), each point
+    marked with its run's mean vertical load."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, len(sweeps), figsize=(6.5 * len(sweeps), 4.8), sharey=True,
                              squeeze=False)
-    styles = [("T_H", "T_H", "tab:blue", 1), ("T_R", "|T_R|", "tab:red", -1),
-              ("T_P", "T_P", "tab:green", 1)]
     for ax, (label, d) in zip(axes[0], sweeps):
-        _, head, body = read_summary(d)
-        col = {c: i for i, c in enumerate(head)}
-        slip = np.array([float(r[0]) for r in body])
-        for j, (q, name, color, sign) in enumerate(styles):
-            m = np.array([sign * float(r[col[q + "_mean"]]) for r in body])
-            a = np.array([sign * float(r[col[q + "_min"]]) for r in body])
-            b = np.array([sign * float(r[col[q + "_max"]]) for r in body])
-            lo, hi = np.minimum(a, b), np.maximum(a, b)
-            at = slip + (j - 1) * 0.004
-            ax.errorbar(at, m, yerr=[m - lo, hi - m], fmt="o-", color=color, capsize=3, lw=1,
-                        label=f"DEM-FEM {name}: mean, min-max")
-        load = np.array([float(r[col["vertical_load_mean"]]) for r in body])
-        for x, w in zip(slip, load):
-            ax.annotate(f"{w:.0f} N", (x, 0), textcoords="offset points", xytext=(0, -22),
-                        ha="center", fontsize=7, color="0.35")
+        rows = read_summary(os.path.join(d, "summary.csv"))
         ref = os.path.join(d, "reference.csv")
-        if os.path.exists(ref):
-            r = read_reference(ref)
-            ax.plot(r["s"], r["T_over_r"], "--", color="tab:blue", label="terramechanics T/r")
-            ax.plot(r["s"], r["T_over_r"] - r["DP"], "--", color="tab:red",
-                    label="terramechanics T/r - DP")
-            ax.plot(r["s"], r["DP"], "--", color="tab:green", label="terramechanics DP")
-        ax.axhline(0, color="0.6", lw=0.8)
+        pos = draw(ax, SLIP_KEY, rows, ref if os.path.exists(ref) else None)
+        for x, r in zip(pos, rows):
+            ax.annotate(f"{r['vertical_load_mean']:.0f} N", (x, 0), textcoords="offset points",
+                        xytext=(0, -22), ha="center", fontsize=7, color="0.35")
         ax.set_xlabel("slip s (grey: mean vertical load of the run)")
         ax.set_title(f"rig: {label}", fontsize=10)
-        ax.legend(fontsize=6.5, loc="upper left")
     axes[0][0].set_ylabel("force (N)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -225,8 +200,7 @@ def sens_one(work, name):
         res["loop_s"] = float(r.timing["wall"].sum())
         res["steps"] = len(r.timing["wall"])
         sc = r.scene["scenario"]
-        reached = np.nonzero(tr["vertical_load"] >= sc["sinkage_force"])[0]
-        res["start"] = float(tr["t"][reached[0]]) if len(reached) else math.nan
+        res["start"] = float(travel_window(tr, r.scene, 0)[3])
         res["speed"] = sc["omega"] * sc["radius"] * (1 - sc["slip"])
     if res["rc"] != 0:
         log = open(run + ".log", errors="replace").read().strip().splitlines()

@@ -156,13 +156,36 @@ def reference_curve(args, scene, out):
     return path
 
 
-def plot(path, key, rows, ref_path, title, ref_label="terramechanics"):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def read_reference(path):
+    """A terra record (``# key: value`` lines, then a header) as a numpy
+    record array (genfromtxt would take the first comment line for the names)."""
+    with open(path) as f:
+        body = [l for l in f if not l.startswith("#")]
+    return np.genfromtxt(body, delimiter=",", names=True)
+
+
+def read_summary(path):
+    """summary.csv back as rows of {column: value} (numbers as floats, the
+    swept key's values as JSON), the form write_summary took them in."""
+    with open(path, newline="") as f:
+        body = [l for l in f if not l.startswith("#")]
+    rows = []
+    for r in csv.DictReader(body):
+        row = {}
+        for c, v in r.items():
+            try:
+                row[c] = json.loads(v)
+            except ValueError:
+                row[c] = v
+        rows.append(row)
+    return rows
+
+
+def draw(ax, key, rows, ref_path, ref_label="terramechanics"):
+    """Seed 000 fig. 15 on one axis: T_H, |T_R|, T_P (mean, min-max) over the
+    swept key, the reference's T/r, T/r - DP and DP dashed."""
     xs = [r[key] for r in rows]
     numeric = all(isinstance(x, (int, float)) for x in xs)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
     styles = [("T_H", "T_H (gross tractive effort)", "tab:blue", 1),
               ("T_R", "|T_R| (running resistance)", "tab:red", -1),
               ("T_P", "T_P (drawbar pull)", "tab:green", 1)]
@@ -177,11 +200,7 @@ def plot(path, key, rows, ref_path, title, ref_label="terramechanics"):
         ax.errorbar(at, mean, yerr=[mean - lo, hi - mean], fmt="o-", color=color,
                     capsize=4, label=f"DEM–FEM {label}: mean, min–max")
     if ref_path:
-        # a terra record: "# key: value" lines, then a header (genfromtxt
-        # would take the first comment line for the names)
-        with open(ref_path) as f:
-            body = [l for l in f if not l.startswith("#")]
-        ref = np.genfromtxt(body, delimiter=",", names=True)
+        ref = read_reference(ref_path)
         s = ref["s"]
         for col, label, color in [("T_over_r", "T/r", "tab:blue"),
                                   ("DP", "DP", "tab:green")]:
@@ -192,9 +211,18 @@ def plot(path, key, rows, ref_path, title, ref_label="terramechanics"):
         ax.set_xticks(pos, [json.dumps(x) for x in xs])
     ax.axhline(0, color="0.6", lw=0.8)
     ax.set_xlabel(key)
+    ax.legend(fontsize=7)
+    return pos
+
+
+def plot(path, key, rows, ref_path, title, ref_label="terramechanics"):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    draw(ax, key, rows, ref_path, ref_label)
     ax.set_ylabel("force (N)")
     ax.set_title(title, fontsize=10)
-    ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
