@@ -266,7 +266,8 @@ void dem_bvh_update(dem_bvh *b, const double *x, const int32_t *tri, int n_tri) 
 /* ------------------------------------------------------------ contacts */
 
 typedef struct cand {
-  int mesh, tri, feat;
+  int mesh, tri, feat, nfeat;
+  int32_t fnode[3]; /* the nodes of the feature the closest point lies on */
   int64_t key;
   double q[3], zeta[3], d2;
 } cand;
@@ -283,6 +284,8 @@ static void classify(cand *c, const int32_t *t) {
   int nz[3], cnt = 0;
   for (int k = 0; k < 3; k++)
     if (c->zeta[k] > eps) nz[cnt++] = k;
+  c->nfeat = cnt ? cnt : 1;
+  for (int k = 0; k < c->nfeat; k++) c->fnode[k] = t[cnt ? nz[k] : 0];
   if (cnt == 3) {
     c->feat = DEM_FEAT_FACE;
     c->key = feature_key(c->mesh, DEM_FEAT_FACE, 0, c->tri);
@@ -296,11 +299,11 @@ static void classify(cand *c, const int32_t *t) {
   }
 }
 
-static int share_node(const int32_t *a, const int32_t *b) {
-  for (int k = 0; k < 3; k++)
-    for (int l = 0; l < 3; l++)
-      if (a[k] == b[l]) return 1;
-  return 0;
+/* Whether triangle t holds every node of c's feature (so the closest point). */
+static int holds_feature(const int32_t *t, const cand *c) {
+  for (int k = 0; k < c->nfeat; k++)
+    if (t[0] != c->fnode[k] && t[1] != c->fnode[k] && t[2] != c->fnode[k]) return 0;
+  return 1;
 }
 
 /* Candidates are kept sorted by (mesh, triangle), the MAX_CAND first ones if
@@ -463,12 +466,18 @@ int dem_mesh_lists_check(const dem_model *m, dem_state *s, proto_err *err) {
   return 0;
 }
 
-/* One force per touched patch: every face contact is kept (concave corners
- * touch several faces); edge/vertex contacts are taken nearest first and
- * dropped when their feature was already taken (an edge shared by two
- * triangles, a vertex shared by a fan) or when their triangle is connected
- * (shares a node) with a triangle seen before — on a flat or convex patch the
- * neighbours' closest points are only shadows of the true one. */
+/* One force per touched patch. A face contact is a local minimum of the
+ * distance to the surface: always kept (concave corners touch several faces).
+ * An edge or vertex contact at q is one only if q is a local minimum over the
+ * triangles around it; else one of them holds a point nearer the grain (the
+ * squared distance is convex on a triangle, so a local minimum on it is its
+ * minimum) — q is a shadow of that nearer contact and dropped. Candidates in
+ * order of distance (faces first), the rule is: drop an edge or vertex contact
+ * whose feature an earlier candidate's triangle holds (an edge shared by two
+ * triangles, a vertex by a fan, the neighbours' shadows on a flat or convex
+ * patch). A triangle that merely shares a node with a nearer one can still
+ * carry a true contact: a grain on a groove's floor touching the lug's convex
+ * edge above it. */
 static int dedupe(const dem_model *m, cand *c, int nc) {
   int na = 0;
   for (int k = 0; k < nc; k++) /* faces first */
@@ -482,13 +491,9 @@ static int dedupe(const dem_model *m, cand *c, int nc) {
     }
   int nkeep = na;
   for (int k = na; k < nc; k++) {
-    const int32_t *tk = &m->meshes[c[k].mesh].tri[3 * c[k].tri];
     int keep = 1;
-    for (int a = 0; a < k && keep; a++) {
-      if (c[a].key == c[k].key) keep = 0;
-      else if (c[a].mesh == c[k].mesh && share_node(&m->meshes[c[a].mesh].tri[3 * c[a].tri], tk))
-        keep = 0;
-    }
+    for (int a = 0; a < k && keep; a++)
+      if (c[a].mesh == c[k].mesh && holds_feature(&m->meshes[c[a].mesh].tri[3 * c[a].tri], &c[k])) keep = 0;
     if (keep) { /* move to the kept prefix; seen candidates stay before k */
       cand t = c[k];
       for (int b = k; b > nkeep; b--) c[b] = c[b - 1];

@@ -2,7 +2,10 @@
  * ζ (eq. 35); a grain sliding and rolling across a flat plane made of
  * triangles — straight over edges and through vertices shared by six
  * triangles — feels exactly the force of a plane wall (no bump, one force per
- * grain); the reaction on the nodes (eq. 42) is minus the force on the grain. */
+ * grain); the reaction on the nodes (eq. 42) is minus the force on the grain;
+ * a grain on a groove's floor that also touches the convex edge of the step
+ * beside it feels both contacts (two Hertz forces), a grain only over the
+ * floor one. */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 #include <string.h>
@@ -173,8 +176,71 @@ static void test_belt(double z0) {
   dem_model_free(&m);
 }
 
+/* A step in x, extruded along y: floor z = 0 for x in [-2, 0] cm, a wall x = 0
+ * up to z = H, the top z = H for x in [0, 2] cm; 1 cm cells, two triangles
+ * each, so the wall's triangles share nodes with the floor's. A grain at rest
+ * on the floor near the wall, its centre above H: it touches the floor's face
+ * and the step's convex top edge. The static force is the sum of the two
+ * Hertz forces, 4/3 E* sqrt(r) δ^1.5 along each normal (floor: +z; edge: from
+ * the edge to the centre), written out here, not taken from dem_hertz. */
+static void step_scene(const double *p, dem_model *m, dem_state *s) {
+  static char json[20000];
+  const double H = 0.003, px[6] = {-0.02, -0.01, 0, 0, 0.01, 0.02}, pz[6] = {0, 0, 0, H, H, H};
+  int len = snprintf(json, sizeof json,
+      "{\"materials\":[{\"density\":2600,\"E\":1e7,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.3}],"
+      "\"gravity\":[0,0,0],\"walls\":[{\"type\":\"mesh\",\"nodes\":[");
+  for (int j = 0; j < 5; j++)
+    for (int i = 0; i < 6; i++)
+      len += snprintf(json + len, sizeof json - len, "%s[%.17g,%.17g,%.17g]", i + j ? "," : "", px[i],
+                      -0.02 + 0.01 * j, pz[i]);
+  len += snprintf(json + len, sizeof json - len, "],\"triangles\":[");
+  for (int j = 0; j < 4; j++)
+    for (int i = 0; i < 5; i++) {
+      int a = 6 * j + i, b = a + 1, c = a + 6, d = c + 1;
+      len += snprintf(json + len, sizeof json - len, "%s[%d,%d,%d],[%d,%d,%d]", i + j ? "," : "", a, b, d,
+                      a, d, c);
+    }
+  snprintf(json + len, sizeof json - len,
+           "]}],\"particles\":[{\"x\":[%.17g,%.17g,%.17g],\"v\":[0,0,0],\"r\":%g}]}", p[0], p[1], p[2], R);
+  scene(json, m, s);
+}
+
+static void test_groove_edge(void) {
+  const double H = 0.003, estar = 1e7 / (2 * (1 - 0.09));
+  struct { const char *name; double x, z; int contacts; } cases[] = {
+    {"floor and the step's convex edge", -0.0046, 0.0048, 2},
+    {"floor only (edge out of reach)", -0.0060, 0.0048, 1},
+    {"convex edge only (above the floor)", -0.0038, 0.0058, 1},
+  };
+  for (int c = 0; c < 3; c++) {
+    const double p[3] = {cases[c].x, 0.0033, cases[c].z};
+    dem_model m;
+    dem_state s;
+    step_scene(p, &m, &s);
+    double want[3] = {0, 0, 0};
+    const double df = R - p[2]; /* floor */
+    if (df > 0) want[2] += 4.0 / 3.0 * estar * sqrt(R) * pow(df, 1.5);
+    const double ex = p[0], ez = p[2] - H, de = R - hypot(ex, ez); /* edge (0, y, H) */
+    if (de > 0) {
+      const double fe = 4.0 / 3.0 * estar * sqrt(R) * pow(de, 1.5) / hypot(ex, ez);
+      want[0] += fe * ex;
+      want[2] += fe * ez;
+    }
+    const double *f = s.force, scale = hypot(want[0], want[2]);
+    const double e = sqrt((f[0] - want[0]) * (f[0] - want[0]) + f[1] * f[1] + (f[2] - want[2]) * (f[2] - want[2]));
+    printf("step: %s: F = (%.6g, %.3g, %.6g) N, Hertz sum (%.6g, 0, %.6g), %lld contacts\n", cases[c].name, f[0],
+           f[1], f[2], want[0], want[2], (long long)s.contacts);
+    CHECK(e <= 1e-9 * scale, "step, %s: force off the two Hertz forces by %.3g of them", cases[c].name, e / scale);
+    CHECK(s.contacts == cases[c].contacts, "step, %s: %lld contacts, want %d", cases[c].name,
+          (long long)s.contacts, cases[c].contacts);
+    dem_state_free(&s);
+    dem_model_free(&m);
+  }
+}
+
 int main(void) {
   test_closest();
+  test_groove_edge();
   /* resting overlap so the grain starts in contact */
   const double mass = 2600 * 4.0 / 3.0 * M_PI * R * R * R, estar = 1e7 / (2 * (1 - 0.09));
   const double z0 = R - pow(3 * mass * 9.81 / (4 * estar * sqrt(R)), 2.0 / 3.0);
