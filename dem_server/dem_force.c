@@ -62,8 +62,8 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
   for (int k = k0; k < k1; k++) {
     const int j = nl_j[k];
     const double d0 = xi0 - x[3 * j], d1 = xi1 - x[3 * j + 1], d2 = xi2 - x[3 * j + 2];
-    const double rj = rad[j], rsum = ri + rj;
-    const int touch = d0 * d0 + d1 * d1 + d2 * d2 < rsum * rsum;
+    const double rj = rad[j], rsum = ri + rj, dd = d0 * d0 + d1 * d1 + d2 * d2;
+    const int touch = dd < rsum * rsum;
     if ((touch ^ 1) & touched[k]) memset(&shear[3 * k], 0, 3 * sizeof(double)); /* rare: opened */
     touched[k] = (uint8_t)touch;
     b->j[q] = j; b->k[q] = k;
@@ -93,14 +93,14 @@ static int screen_block_sleep(const dem_model *m, const dem_state *s, struct dem
     if (si & sl[j]) continue;
     live++;
     const double d0 = xi0 - x[3 * j], d1 = xi1 - x[3 * j + 1], d2 = xi2 - x[3 * j + 2];
-    const double rj = rad[j], rsum = ri + rj;
-    const int touch = d0 * d0 + d1 * d1 + d2 * d2 < rsum * rsum;
+    const double rj = rad[j], rsum = ri + rj, dd = d0 * d0 + d1 * d1 + d2 * d2;
+    const int touch = dd < rsum * rsum;
     if ((touch ^ 1) & w->pair_touch[k]) memset(&w->nl_shear[3 * k], 0, 3 * sizeof(double));
     w->pair_touch[k] = (uint8_t)touch;
     if (touch && (si | sl[j])) {
       const int mover = si ? j : i;
-      const double rmin = ri < rj ? ri : rj, d = sqrt(d0 * d0 + d1 * d1 + d2 * d2);
-      if (dem_dot(&s->v[3 * mover], &s->v[3 * mover]) > vs2 || rsum - d > wake_ov * rmin)
+      const double rmin = ri < rj ? ri : rj, reach = rsum - wake_ov * rmin; /* overlap > wake_ov rmin */
+      if (dem_dot(&s->v[3 * mover], &s->v[3 * mover]) > vs2 || (reach > 0 && dd < reach * reach))
         dem_wake(w, si ? i : j);
     }
     b->j[q] = j; b->k[q] = k;
