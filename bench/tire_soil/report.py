@@ -74,6 +74,7 @@ def one(work, name):
         tr = r.series("coupler", "traction")
         s = summarise_run(r, DEFAULT_SKIP_TRAVEL_M)
         sc = r.scene["scenario"]
+        res["dt_us"] = 1e6 * r.scene["time"]["dt"]
         tim = r.timing
         res["loop_s"] = {c: float(tim[c].sum()) for c in tim.columns if c != "t"}
         speed = sc["omega"] * sc["radius"] * (1 - sc["slip"])
@@ -306,7 +307,8 @@ def main():
           "Each run: the bed generated and settled in the run, the tyre's sinkage at 0.1 m/s to the "
           "scene's load, then travel at 5 % slip (ω = 1.8 rad/s, r = 0.272 m: 0.465 m/s) to the end of the "
           "scene (0.5 m and a little more). One run each (timed under the shared benchmark lock), serial "
-          "scheme, dt = 25 µs, `threads: auto` for the DEM. Raw numbers: `tire_soil.json`.", ""]
+          "scheme at the run's coupling step (stated per run), `threads: auto` for the DEM. Raw numbers: "
+          "`tire_soil.json`.", ""]
     for n in names:
         res = done[n]
         md.append(f"## {n}")
@@ -324,7 +326,8 @@ def main():
                   res["error"] + ["```", ""]
             continue
         rest = res["wall_s"] - res["settle_s"] - res["loop_s"]["wall"]
-        md += [f"- total wall time: **{res['wall_s']:.0f} s ({res['wall_s'] / 60:.1f} min)**, of "
+        md += [f"- coupling step {res['dt_us']:g} µs.",
+               f"- total wall time: **{res['wall_s']:.0f} s ({res['wall_s'] / 60:.1f} min)**, of "
                f"which settling the bed {res['settle_s']:.0f} s ({res['settle_steps']} DEM steps), "
                f"the coupled loop {res['loop_s']['wall']:.0f} s ({res['steps']} steps, "
                f"{1e3 * res['loop_s']['wall'] / res['steps']:.2f} ms/step), the rest {rest:.0f} s "

@@ -23,6 +23,7 @@ import csv
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 
@@ -136,16 +137,19 @@ def write_summary(path, keys, rows, skip_travel):
 
 def reference_curve(args, scene, out):
     """The terramechanics reference for the scene's wheel and load: a
-    record from --reference, or `cosim terra curve` on --terra-params."""
+    record from --reference (copied into the sweep's dir, which then holds
+    all it draws), or `cosim terra curve` on --terra-params."""
+    path = os.path.join(out, REFERENCE_FILE)
     if args.reference:
-        return args.reference
+        if not os.path.exists(path) or not os.path.samefile(args.reference, path):
+            shutil.copyfile(args.reference, path)
+        return path
     if not args.terra_params:
         return None
     sc = scene.get("scenario", {})
     width = DEFAULT_WIDTH_M
     for p in scene.get("processes", {}).values():
         width = p.get("mesh", {}).get("width", width) if isinstance(p, dict) else width
-    path = os.path.join(out, REFERENCE_FILE)
     cmd = [cosim_executable(args.cosim), "terra", "curve", "--params", args.terra_params,
            "--radius", str(sc["radius"]), "--width", str(width),
            "--load", str(sc["sinkage_force"]),

@@ -92,6 +92,16 @@ ref = open(ref_path).read() if os.path.exists(ref_path) else ""
 check(f"# load_N: {SCEN['sinkage_force']}" in ref and "T_over_r" in ref,
       "the reference is computed for the scene's load")
 
+# a record given with --reference from elsewhere is copied into the sweep's dir (which then
+# holds everything its plot draws)
+elsewhere = os.path.join(tempfile.mkdtemp(prefix="cosim-sweep-ref-"), "my_reference.csv")
+open(elsewhere, "w").write(ref)
+os.remove(ref_path)
+rc, so, se = sweep(path, "--values", "scenario.slip=" + ",".join(map(str, SLIPS)), "--out", out,
+                   "--skip-travel", str(SKIP), "--summary-only", "--reference", elsewhere)
+check(rc == 0 and os.path.exists(ref_path) and open(ref_path).read() == ref,
+      f"--reference is copied to the sweep's reference.csv (got {rc}: {se.strip()[-300:]})")
+
 # 2. bad arguments: exit 1, the message names the problem, no run started
 bad = tempfile.mkdtemp(prefix="cosim-sweep-bad-")
 cases = [
