@@ -31,7 +31,7 @@ typedef struct dem_chunk_sum {
 
 /* Contact features of a sphere–triangle contact (seed 000 fig. 10). */
 
-enum { DEM_FEAT_VERTEX = 1, DEM_FEAT_EDGE = 2, DEM_FEAT_FACE = 3 };
+enum { DEM_FEAT_VERTEX = 1, DEM_FEAT_EDGE = 2, DEM_FEAT_FACE = 3 }; /* = the feature's node count */
 
 /* Load measurement of "threads": "auto" (dem_threads.c). */
 typedef struct dem_thread_probe {

@@ -266,7 +266,7 @@ void dem_bvh_update(dem_bvh *b, const double *x, const int32_t *tri, int n_tri) 
 /* ------------------------------------------------------------ contacts */
 
 typedef struct cand {
-  int mesh, tri, feat, nfeat;
+  int mesh, tri, feat;   /* feat: DEM_FEAT_*, the count of fnode */
   int32_t fnode[3]; /* the nodes of the feature the closest point lies on */
   int64_t key;
   double q[3], zeta[3], d2;
@@ -281,27 +281,20 @@ static int64_t feature_key(int mesh, int feat, int64_t a, int64_t b) {
 
 static void classify(cand *c, const int32_t *t) {
   const double eps = 1e-12; /* ζ below this counts as zero (on an edge/vertex) */
-  int nz[3], cnt = 0;
+  int cnt = 0;
   for (int k = 0; k < 3; k++)
-    if (c->zeta[k] > eps) nz[cnt++] = k;
-  c->nfeat = cnt ? cnt : 1;
-  for (int k = 0; k < c->nfeat; k++) c->fnode[k] = t[cnt ? nz[k] : 0];
-  if (cnt == 3) {
-    c->feat = DEM_FEAT_FACE;
-    c->key = feature_key(c->mesh, DEM_FEAT_FACE, 0, c->tri);
-  } else if (cnt == 2) {
-    int64_t a = t[nz[0]], b = t[nz[1]];
-    c->feat = DEM_FEAT_EDGE;
-    c->key = feature_key(c->mesh, DEM_FEAT_EDGE, a < b ? a : b, a < b ? b : a);
-  } else {
-    c->feat = DEM_FEAT_VERTEX;
-    c->key = feature_key(c->mesh, DEM_FEAT_VERTEX, 0, t[cnt == 1 ? nz[0] : 0]);
-  }
+    if (c->zeta[k] > eps) c->fnode[cnt++] = t[k];
+  if (cnt == 0) c->fnode[cnt++] = t[0]; /* degenerate: all ζ tiny */
+  c->feat = cnt; /* DEM_FEAT_* is the feature's node count */
+  const int64_t a = c->fnode[0], b = cnt > 1 ? c->fnode[1] : 0;
+  if (cnt == DEM_FEAT_FACE) c->key = feature_key(c->mesh, DEM_FEAT_FACE, 0, c->tri);
+  else if (cnt == DEM_FEAT_EDGE) c->key = feature_key(c->mesh, DEM_FEAT_EDGE, a < b ? a : b, a < b ? b : a);
+  else c->key = feature_key(c->mesh, DEM_FEAT_VERTEX, 0, a);
 }
 
 /* Whether triangle t holds every node of c's feature (so the closest point). */
 static int holds_feature(const int32_t *t, const cand *c) {
-  for (int k = 0; k < c->nfeat; k++)
+  for (int k = 0; k < c->feat; k++)
     if (t[0] != c->fnode[k] && t[1] != c->fnode[k] && t[2] != c->fnode[k]) return 0;
   return 1;
 }

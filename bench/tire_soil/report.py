@@ -23,8 +23,8 @@ import sys
 import numpy as np
 
 from cosim import Results
-from cosim.sweep_cli import (QUANTITIES, DEFAULT_SKIP_TRAVEL_M, draw, read_summary,
-                              summarise_run, travel_window)
+from cosim.sweep_cli import (QUANTITIES, DEFAULT_SKIP_TRAVEL_M, REFERENCE_FILE, SUMMARY_FILE, draw,
+                              read_summary, summarise_run, travel_window)
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 RESULTS = os.path.join(ROOT, "bench", "results")
@@ -131,28 +131,19 @@ def table(res):
     return rows
 
 
-def summary_table(d):
-    """(window notes, header, rows as text) of a sweep's summary.csv."""
-    lines = open(os.path.join(d, "summary.csv")).read().splitlines()
-    notes = [l[2:] for l in lines if l.startswith("# window")]
-    rows = [l.split(",") for l in lines if not l.startswith("#")]
-    return notes, rows[0], rows[1:]
-
-
 def sweep_section(label, d):
-    notes, head, body = summary_table(d)
-    keep = [0] + [i for i, c in enumerate(head) if c.endswith(("_mean", "_min", "_max"))
-                  or c in ("travel_start_s", "window_t0_s", "window_t1_s")]
+    notes = []
+    rows = read_summary(os.path.join(d, SUMMARY_FILE), notes)
+    head = list(rows[0]) if rows else []
+    keep = [head[0]] + [c for c in head if c.endswith(("_mean", "_min", "_max"))
+                        or c in ("travel_start_s", "window_t0_s", "window_t1_s")]
     md = [f"### rig: {label}", "", f"`cosim sweep` output `{os.path.basename(os.path.normpath(d))}`; "
-          + "; ".join(notes) + ".", "",
-          "| " + " | ".join(head[i] for i in keep) + " |", "|" + "---|" * len(keep)]
+          + "; ".join(n for n in notes if n.startswith("window")) + ".", "",
+          "| " + " | ".join(keep) + " |", "|" + "---|" * len(keep)]
 
     def cell(v):
-        try:
-            return f"{float(v):.4g}"
-        except ValueError:
-            return v
-    md += ["| " + " | ".join(cell(r[i]) for i in keep) + " |" for r in body]
+        return f"{v:.4g}" if isinstance(v, (int, float)) else json.dumps(v)
+    md += ["| " + " | ".join(cell(r[c]) for c in keep) + " |" for r in rows]
     return md + [""]
 
 
@@ -165,8 +156,8 @@ def sweep_plot(sweeps, path):
     fig, axes = plt.subplots(1, len(sweeps), figsize=(6.5 * len(sweeps), 4.8), sharey=True,
                              squeeze=False)
     for ax, (label, d) in zip(axes[0], sweeps):
-        rows = read_summary(os.path.join(d, "summary.csv"))
-        ref = os.path.join(d, "reference.csv")
+        rows = read_summary(os.path.join(d, SUMMARY_FILE))
+        ref = os.path.join(d, REFERENCE_FILE)
         pos = draw(ax, SLIP_KEY, rows, ref if os.path.exists(ref) else None)
         for x, r in zip(pos, rows):
             ax.annotate(f"{r['vertical_load_mean']:.0f} N", (x, 0), textcoords="offset points",

@@ -168,11 +168,15 @@ def read_reference(path):
     return np.genfromtxt(body, delimiter=",", names=True)
 
 
-def read_summary(path):
+def read_summary(path, notes=None):
     """summary.csv back as rows of {column: value} (numbers as floats, the
-    swept key's values as JSON), the form write_summary took them in."""
+    swept key's values as JSON), the form write_summary took them in; the
+    `# ` comment lines appended to `notes` if it is a list."""
     with open(path, newline="") as f:
-        body = [l for l in f if not l.startswith("#")]
+        lines = list(f)
+    body = [l for l in lines if not l.startswith("#")]
+    if notes is not None:
+        notes += [l[2:].rstrip("\n") for l in lines if l.startswith("# ")]
     rows = []
     for r in csv.DictReader(body):
         row = {}

@@ -205,8 +205,14 @@ static void step_scene(const double *p, dem_model *m, dem_state *s) {
   scene(json, m, s);
 }
 
+/* Static Hertz force of a grain of radius R on a wall of its material (E 1e7, ν 0.3). */
+static double hertz(double delta) {
+  const double estar = 1e7 / (2 * (1 - 0.09));
+  return 4.0 / 3.0 * estar * sqrt(R) * pow(delta, 1.5);
+}
+
 static void test_groove_edge(void) {
-  const double H = 0.003, estar = 1e7 / (2 * (1 - 0.09));
+  const double H = 0.003;
   struct { const char *name; double x, z; int contacts; } cases[] = {
     {"floor and the step's convex edge", -0.0046, 0.0048, 2},
     {"floor only (edge out of reach)", -0.0060, 0.0048, 1},
@@ -219,10 +225,10 @@ static void test_groove_edge(void) {
     step_scene(p, &m, &s);
     double want[3] = {0, 0, 0};
     const double df = R - p[2]; /* floor */
-    if (df > 0) want[2] += 4.0 / 3.0 * estar * sqrt(R) * pow(df, 1.5);
+    if (df > 0) want[2] += hertz(df);
     const double ex = p[0], ez = p[2] - H, de = R - hypot(ex, ez); /* edge (0, y, H) */
     if (de > 0) {
-      const double fe = 4.0 / 3.0 * estar * sqrt(R) * pow(de, 1.5) / hypot(ex, ez);
+      const double fe = hertz(de) / hypot(ex, ez);
       want[0] += fe * ex;
       want[2] += fe * ez;
     }
