@@ -30,7 +30,25 @@ typedef struct lgd_options {
                           shape (its behaviour; for measuring the trap, lgd_topo) */
   double face_tolerance; /* LIGGGHTS mesh `precision` (m); 0: from the grain size
                             (lgd_script.c); for measuring its effect */
+  int skip_settle;     /* 1: no settling and no bed saving (a restart replaces the bed) */
+  const struct lgd_resume *resume; /* non-NULL: start from a checkpoint (lgd_save) */
 } lgd_options;
+
+/* A checkpoint of a sim (lgd_save): LIGGGHTS' own restart file (grains,
+ * velocities, the tangential contact history of pairs and walls) and what the
+ * sim holds beside it. Any rank count may resume it (LIGGGHTS reads one
+ * restart file on any number of ranks). */
+typedef struct lgd_resume {
+  const char *restart;       /* LIGGGHTS restart file (rank 0 reads it) */
+  double t, coupling_dt;     /* the sim's clock and coupling step (0: none yet) */
+  const double *surface_x, *surface_v; /* [n_nodes*3] the coupled surface's nodes
+                                          after the last DEM step (NULL: none) */
+  const double *force, *torque; /* [n_grains*3] each, config order: the last DEM
+                                   step's, which velocity Verlet starts from (rank 0) */
+  const double *mesh_history; /* [mesh_contacts*10]: mesh, grain tag, triangle,
+                                 tangential history of each grain-mesh contact (rank 0) */
+  int mesh_contacts;
+} lgd_resume;
 
 /* Per-step results, valid on rank 0 after lgd_step. Forces are averages over
  * the coupling step (impulse / Δt, the sum over DEM sub-steps / their count). */
@@ -87,6 +105,12 @@ int lgd_open(lgd_sim **out, MPI_Comm comm, const dem_model *m, double coupling_d
  * node velocities v (every rank passes them) and moves with v through the
  * sub-steps, as in dem_server. */
 int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err *err);
+/* Writes the checkpoint: LIGGGHTS' restart file at path (given on rank 0;
+ * rank 0 writes it) and fills r (path, clock; pointers into the sim: the
+ * surface valid until its next step, forces and histories until the next
+ * lgd_save or lgd_close). Refuses what a restart would not reproduce (a
+ * mesh wall moved by LIGGGHTS). Collective. */
+int lgd_save(lgd_sim *s, const char *path, struct lgd_resume *r, proto_err *err);
 /* Results of the last step (rank 0; other ranks get zeros). */
 const lgd_out *lgd_result(const lgd_sim *s);
 /* Grain positions, velocities, angular velocities in config order, on rank 0
@@ -107,7 +131,7 @@ void lgd_close(lgd_sim *s);
 /* LIGGGHTS' rule for which triangle edges and corners take part in contact
  * (SurfaceMesh::buildNeighbours, surface_mesh_I.h), evaluated on any shape of
  * a fixed topology: LIGGGHTS itself evaluates it once, on the initial shape
- * (../shared/notes/liggghts.md §2), so a tread that starts flat would keep
+ * (docs/liggghts.md §2), so a tread that starts flat would keep
  * every interior edge inactive however it bends. */
 typedef struct lgd_topo {
   int n_nodes, n_tri, n_edges, n_fans;

@@ -53,6 +53,15 @@ int lgd_shim_mesh_set(void *lmp, const char *fix_id, const int32_t *tri, const d
 int lgd_shim_mesh_flags(void *lmp, const char *fix_id, uint8_t *edge_active, uint8_t *corner_active);
 /* Appends this rank's contacts with the mesh (store_force_contact_stress). */
 int lgd_shim_mesh_contacts(void *lmp, const char *fix_id, lgd_rows *rows);
+/* The mesh's per-contact tangential history (its contact tracker), for
+ * checkpoints: rows of LGD_ROW_LEN values, mesh, grain tag, triangle id, then
+ * the history values (lgd_shim_mesh_history_width of them). _get appends this
+ * rank's contacts; _set writes the values of the rows into the contacts this
+ * rank holds now (all n rows given on every rank). */
+#define LGD_HIST_HEAD 3
+int lgd_shim_mesh_history_width(void *lmp, const char *fix_id);
+int lgd_shim_mesh_history_get(void *lmp, const char *fix_id, double mesh, lgd_rows *rows);
+int lgd_shim_mesh_history_set(void *lmp, const char *fix_id, double mesh, const double *rows, int n);
 /* Total force ON the mesh from its stress module (the same on every rank). */
 int lgd_shim_mesh_force(void *lmp, const char *fix_id, double *f);
 /* Grain–grain contacts of this rank from the pair neighbour list; estar is
@@ -100,9 +109,11 @@ typedef struct lgd_script {
   size_t len, cap;
 } lgd_script;
 /* face_tolerance: LIGGGHTS mesh `precision`, 0 = chosen from the grain size;
- * dt: the DEM step (dem_model_dt). */
+ * dt: the DEM step (dem_model_dt); restart: a LIGGGHTS restart file to read
+ * the grains (and their contact history) from instead of the model's (NULL);
+ * surface_x: the coupled surface's nodes (NULL: the model's x0). */
 int lgd_script_build(const dem_model *m, const char *dir, double face_tolerance, double dt,
-                     lgd_script *s, proto_err *err);
+                     const char *restart, const double *surface_x, lgd_script *s, proto_err *err);
 void lgd_script_free(lgd_script *s);
 /* Y* per type pair [ntypes*ntypes] (caller frees). */
 double *lgd_estar_table(const dem_model *m, int ntypes);

@@ -167,14 +167,14 @@ static int write_data(const dem_model *m, const char *path, proto_err *err) {
  * order (0-based), which the shim relies on, and reads vertices with full
  * double precision (atof). (The 3.8 legacy-VTK reader miscounts the header
  * lines of a standard file and cannot be used.) */
-static int write_mesh(const dem_mesh *me, const char *path, proto_err *err) {
+static int write_mesh(const dem_mesh *me, const double *x, const char *path, proto_err *err) {
   FILE *f = fopen(path, "w");
   if (!f) return proto_fail(err, "%s: cannot write the mesh file", path);
   fprintf(f, "solid cosim\n");
   for (int t = 0; t < me->n_tri; t++) {
     fprintf(f, "facet normal 0 0 0\nouter loop\n");
     for (int k = 0; k < 3; k++) {
-      const double *p = &me->x0[3 * me->tri[3 * t + k]];
+      const double *p = &x[3 * me->tri[3 * t + k]];
       fprintf(f, "vertex %.17g %.17g %.17g\n", p[0], p[1], p[2]);
     }
     fprintf(f, "endloop\nendfacet\n");
@@ -212,7 +212,7 @@ static double face_tolerance(const dem_model *m) {
 #define LIMIT_FORCE(m) ((m)->limit_force ? " limitForce on" : "")
 
 static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const char *model,
-                     double tol, proto_err *err) {
+                     double tol, const double *surface_x, proto_err *err) {
   static const char *const plane_kw[3] = {"xplane", "yplane", "zplane"};
   int rc = 0;
   for (int p = 0; p < m->n_planes && !rc; p++) {
@@ -228,7 +228,7 @@ static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const c
     char id[LGD_ID_LEN], path[600];
     snprintf(id, sizeof id, LGD_FIX_MESH, k);
     snprintf(path, sizeof path, "%s/mesh%d.stl", dir, k);
-    if (write_mesh(me, path, err)) return -1;
+    if (write_mesh(me, me->coupled && surface_x ? surface_x : me->x0, path, err)) return -1;
     rc = add(s, "fix %s all mesh/surface/stress file %s type %d precision %.6g curvature_tolerant yes\n", id, path,
              lgd_type(m, me->material, 0), tol);
     const double *u = me->velocity;
@@ -243,21 +243,22 @@ static int add_walls(lgd_script *s, const dem_model *m, const char *dir, const c
   return rc ? proto_fail(err, "LIGGGHTS input: out of memory") : 0;
 }
 
-int lgd_script_build(const dem_model *m, const char *dir, double tol, double dt, lgd_script *s,
-                     proto_err *err) {
+int lgd_script_build(const dem_model *m, const char *dir, double tol, double dt, const char *restart,
+                     const double *surface_x, lgd_script *s, proto_err *err) {
   memset(s, 0, sizeof *s);
   if (lgd_check_model(m, err)) return -1;
   char data[600];
   snprintf(data, sizeof data, "%s/grains.data", dir);
-  if (write_data(m, data, err)) return -1;
+  if (!restart && write_data(m, data, err)) return -1;
   const int nt = lgd_n_types(m);
   /* granular pair style and walls need `newton off` and ghost velocities
-   * (../shared/notes/liggghts.md §5); the soft/hard switches lift LIGGGHTS'
+   * (docs/liggghts.md §3); the soft/hard switches lift LIGGGHTS'
    * sanity limits on Young's modulus (5e6 ≤ E ≤ 1e9 Pa in SI) */
   int rc = add(s, "units si\natom_style granular\natom_modify map array\nboundary m m m\n"
                   "newton off\ncommunicate single vel yes\nprocessors * * 1\n"
-                  "soft_particles yes\nhard_particles yes\nread_data %s\n"
-                  "neighbor %.17g bin\nneigh_modify delay 0\n", data, m->skin);
+                  "soft_particles yes\nhard_particles yes\n%s %s\n"
+                  "neighbor %.17g bin\nneigh_modify delay 0\n", restart ? "read_restart" : "read_data",
+                  restart ? restart : data, m->skin);
   rc = rc || add(s, "fix lgd_E all property/global youngsModulus peratomtype");
   for (int t = 1; t <= nt && !rc; t++) rc = add(s, " %.17g", m->mat[material_of_type(m, t)].E);
   rc = rc || add(s, "\nfix lgd_nu all property/global poissonsRatio peratomtype");
@@ -274,7 +275,7 @@ int lgd_script_build(const dem_model *m, const char *dir, double tol, double dt,
   const double *g = m->gravity, gm = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
   if (gm > 0) rc = rc || add(s, "fix lgd_gravity all gravity %.17g vector %.17g %.17g %.17g\n", gm, g[0], g[1], g[2]);
   if (rc) return proto_fail(err, "LIGGGHTS input: out of memory");
-  if (add_walls(s, m, dir, model, tol > 0 ? tol : face_tolerance(m), err)) return -1;
+  if (add_walls(s, m, dir, model, tol > 0 ? tol : face_tolerance(m), surface_x, err)) return -1;
   if (nt > m->n_materials) /* grains that do not rotate: translation only */
     rc = add(s, "group lgd_rot type 1:%d\ngroup lgd_fixed type %d:%d\nfix lgd_nve lgd_rot nve/sphere\n"
                 "fix lgd_nve_fixed lgd_fixed nve\n", m->n_materials, m->n_materials + 1, nt);

@@ -3,7 +3,7 @@
  * activity; the per-contact forces and contact points on a mesh; the stress
  * module's total; grain–grain contact statistics from the neighbour list. Everything else goes through library.h in C.
  * Built against Debian's libliggghts-dev headers with the package's own
- * (empty) set of -D flags (../shared/notes/liggghts.md §1). */
+ * (empty) set of -D flags (docs/liggghts.md §1). */
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -11,6 +11,7 @@
 
 #include "atom.h"
 #include "fix_contact_history.h"
+#include "fix_contact_history_mesh.h"
 #include "fix_mesh_surface.h"
 #include "force.h"
 #include "lammps.h"
@@ -184,4 +185,53 @@ extern "C" void lgd_shim_screen_trim(void *lmp, long max_bytes) {
   if (!s || ftell(s) < max_bytes) return;
   fflush(s);
   if (ftruncate(fileno(s), 0) == 0) rewind(s);
+}
+
+/* The mesh's contact tracker (FixMeshSurface::createContactHistory names it). */
+static FixContactHistoryMesh *mesh_tracker(void *lmp, const char *fix_id) {
+  char id[LGD_ID_LEN + 16];
+  snprintf(id, sizeof id, "tracker_%s", fix_id);
+  return dynamic_cast<FixContactHistoryMesh *>(static_cast<LAMMPS *>(lmp)->modify->find_fix_id(id));
+}
+
+extern "C" int lgd_shim_mesh_history_width(void *lmp, const char *fix_id) {
+  FixContactHistoryMesh *h = mesh_tracker(lmp, fix_id);
+  return h ? h->get_dnum() : -1;
+}
+
+extern "C" int lgd_shim_mesh_history_get(void *lmp, const char *fix_id, double mesh, lgd_rows *rows) {
+  FixContactHistoryMesh *h = mesh_tracker(lmp, fix_id);
+  if (!h) return -1;
+  const int dnum = h->get_dnum(), *tag = static_cast<LAMMPS *>(lmp)->atom->tag;
+  if (LGD_HIST_HEAD + dnum > LGD_ROW_LEN) return -1;
+  for (int i = 0; i < static_cast<LAMMPS *>(lmp)->atom->nlocal; i++)
+    for (int j = 0; j < h->nneighs(i); j++) {
+      if (h->get_partner_idTri(i, j) < 0) continue;
+      if (lgd_rows_reserve(rows, 1)) return -1;
+      double *row = &rows->v[LGD_ROW_LEN * (size_t)rows->n++];
+      row[0] = mesh;
+      row[1] = tag[i];
+      row[2] = h->get_partner_idTri(i, j);
+      const double *v = h->contacthistory(i, j);
+      for (int d = 0; d < dnum; d++) row[LGD_HIST_HEAD + d] = v[d];
+    }
+  return 0;
+}
+
+extern "C" int lgd_shim_mesh_history_set(void *lmp, const char *fix_id, double mesh, const double *rows, int n) {
+  FixContactHistoryMesh *h = mesh_tracker(lmp, fix_id);
+  if (!h) return -1;
+  const int dnum = h->get_dnum(), *tag = static_cast<LAMMPS *>(lmp)->atom->tag;
+  for (int i = 0; i < static_cast<LAMMPS *>(lmp)->atom->nlocal; i++)
+    for (int j = 0; j < h->nneighs(i); j++) {
+      const int tri = h->get_partner_idTri(i, j);
+      if (tri < 0) continue;
+      double *v = h->contacthistory(i, j);
+      for (int r = 0; r < n; r++) { /* few contacts per grain: a scan per contact */
+        const double *row = &rows[LGD_ROW_LEN * (size_t)r];
+        if (row[0] == mesh && row[1] == tag[i] && row[2] == tri)
+          for (int d = 0; d < dnum; d++) v[d] = row[LGD_HIST_HEAD + d];
+      }
+    }
+  return 0;
 }

@@ -42,6 +42,10 @@ struct lgd_sim {
   lgd_timing time;
   double *gsend, *grecv;
   int gsend_cap, *counts, *displs;
+  double *ckpt_ft;        /* checkpoint: forces, torques [n_grains*3] each (lgd_save, resume) */
+  lgd_rows hist;          /* checkpoint: this rank's mesh contact histories */
+  double *ckpt_hist;      /* checkpoint: all ranks' (LGD_ROW_LEN per row, every rank) */
+  int ckpt_hist_n;
 };
 
 /* Every rank learns whether any failed; the first failing rank's message wins. */
@@ -131,7 +135,9 @@ static int make_script(lgd_sim *s, const lgd_options *o, char *dir, size_t dirca
       rc = proto_fail(err, "%s: cannot create a directory for the LIGGGHTS input", dir);
       dir[0] = 0;
     } else {
-      rc = lgd_script_build(s->m, dir, o ? o->face_tolerance : 0, s->dt, &sc, err);
+      rc = lgd_script_build(s->m, dir, o ? o->face_tolerance : 0, s->dt,
+                            o && o->resume ? o->resume->restart : NULL,
+                            o && o->resume ? o->resume->surface_x : NULL, &sc, err);
       len = rc ? 0 : (long)sc.len;
     }
   }
@@ -212,6 +218,138 @@ static int save_bed(lgd_sim *s, proto_err *err) {
   return agree(s->comm, rc, err);
 }
 
+/* After LIGGGHTS read its restart file: the sim's clock, and the coupled
+ * surface where it was after the last DEM step (positions, velocities,
+ * activity), which a second set-up run puts into the initial forces, as the
+ * step that wrote the checkpoint left them. Set-up runs do not change the
+ * tangential history (LIGGGHTS' `shearupdate` is off in set-up). */
+static void set_forces(lgd_sim *s, const double *f, const double *torque);
+static int gather_atoms(lgd_sim *s, const char *const names[3], double *out[3], proto_err *err);
+static int resume_surface(lgd_sim *s, const lgd_resume *r, proto_err *err);
+static int resume(lgd_sim *s, const lgd_resume *r, proto_err *err) {
+  s->t = r->t;
+  const size_t n3 = 3 * (size_t)s->n_grains;
+  int rc = s->rank == 0 && (!r->force || !r->torque) ? proto_fail(err, "checkpoint: no grain forces in it") : 0;
+  if (!rc && !(s->ckpt_ft = malloc(sizeof(double) * 2 * n3)))
+    rc = proto_fail(err, "out of memory for the forces of %d grains", s->n_grains);
+  if (agree(s->comm, rc, err)) return -1;
+  if (s->rank == 0) {
+    memcpy(s->ckpt_ft, r->force, sizeof(double) * n3);
+    memcpy(s->ckpt_ft + n3, r->torque, sizeof(double) * n3);
+  }
+  MPI_Bcast(s->ckpt_ft, 2 * (int)n3, MPI_DOUBLE, 0, s->comm);
+  s->ckpt_hist_n = s->rank == 0 ? r->mesh_contacts : 0;
+  MPI_Bcast(&s->ckpt_hist_n, 1, MPI_INT, 0, s->comm);
+  const size_t nh = LGD_ROW_LEN * (size_t)s->ckpt_hist_n;
+  rc = (s->ckpt_hist = malloc(sizeof(double) * (nh + 1))) ? 0 : proto_fail(err, "out of memory");
+  if (agree(s->comm, rc, err)) return -1;
+  if (s->rank == 0 && nh) memcpy(s->ckpt_hist, r->mesh_history, sizeof(double) * nh);
+  MPI_Bcast(s->ckpt_hist, (int)nh, MPI_DOUBLE, 0, s->comm);
+  rc = resume_surface(s, r, err);
+  if (agree(s->comm, rc, err)) return -1;
+  set_forces(s, s->ckpt_ft, s->ckpt_ft + n3);
+  return 0;
+}
+
+static int resume_surface(lgd_sim *s, const lgd_resume *r, proto_err *err) {
+  if (s->surface < 0) return 0;
+  const size_t n3 = 3 * (size_t)s->n_nodes;
+  if (!r->surface_x || !r->surface_v) return proto_fail(err, "checkpoint: no coupled surface in it");
+  memcpy(s->node_x, r->surface_x, sizeof(double) * n3);
+  memcpy(s->node_v, r->surface_v, sizeof(double) * n3);
+  char sid[LGD_ID_LEN];
+  snprintf(sid, sizeof sid, LGD_FIX_MESH, s->surface);
+  if (!s->frozen_activity) lgd_topo_activity(&s->topo, s->node_x, s->edge_on, s->corner_on);
+  if (lgd_shim_mesh_set(s->lmp, sid, s->m->meshes[s->surface].tri, s->node_x, s->node_v,
+                        s->frozen_activity ? NULL : s->edge_on, s->frozen_activity ? NULL : s->corner_on))
+    return proto_fail(err, "LIGGGHTS mesh %s not found", sid);
+  lammps_command(s->lmp, "run 0 post no");
+  return 0;
+}
+
+/* Velocity Verlet starts a step from the last step's forces, which LIGGGHTS
+ * computed at the half-step velocities (damping), while a set-up run computes
+ * them at the full-step ones: the checkpoint carries the step's forces and
+ * torques, and they replace the set-up's (ft: [n_grains*3] each, config
+ * order, every rank). */
+static void set_forces(lgd_sim *s, const double *f, const double *torque) {
+  for (int k = 0; k < s->m->n_meshes; k++) { /* LIGGGHTS' own restart of these is not exact */
+    char id[LGD_ID_LEN];
+    snprintf(id, sizeof id, LGD_FIX_MESH, k);
+    lgd_shim_mesh_history_set(s->lmp, id, k, s->ckpt_hist, s->ckpt_hist_n);
+  }
+  const int n = *(int *)lammps_extract_global(s->lmp, "nlocal");
+  double **pf = lammps_extract_atom(s->lmp, "f"), **pt = lammps_extract_atom(s->lmp, "torque");
+  const int *tag = lammps_extract_atom(s->lmp, "id");
+  for (int i = 0; i < n; i++)
+    for (int d = 0; d < 3; d++) {
+      pf[i][d] = f[3 * (size_t)(tag[i] - 1) + d]; /* atom tags are model order + 1 */
+      pt[i][d] = torque[3 * (size_t)(tag[i] - 1) + d];
+    }
+}
+
+/* Every rank's mesh contact histories into ckpt_hist on every rank. */
+static int gather_mesh_history(lgd_sim *s, proto_err *err) {
+  s->hist.n = 0;
+  int rc = 0;
+  for (int k = 0; k < s->m->n_meshes && !rc; k++) {
+    char id[LGD_ID_LEN];
+    snprintf(id, sizeof id, LGD_FIX_MESH, k);
+    if (lgd_shim_mesh_history_get(s->lmp, id, k, &s->hist))
+      rc = proto_fail(err, "mesh %d: LIGGGHTS' contact history not found (or %d values per contact, "
+                      "more than %d)", k, lgd_shim_mesh_history_width(s->lmp, id), LGD_ROW_LEN - LGD_HIST_HEAD);
+  }
+  if (agree(s->comm, rc, err)) return -1;
+  const int mine = LGD_ROW_LEN * s->hist.n;
+  MPI_Allgather(&mine, 1, MPI_INT, s->counts, 1, MPI_INT, s->comm);
+  int total = 0;
+  for (int p = 0; p < s->nproc; p++) { s->displs[p] = total; total += s->counts[p]; }
+  free(s->ckpt_hist);
+  s->ckpt_hist = malloc(sizeof(double) * ((size_t)total + 1));
+  s->ckpt_hist_n = total / LGD_ROW_LEN;
+  if (agree(s->comm, s->ckpt_hist ? 0 : proto_fail(err, "out of memory"), err)) return -1;
+  MPI_Allgatherv(s->hist.v, mine, MPI_DOUBLE, s->ckpt_hist, s->counts, s->displs, MPI_DOUBLE, s->comm);
+  return 0;
+}
+
+int lgd_save(lgd_sim *s, const char *path, lgd_resume *r, proto_err *err) {
+  const dem_model *m = s->m;
+  int rc = 0;
+  for (int k = 0; k < m->n_meshes && !rc; k++) {
+    const double *u = m->meshes[k].velocity;
+    if (!m->meshes[k].coupled && (u[0] != 0 || u[1] != 0 || u[2] != 0))
+      rc = proto_fail(err, "%s.walls[%d].velocity: liggghts_dem cannot checkpoint a mesh wall that "
+                      "LIGGGHTS moves (fix move/mesh is not restored)", m->key_path, m->meshes[k].wall);
+  }
+  const size_t n3 = 3 * (size_t)s->n_grains;
+  if (!rc && !s->ckpt_ft && !(s->ckpt_ft = malloc(sizeof(double) * 2 * n3)))
+    rc = proto_fail(err, "out of memory for the forces of %d grains", s->n_grains);
+  if (agree(s->comm, rc, err)) return -1;
+  static const char *const ft[3] = {"f", "torque", NULL};
+  double *out[3] = {s->ckpt_ft, s->ckpt_ft + n3, NULL};
+  if (gather_atoms(s, ft, out, err)) return -1;
+  MPI_Bcast(s->ckpt_ft, 2 * (int)n3, MPI_DOUBLE, 0, s->comm);
+  if (gather_mesh_history(s, err)) return -1;
+  char cmd[700];
+  if (s->rank == 0) snprintf(cmd, sizeof cmd, "write_restart %s", path);
+  MPI_Bcast(cmd, (int)sizeof cmd, MPI_CHAR, 0, s->comm);
+  lammps_command(s->lmp, cmd); /* one file, written by rank 0 */
+  /* write_restart re-exchanges the grains and rebuilds the ghosts (LAMMPS'
+   * WriteRestart::command), which the neighbour lists of a `run 1 pre no`
+   * would not see: a set-up run rebuilds them, and the step's forces are put
+   * back (set_forces), as a resumed sim does */
+  lammps_command(s->lmp, "run 0 post no");
+  s->near_valid = 0; /* the set-up may have sorted the grains */
+  set_forces(s, s->ckpt_ft, s->ckpt_ft + 3 * (size_t)s->n_grains);
+  *r = (lgd_resume){.restart = path, .t = s->t, .coupling_dt = s->coupling_dt,
+                    .surface_x = s->surface >= 0 ? s->node_x : NULL,
+                    .surface_v = s->surface >= 0 ? s->node_v : NULL,
+                    .force = s->rank == 0 ? s->ckpt_ft : NULL,
+                    .torque = s->rank == 0 ? s->ckpt_ft + 3 * (size_t)s->n_grains : NULL,
+                    .mesh_history = s->ckpt_hist, .mesh_contacts = s->ckpt_hist_n};
+  return 0;
+}
+
 int lgd_open(lgd_sim **out, MPI_Comm comm, const dem_model *m, double coupling_dt, const lgd_options *o,
              proto_err *err) {
   *out = NULL;
@@ -249,6 +387,7 @@ int lgd_open(lgd_sim **out, MPI_Comm comm, const dem_model *m, double coupling_d
   }
   lammps_command(s->lmp, "run 0 post no"); /* set-up: neighbour lists, initial forces */
   if (s->rank == 0) remove_inputs(dir);
+  if (!rc && o && o->resume) rc = resume(s, o->resume, err);
   for (int k = 0; k < m->n_meshes && !rc; k++) {
     char id[LGD_ID_LEN];
     snprintf(id, sizeof id, LGD_FIX_MESH, k);
@@ -262,8 +401,9 @@ int lgd_open(lgd_sim **out, MPI_Comm comm, const dem_model *m, double coupling_d
   if (!rc && natoms != s->n_grains)
     rc = proto_fail(err, "%s.particles: LIGGGHTS holds %lld of the %d grains", m->key_path,
                     (long long)natoms, s->n_grains);
-  if (!rc && m->cfg.settle_steps > 0) settle(s);
-  if (!rc && m->cfg.save_bed[0]) rc = save_bed(s, err);
+  const int fresh = !(o && (o->resume || o->skip_settle));
+  if (!rc && fresh && m->cfg.settle_steps > 0) settle(s);
+  if (!rc && fresh && m->cfg.save_bed[0]) rc = save_bed(s, err);
   if (agree(s->comm, rc, err)) {
     lgd_close(s);
     return -1;
@@ -279,7 +419,8 @@ void lgd_close(lgd_sim *s) {
   free(s->estar); free(s->wall_local); free(s->mesh_acc); free(s->out.wall_force);
   free(s->out.nodal_force); free(s->node_x); free(s->node_v); free(s->nodal_local);
   free(s->edge_on); free(s->corner_on); free(s->rows.v); free(s->gsend); free(s->grecv);
-  free(s->counts); free(s->displs); free(s->near);
+  free(s->counts); free(s->displs); free(s->near); free(s->ckpt_ft);
+  free(s->hist.v); free(s->ckpt_hist);
   if (s->comm != MPI_COMM_NULL && s->comm) MPI_Comm_free(&s->comm);
   free(s);
 }
@@ -438,7 +579,7 @@ static int change_dt(lgd_sim *s, double coupling_dt, proto_err *err) {
   snprintf(cmd, sizeof cmd, "timestep %.17g", dt);
   lammps_command(s->lmp, cmd);
   /* `run N pre no` keeps the integrators' old dt: one set-up run makes them
-   * take the new one (../shared/notes/liggghts.md §5) */
+   * take the new one (docs/liggghts.md §3) */
   lammps_command(s->lmp, "run 0 post no");
   s->dt = dt;
   return 0;
@@ -556,7 +697,9 @@ int lgd_mesh_activity(lgd_sim *s, int mesh, uint8_t *edge_active, uint8_t *corne
   return 0;
 }
 
-int lgd_gather(lgd_sim *s, double *x, double *v, double *omega, proto_err *err) {
+/* Three per-grain vectors of LIGGGHTS (names[k], NULL = none) in config
+ * order into out[k] on rank 0 ([n_grains*3]; NULL allowed). */
+static int gather_atoms(lgd_sim *s, const char *const names[3], double *out[3], proto_err *err) {
   const int n = *(int *)lammps_extract_global(s->lmp, "nlocal");
   int rc = 0;
   if (n * LGD_SNAP_COLS > s->gsend_cap) {
@@ -569,13 +712,14 @@ int lgd_gather(lgd_sim *s, double *x, double *v, double *omega, proto_err *err) 
   if (s->rank == 0 && !s->grecv && !(s->grecv = malloc(sizeof(double) * LGD_SNAP_COLS * ng)))
     rc = proto_fail(err, "out of memory for %zu grains", ng);
   if (agree(s->comm, rc, err)) return -1;
-  double **px = lammps_extract_atom(s->lmp, "x"), **pv = lammps_extract_atom(s->lmp, "v");
-  double **pw = lammps_extract_atom(s->lmp, "omega");
+  double **p[3];
+  for (int k = 0; k < 3; k++) p[k] = names[k] ? lammps_extract_atom(s->lmp, (char *)names[k]) : NULL;
   int *tag = lammps_extract_atom(s->lmp, "id");
   for (int i = 0; i < n; i++) {
     double *row = &s->gsend[LGD_SNAP_COLS * (size_t)i];
     row[0] = tag[i];
-    for (int d = 0; d < 3; d++) { row[1 + d] = px[i][d]; row[4 + d] = pv[i][d]; row[7 + d] = pw[i][d]; }
+    for (int k = 0; k < 3; k++)
+      for (int d = 0; d < 3; d++) row[1 + 3 * k + d] = p[k] ? p[k][i][d] : 0;
   }
   const int mine = n * LGD_SNAP_COLS;
   MPI_Gather(&mine, 1, MPI_INT, s->counts, 1, MPI_INT, 0, s->comm);
@@ -587,12 +731,15 @@ int lgd_gather(lgd_sim *s, double *x, double *v, double *omega, proto_err *err) 
     for (int r = 0; r < total / LGD_SNAP_COLS && !rc; r++) {
       const double *row = &s->grecv[LGD_SNAP_COLS * (size_t)r];
       const size_t g = (size_t)row[0] - 1; /* atom tags are model order + 1 */
-      for (int d = 0; d < 3; d++) {
-        if (x) x[3 * g + d] = row[1 + d];
-        if (v) v[3 * g + d] = row[4 + d];
-        if (omega) omega[3 * g + d] = row[7 + d];
-      }
+      for (int k = 0; k < 3; k++)
+        for (int d = 0; d < 3 && out[k]; d++) out[k][3 * g + d] = row[1 + 3 * k + d];
     }
   }
   return agree(s->comm, rc, err);
+}
+
+int lgd_gather(lgd_sim *s, double *x, double *v, double *omega, proto_err *err) {
+  static const char *const names[3] = {"x", "v", "omega"};
+  double *out[3] = {x, v, omega};
+  return gather_atoms(s, names, out, err);
 }

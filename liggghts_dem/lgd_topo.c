@@ -3,7 +3,7 @@
  * handleSharedEdge, handleCorner in surface_mesh_I.h), re-evaluated on the
  * current shape. LIGGGHTS evaluates it once at set-up: on a tread that starts
  * flat every interior edge and corner stays inactive, and a grain pressed onto
- * a ridge that forms later falls through it (../shared/notes/liggghts.md §2).
+ * a ridge that forms later falls through it (docs/liggghts.md §2).
  *
  * The rule:
  * - an edge of one triangle only (a boundary) is active;

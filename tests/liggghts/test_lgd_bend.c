@@ -1,4 +1,4 @@
-/* The edge/corner activation trap (../shared/notes/liggghts.md §2): LIGGGHTS
+/* The edge/corner activation trap (docs/liggghts.md §2): LIGGGHTS
  * decides once, on a mesh's initial shape, which triangle edges and corners
  * take part in contact, so on a tread that starts flat every interior edge and
  * corner stays inactive. A flat plate bends while a grain falls onto it and

@@ -8,20 +8,36 @@
  * This file is the only one that knows the participant API (proto.h). */
 #include "liggghts_dem/lgd.h"
 
+#include <math.h>
 #include <sched.h>
 #include <stdio.h>
+#include <sys/stat.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
 
-enum { OP_CONFIGURE = 1, OP_INIT, OP_STEP, OP_FINISH, OP_QUIT };
+enum { OP_CONFIGURE = 1, OP_INIT, OP_STEP, OP_FINISH, OP_SAVE, OP_LOAD, OP_QUIT };
 
 typedef struct op_msg {
   int op, output;
-  int64_t n_nodes, n_tri, len;
-  double dt;
+  int64_t n_nodes, n_tri, len, restart_step;
+  double dt, t; /* OP_LOAD: the checkpoint's coupling step and clock */
 } op_msg;
+
+/* A checkpoint's arrays (PROTOCOL.md "Checkpoints and restart"). */
+#define LGD_STATE_RESTART "liggghts_restart" /* u1: LIGGGHTS' restart file, as written */
+#define LGD_STATE_CLOCK "clock"              /* f8 [2]: t, coupling step (s) */
+#define LGD_STATE_SURFACE_X "surface_x"      /* f8 [n_nodes, 3]: after the last DEM step */
+#define LGD_STATE_SURFACE_V "surface_v"
+#define LGD_STATE_FORCE "force"              /* f8 [n_grains, 3]: the last DEM step's, config order */
+#define LGD_STATE_TORQUE "torque"
+#define LGD_STATE_MESH_HISTORY "mesh_history" /* f8 [contacts, 10]: lgd_resume.mesh_history */
+#define LGD_MESH_HISTORY_COLS 10
+#define LGD_STATE_FILE "state.restart"       /* in app.state_dir, rank 0 */
+/* the largest restart file taken back (bytes): a damaged checkpoint must not
+ * make us allocate without bound; 2 GiB is ~10^7 grains with history */
+#define LGD_STATE_MAX ((int64_t)1 << 31)
 
 typedef struct app {
   int mpi, rank, clean;
@@ -36,6 +52,13 @@ typedef struct app {
   double *snap;                     /* rank 0: x, v, omega [n*3] each, then r [n] */
   double *snap_x, *snap_v, *snap_w, *snap_r; /* into snap */
   double t_step, t_bcast;           /* rank 0: in step(), broadcasting to the ranks */
+  int64_t restart_step;             /* > 0: init need not settle the bed */
+  char state_dir[600];              /* rank 0: where LIGGGHTS' restart file goes */
+  unsigned char *state_buf;         /* rank 0: the file's bytes (state_save) */
+  size_t state_cap;
+  double clock[2];                  /* t, coupling step */
+  lgd_resume saved;                 /* the last lgd_save (surface: the sim's buffers) */
+  double *load_ft;                  /* rank 0, state_load: forces, torques [n_grains*3] each */
 } app;
 
 static app g_app; /* one per process; the exit handler reads it */
@@ -77,7 +100,7 @@ static int do_init(app *a, int64_t n_nodes, const double *x0, int64_t n_tri, con
   int bad = rc, any;
   MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
   if (any < 0) return -1; /* deterministic: every rank failed alike */
-  lgd_options o = {.screen = a->rank == 0 ? a->screen : NULL};
+  lgd_options o = {.screen = a->rank == 0 ? a->screen : NULL, .skip_settle = a->restart_step > 0};
   if (lgd_open(&a->sim, MPI_COMM_WORLD, m, a->run_dt, &o, err)) return -1;
   if (a->rank != 0) return 0;
   const size_t n = (size_t)m->n_grains;
@@ -104,6 +127,63 @@ static void do_finish(app *a) {
   a->have_model = 0;
   free(a->x); free(a->v); free(a->wall_row); free(a->snap);
   a->x = a->v = a->wall_row = a->snap = a->snap_x = a->snap_v = a->snap_w = a->snap_r = NULL;
+}
+
+/* rank 0: the path of the restart file, in a directory of our own */
+static int state_path(app *a, char *path, size_t cap, proto_err *err) {
+  if (!a->state_dir[0]) {
+    const char *base = getenv("TMPDIR");
+    snprintf(a->state_dir, sizeof a->state_dir, "%s/cosim-lgd-state-XXXXXX", base && base[0] ? base : "/tmp");
+    if (!mkdtemp(a->state_dir)) {
+      a->state_dir[0] = 0;
+      return proto_fail(err, "cannot create a directory for LIGGGHTS' restart file under %s",
+                        base && base[0] ? base : "/tmp");
+    }
+  }
+  snprintf(path, cap, "%s/" LGD_STATE_FILE, a->state_dir);
+  return 0;
+}
+
+/* Every rank: LIGGGHTS writes its restart file; rank 0 reads it back into
+ * state_buf (*len bytes). */
+static int do_save(app *a, size_t *len, proto_err *err) {
+  char path[700] = "";
+  int rc = a->rank == 0 ? state_path(a, path, sizeof path, err) : 0;
+  MPI_Bcast(&rc, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  if (rc) return -1;
+  if (lgd_save(a->sim, path, &a->saved, err)) return -1;
+  a->clock[0] = a->saved.t;
+  a->clock[1] = a->saved.coupling_dt;
+  if (a->rank != 0) return 0;
+  FILE *f = fopen(path, "rb");
+  long size = -1;
+  if (f && fseek(f, 0, SEEK_END) == 0) size = ftell(f);
+  if (f) rewind(f);
+  if (size > 0 && (size_t)size > a->state_cap) {
+    unsigned char *bigger = realloc(a->state_buf, (size_t)size);
+    if (bigger) a->state_buf = bigger, a->state_cap = (size_t)size;
+  }
+  rc = size > 0 && (size_t)size <= a->state_cap && fread(a->state_buf, 1, (size_t)size, f) == (size_t)size
+           ? 0 : proto_fail(err, "%s: cannot read LIGGGHTS' restart file back", path);
+  if (f) fclose(f);
+  unlink(path);
+  *len = rc ? 0 : (size_t)size;
+  return rc;
+}
+
+/* Every rank: LIGGGHTS again, from the restart file rank 0 wrote to path,
+ * with the clock in op and the surface in a->x, a->v. */
+static int do_load(app *a, const op_msg *op, const char *path, const proto_array *hist, proto_err *err) {
+  lgd_close(a->sim);
+  a->sim = NULL;
+  const size_t n3 = 3 * (size_t)a->model.n_grains;
+  const lgd_resume r = {.restart = path, .t = op->t, .coupling_dt = op->dt,
+                        .surface_x = a->n_nodes > 0 ? a->x : NULL, .surface_v = a->n_nodes > 0 ? a->v : NULL,
+                        .force = a->load_ft, .torque = a->load_ft ? a->load_ft + n3 : NULL,
+                        .mesh_history = hist ? hist->data : NULL,
+                        .mesh_contacts = hist ? (int)hist->shape[0] : 0};
+  lgd_options o = {.screen = a->rank == 0 ? a->screen : NULL, .resume = &r};
+  return lgd_open(&a->sim, MPI_COMM_WORLD, &a->model, op->dt > 0 ? op->dt : a->run_dt, &o, err);
 }
 
 /* Rank 0 sends the next operation; the others wait for it. A sleeping rank
@@ -149,6 +229,7 @@ static int worker_loop(app *a) {
       text = malloc((size_t)op.len + 1);
       MPI_Bcast(text, (int)op.len + 1, MPI_CHAR, 0, MPI_COMM_WORLD);
       MPI_Bcast(a->key_path, sizeof a->key_path, MPI_CHAR, 0, MPI_COMM_WORLD);
+      a->restart_step = op.restart_step;
       do_configure(a, text, op.dt, &err); /* rank 0 reports failures */
       free(text);
       break;
@@ -173,6 +254,18 @@ static int worker_loop(app *a) {
     case OP_FINISH:
       do_finish(a);
       break;
+    case OP_SAVE: {
+      size_t len;
+      if (a->sim) do_save(a, &len, &err);
+      break;
+    }
+    case OP_LOAD:
+      if (a->n_nodes > 0) {
+        MPI_Bcast(a->x, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+        MPI_Bcast(a->v, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+      }
+      if (a->have_model) do_load(a, &op, "", NULL, &err);
+      break;
     default:
       return 0;
     }
@@ -185,6 +278,7 @@ static int configure(void *user, const proto_run_info *info, const cJSON *sectio
   app *a = user;
   snprintf(a->name, sizeof a->name, "%s", info->name ? info->name : "dem");
   snprintf(a->key_path, sizeof a->key_path, "%s", info->key_path);
+  a->restart_step = info->restart_step;
   char *json = cJSON_PrintUnformatted(section);
   if (!json) return proto_fail(err, "out of memory");
   int rc;
@@ -198,7 +292,8 @@ static int configure(void *user, const proto_run_info *info, const cJSON *sectio
     const char *where = access(logs, W_OK) == 0 ? logs : access(dir, W_OK) == 0 ? dir : NULL;
     if (where) snprintf(a->screen, sizeof a->screen, "%s/%s.liggghts.log", where, a->name);
     else snprintf(a->screen, sizeof a->screen, "/tmp/cosim-%s-liggghts-%d.log", a->name, (int)getpid());
-    op_msg op = {.op = OP_CONFIGURE, .len = (int64_t)strlen(json), .dt = info->dt};
+    op_msg op = {.op = OP_CONFIGURE, .len = (int64_t)strlen(json), .dt = info->dt,
+                 .restart_step = info->restart_step};
     bcast_op(&op);
     MPI_Bcast(json, (int)op.len + 1, MPI_CHAR, 0, MPI_COMM_WORLD);
     MPI_Bcast(a->key_path, sizeof a->key_path, MPI_CHAR, 0, MPI_COMM_WORLD);
@@ -298,6 +393,80 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
   return 0;
 }
 
+/* The whole changing state: LIGGGHTS' restart file, the clock, the surface
+ * (lgd_save). The snapshot and reply buffers are rebuilt by every step. */
+static int state_save(void *user, proto_msg *state, proto_err *err) {
+  app *a = user;
+  if (!a->sim) return proto_fail(err, "state_save before init");
+  op_msg op = {.op = OP_SAVE};
+  if (a->mpi) bcast_op(&op);
+  size_t len = 0;
+  if (do_save(a, &len, err)) return -1;
+  const int64_t shape[1] = {(int64_t)len};
+  if (proto_msg_add(state, PROTO_P_STATE LGD_STATE_RESTART, PROTO_U1, 1, shape, a->state_buf) ||
+      proto_msg_add_prefixed(state, PROTO_P_STATE, LGD_STATE_CLOCK, PROTO_F8, 2, 0, a->clock) ||
+      proto_msg_add_prefixed(state, PROTO_P_STATE, LGD_STATE_FORCE, PROTO_F8, a->model.n_grains, 3, a->saved.force) ||
+      proto_msg_add_prefixed(state, PROTO_P_STATE, LGD_STATE_TORQUE, PROTO_F8, a->model.n_grains, 3,
+                             a->saved.torque) ||
+      proto_msg_add_prefixed(state, PROTO_P_STATE, LGD_STATE_MESH_HISTORY, PROTO_F8, a->saved.mesh_contacts,
+                             LGD_MESH_HISTORY_COLS, a->saved.mesh_history))
+    return proto_fail(err, "state message full");
+  if (a->n_nodes == 0) return 0;
+  const lgd_resume *r = &a->saved;
+  if (proto_msg_add_prefixed(state, PROTO_P_STATE, LGD_STATE_SURFACE_X, PROTO_F8, a->n_nodes, 3, r->surface_x) ||
+      proto_msg_add_prefixed(state, PROTO_P_STATE, LGD_STATE_SURFACE_V, PROTO_F8, a->n_nodes, 3, r->surface_v))
+    return proto_fail(err, "state message full");
+  return 0;
+}
+
+static int state_load(void *user, const proto_msg *state, proto_err *err) {
+  app *a = user;
+  if (!a->have_model) return proto_fail(err, "state_load before configure");
+  const proto_array *rs = proto_msg_find(state, PROTO_P_STATE LGD_STATE_RESTART);
+  if (!rs || rs->dtype != PROTO_U1 || rs->ndim != 1 || rs->shape[0] < 1 || rs->shape[0] > LGD_STATE_MAX)
+    return proto_fail(err, "state: '%s%s' must be a u1 array of 1 to %lld bytes (LIGGGHTS' restart file)",
+                      PROTO_P_STATE, LGD_STATE_RESTART, (long long)LGD_STATE_MAX);
+  double clock[2];
+  if (proto_state_get(state, LGD_STATE_CLOCK, PROTO_F8, 2, clock, err)) return -1;
+  if (!(clock[0] >= 0) || !isfinite(clock[0]) || !(clock[1] >= 0) || !isfinite(clock[1]))
+    return proto_fail(err, "state.%s: t and the coupling step must be finite and >= 0 (got %g, %g)",
+                      LGD_STATE_CLOCK, clock[0], clock[1]);
+  const size_t g3 = 3 * (size_t)a->model.n_grains;
+  if (!a->load_ft && !(a->load_ft = malloc(sizeof(double) * 2 * g3))) return proto_fail(err, "out of memory");
+  if (proto_state_get(state, LGD_STATE_FORCE, PROTO_F8, g3, a->load_ft, err) ||
+      proto_state_get(state, LGD_STATE_TORQUE, PROTO_F8, g3, a->load_ft + g3, err))
+    return -1;
+  const proto_array *hist = proto_msg_find(state, PROTO_P_STATE LGD_STATE_MESH_HISTORY);
+  if (!hist || hist->dtype != PROTO_F8 || hist->ndim != 2 || hist->shape[1] != LGD_MESH_HISTORY_COLS ||
+      hist->shape[0] < 0 || hist->shape[0] > LGD_STATE_MAX / (8 * LGD_MESH_HISTORY_COLS))
+    return proto_fail(err, "state: '%s%s' must be an f8 array [contacts, %d]", PROTO_P_STATE,
+                      LGD_STATE_MESH_HISTORY, LGD_MESH_HISTORY_COLS);
+  const size_t n3 = 3 * (size_t)a->n_nodes;
+  if (n3 && (proto_state_get(state, LGD_STATE_SURFACE_X, PROTO_F8, n3, a->x, err) ||
+             proto_state_get(state, LGD_STATE_SURFACE_V, PROTO_F8, n3, a->v, err)))
+    return -1;
+  char path[700];
+  if (state_path(a, path, sizeof path, err)) return -1;
+  FILE *f = fopen(path, "wb");
+  int rc = f && fwrite(rs->data, 1, (size_t)rs->shape[0], f) == (size_t)rs->shape[0] ? 0 : -1;
+  if (f && fclose(f)) rc = -1;
+  if (rc) {
+    unlink(path);
+    return proto_fail(err, "%s: cannot write LIGGGHTS' restart file", path);
+  }
+  op_msg op = {.op = OP_LOAD, .t = clock[0], .dt = clock[1]};
+  if (a->mpi) {
+    bcast_op(&op);
+    if (a->n_nodes > 0) {
+      MPI_Bcast(a->x, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+      MPI_Bcast(a->v, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    }
+  }
+  rc = do_load(a, &op, path, hist, err);
+  unlink(path);
+  return rc;
+}
+
 static void finish(void *user) {
   app *a = user;
   log_timing(a);
@@ -306,6 +475,13 @@ static void finish(void *user) {
     bcast_op(&op);
   }
   do_finish(a);
+  free(a->state_buf);
+  free(a->load_ft);
+  a->load_ft = NULL;
+  a->state_buf = NULL;
+  a->state_cap = 0;
+  if (a->state_dir[0]) rmdir(a->state_dir);
+  a->state_dir[0] = 0;
 }
 
 /* LIGGGHTS reports its input errors on its screen and then exits: show the
@@ -329,10 +505,9 @@ int main(int argc, char **argv) {
   int mpi = 1;
   for (int i = 1; i < argc; i++)
     if (!strcmp(argv[i], "--check-config") || !strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) mpi = 0;
-  /* no state_save/state_load: LIGGGHTS' state lives in its ranks (no rollback,
-   * no checkpoints: the implicit scheme and --restart refuse this participant) */
   const proto_participant_ops ops = {.role = PROTO_ROLE_DEM, .configure = configure, .init = init,
-                                     .step = step, .finish = finish};
+                                     .step = step, .finish = finish, .state_save = state_save,
+                                     .state_load = state_load};
   app *a = &g_app;
   if (!mpi) return proto_participant_main(argc, argv, &ops, a);
   MPI_Init(&argc, &argv);
