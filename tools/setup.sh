@@ -7,7 +7,8 @@ cd "$(dirname "$0")/.."
 PACKAGES="build-essential cmake pkg-config libzmq3-dev libhdf5-dev \
 libsuitesparse-dev libopenblas-dev libcjson-dev libfftw3-dev \
 liggghts libliggghts-dev mpi-default-dev \
-python3 python3-numpy python3-h5py python3-matplotlib python3-zmq"
+python3 python3-numpy python3-scipy python3-h5py python3-matplotlib python3-zmq \
+chromium chromium-driver python3-selenium"
 # the fuzz build (tests/fuzz) needs clang, its libFuzzer runtime and its OpenMP
 case " $* " in *COSIM_FUZZ=ON*) PACKAGES="$PACKAGES clang libclang-rt-14-dev libomp-dev" ;; esac
 missing=""

@@ -135,7 +135,7 @@ def sweep_section(label, d):
     notes = []
     rows = read_summary(os.path.join(d, SUMMARY_FILE), notes)
     head = list(rows[0]) if rows else []
-    keep = [head[0]] + [c for c in head if c.endswith(("_mean", "_min", "_max"))
+    keep = [head[0]] + [c for c in head if c.endswith(("_mean", "_ci95", "_min", "_max"))
                         or c in ("travel_start_s", "window_t0_s", "window_t1_s")]
     md = [f"### rig: {label}", "", f"`cosim sweep` output `{os.path.basename(os.path.normpath(d))}`; "
           + "; ".join(n for n in notes if n.startswith("window")) + ".", "",

@@ -12,6 +12,7 @@ import os
 
 import h5py
 
+from . import traction
 from .errors import CosimError
 
 RESULTS_FILE = "results.h5"
@@ -122,6 +123,12 @@ class Results:
                            f"{', '.join(have) or 'none'})")
         cols = [_text(c) for c in ds.attrs[COLUMNS_ATTR]]
         return Table(f"/{process}/{dataset}", cols, ds[()])
+
+    def traction_summary(self, skip_travel=0.1):
+        """The steady travel of a tyre run as `cosim sweep` summarises it: the
+        window and, per traction quantity, the mean, its 95 % interval
+        (``_ci95``, batch means: cosim.stats), min and max."""
+        return traction.summarise_run(self, skip_travel)
 
     @property
     def timing(self):

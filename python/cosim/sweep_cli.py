@@ -1,16 +1,29 @@
 """``cosim sweep``: one tyre run per value of a scene key, then a summary.
 
     cosim sweep SCENE --values scenario.slip=0,0.05,0.1,0.2,0.3 [--set K=V]...
-                [--jobs N] --out DIR [--skip-travel M] [--reference REF.csv |
-                --terra-params PARAMS.json] [--overwrite] [--keep-going]
+                [--jobs N] --out DIR [--repeat N] [--skip-travel M]
+                [--reference REF.csv | --terra-params PARAMS.json] [--overwrite]
+                [--keep-going]
 
 Each run goes to ``DIR/<key>=<value>/`` (ports: whatever the scene says; its
 ``tcp://...:0`` endpoints are free ports chosen by each run). Then
-``DIR/summary.csv`` holds, per value, the mean, min and max of T_H, T_R, T_P,
-the vertical load and the sinkage from ``/coupler/traction`` over the steady
-part of the travel, and ``DIR/summary.png`` draws them like seed 000 fig. 15
-(T_H, |T_R|, T_P with their min–max range) beside the terramechanics
+``DIR/summary.csv`` holds, per value, the mean, its 95 % confidence interval
+(half-width ``_ci95``), min and max of T_H, T_R, T_P, the vertical load and
+the sinkage from ``/coupler/traction`` over the steady part of the travel,
+and ``DIR/summary.png`` draws them like seed 000 fig. 15 (T_H, |T_R|, T_P
+with their 95 % intervals, the min–max range faint) beside the terramechanics
 reference (terra/README.md "Files and how to call the reference").
+
+``--repeat N`` runs N realisations of each value on different beds: the bed
+generator's seed (``processes.<dem>.particles.seed``, the scene's value s0,
+default 1) is s0, s0 + 1, ..., s0 + N - 1, each run in
+``DIR/<key>=<value>,<seed key>=<seed>/``. A bed is generated and settled in
+each run, so the realisations are independent; the same seed gives the same
+run bit for bit. summary.csv then gives per value the mean of the run means
+and its interval from their spread (Student t, N - 1 degrees of freedom);
+``DIR/runs.csv`` has one row per run with its own batch-means interval. With
+one run per value the interval is the run's batch-means interval
+(cosim/stats.py says how the batches are chosen).
 
 The steady window: the travel starts at the first row whose vertical load
 reaches ``scenario.sinkage_force`` (the coupler's switch, coupler/scenario.c);
@@ -20,6 +33,7 @@ It is written into summary.csv as ``# window`` lines and per row.
 """
 import argparse
 import csv
+import itertools
 import json
 import math
 import os
@@ -31,12 +45,16 @@ import numpy as np
 
 from .errors import CosimError, RunError
 from .results import Results
+from . import stats
+from .traction import QUANTITIES, summarise_run, travel_window  # noqa: F401 (report.py)
 from .roles import cosim_executable
 from .runner import _dir_name, sweep as run_sweep
 
-QUANTITIES = ["T_H", "T_R", "T_P", "vertical_load", "sinkage"]
-STATS = ["mean", "min", "max"]
+STATS = ["mean", "ci95", "min", "max"]  # ci95: half-width of the mean's 95 % interval
 SUMMARY_FILE, PLOT_FILE, REFERENCE_FILE = "summary.csv", "summary.png", "reference.csv"
+RUNS_FILE = "runs.csv"
+SEED_KEY = "seed"  # in a dem section's "particles" that generates a "bed"
+DEFAULT_SEED = 1   # dem_server's default bed seed
 DEFAULT_SKIP_TRAVEL_M = 0.1
 DEFAULT_WIDTH_M = 0.165  # the paper's tyre (seed 000 table 2), if the scene does not say
 REFERENCE_SLIP_STEP = 0.01
@@ -86,47 +104,43 @@ def parse_set(spec):
     return key.strip(), parse_value(value)
 
 
-def travel_window(traction, scene, skip_travel):
-    """(row mask, t0, t1, travel_start) of the steady travel of one run."""
-    sc = scene.get("scenario", {})
-    if sc.get("kind") != "tire_travel":
-        raise CosimError("scenario.kind is not 'tire_travel': no traction to summarise")
-    t, load = traction["t"], traction["vertical_load"]
-    reached = np.nonzero(load >= sc["sinkage_force"])[0]
-    if len(reached) == 0:
-        return np.zeros(len(t), bool), math.nan, math.nan, math.nan
-    start = t[reached[0]]
-    speed = sc["omega"] * sc["radius"] * (1 - sc["slip"])
-    t0 = start + (skip_travel / speed if speed > 0 else 0.0)
-    mask = t >= t0
-    return mask, t0, (t[-1] if mask.any() else math.nan), start
-
-
-def summarise_run(results, skip_travel):
-    """{column: value} of one run: the window and mean/min/max of each quantity."""
-    tr = results.series("coupler", "traction")
-    mask, t0, t1, start = travel_window(tr, results.scene, skip_travel)
-    row = {"travel_start_s": start, "window_t0_s": t0, "window_t1_s": t1,
-           "window_rows": int(mask.sum())}
+def combine_runs(runs):
+    """One summary row of the N run rows of one value: the mean of the run
+    means with its interval from their spread (stats.across_runs), min and
+    max over all runs, the windows' means; one run stands as it is."""
+    if len(runs) == 1:
+        return dict(runs[0])
+    row = {c: float(np.mean([r[c] for r in runs]))
+           for c in ("travel_start_s", "window_t0_s", "window_t1_s")}
+    row["window_rows"] = int(sum(r["window_rows"] for r in runs))
+    ok = [r for r in runs if r["window_rows"] > 0]
+    row["runs"] = len(ok)
     for q in QUANTITIES:
-        v = tr[q][mask]
-        for st in STATS:
-            row[f"{q}_{st}"] = float(getattr(np, st)(v)) if len(v) else math.nan
+        a = stats.across_runs([r[f"{q}_mean"] for r in ok])
+        row[f"{q}_mean"], row[f"{q}_ci95"] = a["mean"], a["half"]
+        row[f"{q}_min"] = min((r[f"{q}_min"] for r in ok), default=math.nan)
+        row[f"{q}_max"] = max((r[f"{q}_max"] for r in ok), default=math.nan)
     return row
 
 
 def summary_columns(keys):
-    return (list(keys) + ["travel_start_s", "window_t0_s", "window_t1_s", "window_rows"] +
+    return (list(keys) + ["travel_start_s", "window_t0_s", "window_t1_s", "window_rows", "runs"] +
             [f"{q}_{st}" for q in QUANTITIES for st in STATS] + ["dir"])
 
 
-def write_summary(path, keys, rows, skip_travel):
+def write_summary(path, keys, rows, skip_travel, per_run=False):
     cols = summary_columns(keys)
     with open(path, "w", newline="") as f:
-        f.write("# cosim sweep summary: per run, mean/min/max of /coupler/traction columns\n")
+        what = "per run" if per_run else "per value"
+        f.write(f"# cosim sweep summary: {what}, mean, 95 % interval (ci95: half-width), min "
+                "and max of /coupler/traction columns\n")
         f.write("# window: from the first row with vertical_load >= scenario.sinkage_force "
                 f"(travel start) plus {skip_travel:g} m of travel at omega*radius*(1-slip), "
-                "to the end of the run (columns window_t0_s, window_t1_s)\n")
+                "to the end of the run (columns window_t0_s, window_t1_s; over several runs "
+                "their means)\n")
+        f.write("# ci95: one run: non-overlapping batch means within its window (cosim.stats."
+                "batch_means); several runs (column runs): Student t on the spread of the run "
+                "means (cosim.stats.across_runs); empty (nan) when too short to say\n")
         f.write("# units: N (T_H, T_R, T_P, vertical_load), m (sinkage), s (times)\n")
         w = csv.writer(f)
         w.writerow(cols)
@@ -184,14 +198,18 @@ def read_summary(path, notes=None):
             try:
                 row[c] = json.loads(v)
             except ValueError:
-                row[c] = v
+                try:
+                    row[c] = float(v)  # nan, inf
+                except ValueError:
+                    row[c] = v
         rows.append(row)
     return rows
 
 
 def draw(ax, key, rows, ref_path, ref_label="terramechanics"):
-    """Seed 000 fig. 15 on one axis: T_H, |T_R|, T_P (mean, min-max) over the
-    swept key, the reference's T/r, T/r - DP and DP dashed."""
+    """Seed 000 fig. 15 on one axis: T_H, |T_R|, T_P over the swept key (mean
+    with its 95 % interval where the rows have one, the min–max range as a
+    faint band), the reference's T/r, T/r - DP and DP dashed."""
     xs = [r[key] for r in rows]
     numeric = all(isinstance(x, (int, float)) for x in xs)
     styles = [("T_H", "T_H (gross tractive effort)", "tab:blue", 1),
@@ -205,8 +223,15 @@ def draw(ax, key, rows, ref_path, ref_label="terramechanics"):
         a = np.array([sign * r[f"{q}_min"] for r in rows])
         b = np.array([sign * r[f"{q}_max"] for r in rows])
         lo, hi = np.minimum(a, b), np.maximum(a, b)
-        ax.errorbar(at, mean, yerr=[mean - lo, hi - mean], fmt="o-", color=color,
-                    capsize=4, label=f"DEM–FEM {label}: mean, min–max")
+        ci = np.array([r.get(f"{q}_ci95", math.nan) for r in rows], float)
+        order = np.argsort(at)
+        ax.fill_between(at[order], lo[order], hi[order], color=color, alpha=0.08, lw=0)
+        if np.isfinite(ci).any():
+            ax.errorbar(at, mean, yerr=np.where(np.isfinite(ci), ci, 0), fmt="o-", color=color,
+                        capsize=4, label=f"DEM–FEM {label}: mean, 95 % interval (band: min–max)")
+        else:
+            ax.errorbar(at, mean, yerr=[mean - lo, hi - mean], fmt="o-", color=color,
+                        capsize=4, label=f"DEM–FEM {label}: mean, min–max")
     if ref_path:
         ref = read_reference(ref_path)
         s = ref["s"]
@@ -248,6 +273,39 @@ def check_points(scene, sets, key, values, cosim):
             raise UsageError(f"{key}={json.dumps(v)}: {p.stderr.strip() or p.stdout.strip()}")
 
 
+def seed_key(scene_path, sets):
+    """(key path, first seed) of the one dem section that generates its bed;
+    a UsageError naming what is missing otherwise (--repeat needs a bed to
+    vary)."""
+    with open(scene_path) as f:
+        scene = json.load(f)
+    found = [n for n, p in scene.get("processes", {}).items()
+             if isinstance(p, dict) and isinstance(p.get("particles"), dict)
+             and p["particles"].get("generate") == "bed"]
+    if len(found) != 1:
+        raise UsageError(f"--repeat: needs exactly one process whose particles.generate is "
+                         f"\"bed\" (its seed is varied); {scene_path} has {len(found)}")
+    key = f"processes.{found[0]}.particles.{SEED_KEY}"
+    s0 = sets.pop(key, scene["processes"][found[0]]["particles"].get(SEED_KEY, DEFAULT_SEED))
+    if not isinstance(s0, int) or isinstance(s0, bool) or s0 < 0:
+        raise UsageError(f"{key}: expected a non-negative integer seed, got {json.dumps(s0)}")
+    return key, s0
+
+
+def group_rows(key, rows):
+    """The run rows of each value of key, in order of first appearance."""
+    groups = {}
+    for r in rows:
+        groups.setdefault(json.dumps(r[key]), []).append(r)
+    out = []
+    for runs in groups.values():
+        row = combine_runs(runs)
+        row[key] = runs[0][key]
+        row["dir"] = ";".join(r["dir"] for r in runs)
+        out.append(row)
+    return out
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # exit 1 (bad usage), as cosim run
         raise UsageError(f"{message}\n{self.format_usage().strip()}")
@@ -259,6 +317,8 @@ def main(argv):
     ap.add_argument("--values", required=True, metavar="KEY.PATH=V1,V2,...")
     ap.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE")
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--repeat", type=int, default=1, metavar="N",
+                    help="N realisations per value, on beds of seeds s0 .. s0+N-1")
     ap.add_argument("--out", required=True)
     ap.add_argument("--skip-travel", type=float, default=DEFAULT_SKIP_TRAVEL_M, metavar="M")
     ap.add_argument("--reference", metavar="REF.csv")
@@ -271,6 +331,8 @@ def main(argv):
     args = ap.parse_args(argv)
     if args.jobs < 1:
         raise UsageError(f"--jobs: must be at least 1, got {args.jobs}")
+    if args.repeat < 1:
+        raise UsageError(f"--repeat: must be at least 1, got {args.repeat}")
     if args.skip_travel < 0:
         raise UsageError(f"--skip-travel: must be >= 0, got {args.skip_travel:g}")
     if not os.path.isfile(args.scene):
@@ -284,15 +346,20 @@ def main(argv):
         raise UsageError(f"{key}: given both in --values and --set")
     numeric = [v for v in values if isinstance(v, (int, float))]
     args.max_slip = max(numeric) if key == "scenario.slip" and numeric else 0.3
+    grid = {key: values}
+    if args.repeat > 1:
+        skey, s0 = seed_key(args.scene, sets)
+        grid[skey] = list(range(s0, s0 + args.repeat))
     os.makedirs(args.out, exist_ok=True)
     if not args.summary_only:
         check_points(args.scene, sets, key, values, args.cosim)
         run_args = ["--overwrite"] if args.overwrite else []
-        done = run_sweep(args.scene, {key: values}, args.out, set=sets, jobs=args.jobs,
+        done = run_sweep(args.scene, grid, args.out, set=sets, jobs=args.jobs,
                          keep_going=args.keep_going, quiet=True, cosim=args.cosim,
                          args=run_args)
     else:
-        done = [({key: v}, os.path.join(args.out, _dir_name({key: v}))) for v in values]
+        points = [dict(zip(grid, c)) for c in itertools.product(*grid.values())]
+        done = [(p, os.path.join(args.out, _dir_name(p))) for p in points]
     rows, scene = [], None
     for point, res in done:
         d = os.path.join(args.out, _dir_name(point))
@@ -313,6 +380,11 @@ def main(argv):
         rows.append(row)
     if not rows:
         raise RunError("cosim sweep: no run finished")
+    finished = len(rows)
+    if args.repeat > 1:
+        write_summary(os.path.join(args.out, RUNS_FILE), list(grid), rows, args.skip_travel,
+                      per_run=True)
+        rows = group_rows(key, rows)
     write_summary(os.path.join(args.out, SUMMARY_FILE), [key], rows, args.skip_travel)
     ref = reference_curve(args, scene, args.out)
     title = f"{scene.get('name', args.scene)}: traction over the steady travel"
@@ -321,4 +393,4 @@ def main(argv):
          f"terramechanics ({load:g} N)" if args.terra_params and load else "terramechanics")
     print(f"summary: {os.path.join(args.out, SUMMARY_FILE)}, plot: "
           f"{os.path.join(args.out, PLOT_FILE)}")
-    return 0 if len(rows) == len(done) else 3
+    return 0 if finished == len(done) else 3

@@ -22,6 +22,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "e2e"))
 from common import COSIM, check, done, scene, write  # noqa: E402
+import cosim  # noqa: E402
 
 SLIPS = [0.0, 0.2]
 SKIP = 0.01  # m of travel left out of the window
@@ -35,6 +36,23 @@ s = scene("sweep", {
 s["time"] = {"dt": 1e-3, "end": 0.25}
 path = write(s)
 out = tempfile.mkdtemp(prefix="cosim-sweep-")
+
+
+def batch_half(x):
+    """95 % half-width of the mean by batch means, as the summary documents it:
+    32 batches, halved while the batch means' lag-1 correlation is above 0.2,
+    at least 8 batches of 4 rows; Student t with b - 1 degrees of freedom."""
+    from scipy.stats import t as student
+    b = min(32, len(x) // 4)
+    while b >= 8:
+        m = len(x) // b
+        bm = x[:b * m].reshape(b, m).mean(axis=1)
+        d = bm - bm.mean()
+        r = (d[1:] @ d[:-1]) / (d @ d) if d @ d > 0 else 0.0
+        if r <= 0.2 or b // 2 < 8:
+            return student.ppf(0.975, b - 1) * bm.std(ddof=1) / np.sqrt(b)
+        b //= 2
+    return float("nan")
 
 
 def sweep(*args):
@@ -52,10 +70,11 @@ comments = [l for l in lines if l.startswith("#")]
 check(any(l.startswith("# window:") for l in comments), "summary.csv states the window")
 rows = list(csv.DictReader(l for l in lines if not l.startswith("#")))
 Q = ["T_H", "T_R", "T_P", "vertical_load", "sinkage"]
-want_cols = (["scenario.slip", "travel_start_s", "window_t0_s", "window_t1_s", "window_rows"] +
-             [f"{q}_{st}" for q in Q for st in ("mean", "min", "max")] + ["dir"])
+want_cols = (["scenario.slip", "travel_start_s", "window_t0_s", "window_t1_s", "window_rows",
+              "runs"] + [f"{q}_{st}" for q in Q for st in ("mean", "ci95", "min", "max")] + ["dir"])
 check(rows and list(rows[0].keys()) == want_cols, f"summary.csv columns {want_cols}")
 check(len(rows) == len(SLIPS), f"one row per value ({len(rows)})")
+api_rows = {}
 for slip, row in zip(SLIPS, rows):
     check(float(row["scenario.slip"]) == slip, f"row for slip {slip}")
     h5 = os.path.join(out, row["dir"], "results.h5")
@@ -66,6 +85,8 @@ for slip, row in zip(SLIPS, rows):
         used = json.loads(f.attrs["config"])
     check(used["scenario"]["slip"] == slip, f"run of slip {slip} used slip {used['scenario']['slip']}")
     col = {c: tr[:, i] for i, c in enumerate(cols)}
+    with cosim.Results(os.path.join(out, row["dir"])) as res:
+        api_rows[slip] = res.traction_summary(SKIP)
     start = col["t"][np.argmax(col["vertical_load"] >= SCEN["sinkage_force"])]
     t0 = start + SKIP / (SCEN["omega"] * SCEN["radius"] * (1 - slip))
     w = col["t"] >= t0
@@ -78,6 +99,15 @@ for slip, row in zip(SLIPS, rows):
         for st, fn in (("mean", np.mean), ("min", np.min), ("max", np.max)):
             got, ref = float(row[f"{q}_{st}"]), float(fn(col[q][w]))
             check(abs(got - ref) <= 1e-8 * max(1.0, abs(ref)), f"slip {slip} {q}_{st}: {got} vs {ref}")
+        api = api_rows[slip][f"{q}_ci95"]
+        check((np.isnan(api) and np.isnan(float(row[f"{q}_ci95"]))) or
+              abs(api - float(row[f"{q}_ci95"])) <= 1e-8 * abs(api),
+              f"slip {slip} {q}_ci95: Results.traction_summary gives summary.csv's ({api})")
+        got, ref = float(row[f"{q}_ci95"]), batch_half(col[q][w])
+        check((np.isnan(got) and np.isnan(ref)) or abs(got - ref) <= 1e-8 * max(1e-12, abs(ref)),
+              f"slip {slip} {q}_ci95: {got} vs batch means {ref}")
+check(any(np.isfinite(float(r[f"{q}_ci95"])) and float(r[f"{q}_ci95"]) > 0 for r in rows for q in Q),
+      "some interval is finite and non-zero (the comparison above is not only nan == nan)")
 check(os.path.getsize(os.path.join(out, "summary.png")) > 1000, "summary.png written")
 
 # the summary again, now beside the terramechanics reference for the scene's wheel
@@ -112,6 +142,9 @@ cases = [
     ([path, "--values", "scenario.slipp=0,0.1", "--out", bad], "scenario.slipp"),
     ([path, "--values", "scenario.slip=\"fast\"", "--out", bad], "scenario.slip"),
     ([path, "--values", "scenario.slip=0,0.1", "--jobs", "0", "--out", bad], "--jobs"),
+    ([path, "--values", "scenario.slip=0,0.1", "--repeat", "0", "--out", bad], "--repeat"),
+    # the stub soil has no bed whose seed could vary
+    ([path, "--values", "scenario.slip=0", "--repeat", "2", "--out", bad], "particles.generate"),
     ([path, "--values", "scenario.slip=0", "--set", "scenario.slip=0.1", "--out", bad],
      "both in --values and --set"),
     ([path + ".missing", "--values", "scenario.slip=0", "--out", bad], "no such scene"),
