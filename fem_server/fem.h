@@ -299,7 +299,7 @@ typedef struct fem_state {
 } fem_state;
 
 /* Columns of fem_server's per-step summary, its "series" dataset (names:
- * fem_server.c). */
+ * fem_participant.c). */
 typedef enum fem_series_col {
   FEM_SERIES_T,         /* s, end of the coupling step */
   FEM_SERIES_STRAIN,    /* fem_state.strain, J */

@@ -1,6 +1,6 @@
-/* fem_server.c — the FEM participant (role "fem", PROTOCOL.md).
+/* fem_participant.c — the FEM participant of fem_server (role "fem", PROTOCOL.md).
  *
- * The tread is solved in the rim's frame (DESIGN.md): x = R(t)(X + u) + c(t).
+ * The tread is solved in the rim's frame (docs/architecture.md): x = R(t)(X + u) + c(t).
  * Each coupling step: nodal forces (world) are rotated into the rim frame,
  * added to the inflation pressure and gravity (rotated likewise), the tread
  * is advanced by sub-cycled central differences (or re-solved statically
