@@ -13,7 +13,7 @@
  * d is the spring compression (m), F the spring force (N, compression > 0).
  * The quasi-static mode replaces Δt g(0) by the time-summed g (static
  * compliance) and drops the history. With C = Δt g(0) symmetric positive
- * definite the step is the minimum of the convex dual (notes/contact.md §5.1)
+ * definite the step is the minimum of the convex dual (contact_block/README.md)
  *
  *   J(F) = ½ FᵀCF − bᵀF + Σ Ψ_m(F_m),  Ψ' = inverse spring law, F ≥ 0,
  *
@@ -154,7 +154,8 @@ void blk_model_free(blk_model *m);
 int blk_green_set(blk_model *m, int Q, double rate, int noy, int nox,
                   const double *g, const double *g_static, const char *sampling,
                   const char *model_name, proto_err *err);
-/* Love half-space static compliance (quasi-static only), seed 002 / notes §2.1;
+/* Love half-space static compliance (quasi-static only; Love 1929, Johnson
+ * 1985 eq. 3.25);
  * on a periodic grid the periodic half-space (green/green.h). */
 int blk_green_halfspace(blk_model *m, double E, double nu, proto_err *err);
 int blk_green_synthetic(blk_model *m, const blk_synth *s, proto_err *err);
@@ -196,7 +197,8 @@ int blk_springs_load(blk_model *m, const char *path, proto_err *err);
  * <= 0 exchanges them for the next `count` in the ranking (the thesis). */
 int blk_springs_soften(blk_model *m, int count, double at, double factor,
                        proto_err *err);
-/* Spring force and stiffness of element e at compression d ≥ 0. */
+/* Spring force and stiffness of element e at compression d ≥ 0 (green's
+ * spring law, green/green.h, on the element's table; blk_spring.c). */
 void blk_spring_eval(const blk_model *m, int e, double d, double *F, double *k);
 /* Stored energy W(d) = ∫_0^d F and the inverse law d(F), for d, F ≥ 0. */
 double blk_spring_energy(const blk_model *m, int e, double d);

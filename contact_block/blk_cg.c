@@ -1,6 +1,6 @@
 /* blk_cg.c — the matrix-free per-step solver for large grids.
  *
- * The step is the minimum of the convex dual (notes/contact.md §5.1)
+ * The step is the minimum of the convex dual (contact_block/README.md)
  *   J(F) = ½ FᵀCF − bᵀF + Σ Ψ_e(F_e),  F_e ≥ 0 unless adhesively bonded,
  * Ψ' = the inverse spring law (rigid springs: Ψ = 0, the Signorini problem of
  * Polonsky & Keer, Wear 231 (1999) 206). Newton on J: each step minimises
@@ -23,9 +23,6 @@
 #define BLK_CG_FORCING 0.1
 /* CG iterations without halving the violation: stagnation, stop */
 enum { BLK_CG_STALL = 200 };
-/* Armijo constant and backtracking cuts */
-#define BLK_ARMIJO 1e-4
-enum { BLK_MAX_CUTS = 40 };
 
 static inline int bounded(const blk_model *m, const blk_work *w, int e) {
   return !(m->adhesion && w->held[e]);
@@ -205,7 +202,7 @@ int blk_cg_solve(const blk_model *m, blk_state *s, int *conv, double *rmax, int 
       Jn = dual_value(m, w, w->Fn, w->un, w->dn, w->Dk, NULL);
       /* near the solution the decrease of J drops below its round-off */
       if (Jn <= J + BLK_ARMIJO * lambda * slope || !(slope < 0) ||
-          -lambda * slope < 1e-13 * fabs(J))
+          -lambda * slope < BLK_DECREASE_ROUNDOFF * fabs(J))
         break;
       lambda *= 0.5;
     }
@@ -238,7 +235,7 @@ double blk_cg_tangent(const blk_model *m, blk_state *s, int *products) {
     const int in = s->force[e] > 0 || (m->adhesion && w->held[e] && s->force[e] != 0);
     double Fe = 0, ke = 0;
     if (in && !m->rigid) blk_spring_eval(m, e, fabs(s->d_rs[e]), &Fe, &ke);
-    D[e] = !in ? -1.0 : m->rigid ? 0.0 : ke > 0 ? 1.0 / ke : 1e8 * w->c_self;
+    D[e] = !in ? -1.0 : m->rigid ? 0.0 : blk_inverse_stiffness(w, ke);
     x[e] = 0;
     r[e] = in ? 1.0 : 0.0;
     w->prec[e] = in ? 1.0 / (w->c_self + D[e]) : 0.0;

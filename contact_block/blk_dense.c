@@ -1,7 +1,7 @@
 /* blk_dense.c — the dense per-step solvers for small grids: the thesis'
  * Newton–Raphson over the elements in contact (seed 002 eq. 6–8, the active
  * set changing during the iteration; optional line search and chord steps)
- * and the projected Newton on the convex dual (notes/contact.md §5.1). The
+ * and the projected Newton on the convex dual (README "Solvers"). The
  * matrices are built from the offset kernel (C[i][p] = kern[i − p]); no
  * allocation here after blk_state_create. */
 #include <math.h>
@@ -249,11 +249,11 @@ static int newton(const blk_model *m, blk_state *s, int *conv, double *rmax,
     }
     /* Armijo backtracking on ½|r|²; along the Newton direction its slope is −2φ */
     double lambda = 1.0, phi_try = 0, rmax_try = 0;
-    for (int cut = 0; cut < 30; cut++) {
+    for (int cut = 0; cut < BLK_PRIMAL_CUTS; cut++) {
       for (int e = 0; e < M; e++) w->d_try[e] = d[e] + lambda * w->delta[e];
       blk_spring_law(m, w->held, w->d_try, w->F_try, k);
       phi_try = residual(m, w, w->d_try, w->F_try, w->y, &rmax_try);
-      if (phi_try <= (1.0 - 2e-4 * lambda) * phi) break;
+      if (phi_try <= (1.0 - 2 * BLK_ARMIJO * lambda) * phi) break;
       lambda *= 0.5;
       (*cuts)++;
     }
@@ -344,7 +344,7 @@ int blk_dense_dual(const blk_model *m, blk_state *s, int *conv, double *rmax, in
     for (int e = 0; e < M; e++) dF[e] = 0;
     for (int a = 0; a < P; a++) dF[w->act[a]] = gt[a];
     double lambda = 1.0, Jt = J;
-    for (int cut = 0; cut < 40; cut++) {
+    for (int cut = 0; cut < BLK_MAX_CUTS; cut++) {
       double slope = 0;
       for (int e = 0; e < M; e++) {
         double v = F[e] + lambda * dF[e];
@@ -355,7 +355,9 @@ int blk_dense_dual(const blk_model *m, blk_state *s, int *conv, double *rmax, in
       Jt = dual_eval(m, w, Ft, gt, dd);
       /* near the solution the decrease of J drops below its round-off
        * (|slope| ~ k f² ≪ eps |J|): take the Newton step as it is */
-      if (Jt <= J + 1e-4 * slope || slope >= 0 || -slope < 1e-13 * fabs(J)) break;
+      if (Jt <= J + BLK_ARMIJO * slope || slope >= 0 ||
+          -slope < BLK_DECREASE_ROUNDOFF * fabs(J))
+        break;
       lambda *= 0.5;
       (*cuts)++;
     }

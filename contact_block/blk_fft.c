@@ -85,12 +85,7 @@ int blk_fft_kernel(blk_fft *f, const blk_model *m, const double *kern, double sc
   fftw_execute(p);
   fftw_destroy_plan(p);
   const double s = scale / ((double)f->Nx * f->Ny);
-  double im = 0, mag = 0;
-  for (size_t q = 0; q < n; q++) {
-    im = fmax(im, fabs(f->spec[q][1]));
-    mag = fmax(mag, fabs(f->spec[q][0]));
-  }
-  if (im <= 1e-13 * mag) { /* even kernel (reciprocity): real spectrum */
+  if (blk_spectrum_is_real(f->spec, n)) { /* even kernel (reciprocity) */
     ks->re = fftw_alloc_real(n);
     if (!ks->re) return proto_fail(err, "out of memory");
     for (size_t q = 0; q < n; q++) ks->re[q] = s * f->spec[q][0];
@@ -103,6 +98,15 @@ int blk_fft_kernel(blk_fft *f, const blk_model *m, const double *kern, double sc
     }
   }
   return 0;
+}
+
+int blk_spectrum_is_real(const fftw_complex *spec, size_t n) {
+  double im = 0, mag = 0;
+  for (size_t q = 0; q < n; q++) {
+    im = fmax(im, fabs(spec[q][1]));
+    mag = fmax(mag, fabs(spec[q][0]));
+  }
+  return im <= BLK_REAL_SPECTRUM_TOL * mag;
 }
 
 BLK_HOT static void mul_real(fftw_complex *restrict spec, const double *restrict re,

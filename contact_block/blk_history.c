@@ -170,35 +170,27 @@ static void *track(blk_history *h, size_t n, size_t size) {
   return p;
 }
 
-int blk_history_init(const blk_model *m, blk_work *w, blk_history *h, proto_err *err) {
-  memset(h, 0, sizeof *h);
-  if (m->solver.quasi_static || (!m->g && !m->g_time)) return 0;
-  h->kind = m->solver.history;
-  if (h->kind == BLK_HIST_AUTO)
-    h->kind = m->g_time && m->M >= BLK_HIST_SEPARABLE_MIN ? BLK_HIST_SEPARABLE : BLK_HIST_FFT;
-  if (h->kind == BLK_HIST_SEPARABLE && !m->g_time)
-    return proto_fail(err, "solver.history = separable needs a separable Green's function "
-                      "(the synthetic layer); this one (%s) is stored in full", m->green_model);
-  h->Qh = truncated_length(m);
-  h->dt = 1.0 / m->rate;
-  if (h->Qh < 2) return 0; /* instantaneous response only: no history */
-  if (h->kind == BLK_HIST_DIRECT || h->kind == BLK_HIST_SEPARABLE) {
-    h->F_ring = track(h, (size_t)h->Qh * m->M, sizeof(double));
-    h->nnz = track(h, (size_t)h->Qh, sizeof(int));
-    if (!h->F_ring || !h->nnz) return proto_fail(err, "out of memory (history ring %d x %d)",
-                                                 h->Qh, m->M);
-    if (h->kind == BLK_HIST_DIRECT) return 0;
-    h->y = track(h, (size_t)m->M, sizeof(double));
-    if (!h->y) return proto_fail(err, "out of memory");
-    /* d_old = Δt S * y on the step's FFT box */
-    if (blk_fft_kernel(&w->fft, m, m->g_space, h->dt, &h->S_hat, err)) return -1;
-    h->bytes += blk_kspec_bytes(&w->fft, &h->S_hat);
-    return 0;
-  }
-  /* bins of the time convolution: the spatial frequencies of a zero-padded
-   * (or periodic) box; for a separable g the elements themselves, two real
-   * fields packed per complex bin (T_k is real, so real and imaginary parts
-   * stay apart), and one product with Δt·S at the end */
+/* direct and separable: the ring of past force fields; separable also the
+ * time sums y and the spectrum of Δt g_space (d_old = Δt S * y). */
+static int ring_init(const blk_model *m, blk_work *w, blk_history *h, proto_err *err) {
+  h->F_ring = track(h, (size_t)h->Qh * m->M, sizeof(double));
+  h->nnz = track(h, (size_t)h->Qh, sizeof(int));
+  if (!h->F_ring || !h->nnz) return proto_fail(err, "out of memory (history ring %d x %d)",
+                                               h->Qh, m->M);
+  if (h->kind == BLK_HIST_DIRECT) return 0;
+  h->y = track(h, (size_t)m->M, sizeof(double));
+  if (!h->y) return proto_fail(err, "out of memory");
+  if (blk_fft_kernel(&w->fft, m, m->g_space, h->dt, &h->S_hat, err)) return -1;
+  h->bytes += blk_kspec_bytes(&w->fft, &h->S_hat);
+  return 0;
+}
+
+/* fft: the bins of the time convolution — the spatial frequencies of a
+ * zero-padded (or periodic) box; for a separable g the elements themselves,
+ * two real fields packed per complex bin (T_k is real, so real and imaginary
+ * parts stay apart), and one product with Δt·S at the end — and the spectra
+ * rings. */
+static int bins_alloc(const blk_model *m, blk_history *h, proto_err *err) {
   h->packed = m->g_time != NULL;
   h->Nx = m->periodic ? m->nx : 2 * m->nx;
   h->Ny = m->periodic ? m->ny : 2 * m->ny;
@@ -212,6 +204,13 @@ int blk_history_init(const blk_model *m, blk_work *w, blk_history *h, proto_err 
     return proto_fail(err, "out of memory");
   h->bytes += (h->packed ? 0 : (size_t)h->Nx * h->Ny * sizeof(double)) +
               (size_t)(h->Qh + 1) * h->nq * sizeof(fftw_complex) + h->Qh * sizeof(int);
+  return 0;
+}
+
+/* ĝ_k per bin: packed, Δt T_k in every bin (then Δt·S by one product);
+ * else the spectra of g_k scaled by Δt / (Nx Ny) (FFTW's unnormalised
+ * inverse), with the step's plans. */
+static int kernel_spectra(const blk_model *m, blk_work *w, blk_history *h, proto_err *err) {
   if (h->packed) {
     h->y = track(h, (size_t)2 * h->nq, sizeof(double));
     if (!h->y) return proto_fail(err, "out of memory");
@@ -222,48 +221,65 @@ int blk_history_init(const blk_model *m, blk_work *w, blk_history *h, proto_err 
       }
     if (blk_fft_kernel(&w->fft, m, m->g_space, 1.0, &h->S_hat, err)) return -1;
     h->bytes += blk_kspec_bytes(&w->fft, &h->S_hat);
-  } else {
-    const unsigned flags = BLK_FFTW_STEP(m->M);
-    h->fwd = fftw_plan_dft_r2c_2d(h->Ny, h->Nx, h->pad, h->acc, flags);
-    h->inv = fftw_plan_dft_c2r_2d(h->Ny, h->Nx, h->acc, h->pad, flags);
-    if (!h->fwd || !h->inv) return proto_fail(err, "history: FFTW planning failed");
-    /* spectra of g_k, scaled by Δt / (Nx Ny) (FFTW's unnormalised inverse) */
-    const double scale = h->dt / ((double)h->Nx * h->Ny);
-    for (int k = 0; k < h->Qh; k++) {
-      place_kernel(m, h, k, h->pad);
-      fftw_execute_dft_r2c(h->fwd, h->pad, h->ghat + (size_t)k * h->nq);
-      for (int q = 0; q < h->nq; q++) {
-        h->ghat[(size_t)k * h->nq + q][0] *= scale;
-        h->ghat[(size_t)k * h->nq + q][1] *= scale;
-      }
+    return 0;
+  }
+  const unsigned flags = BLK_FFTW_STEP(m->M);
+  h->fwd = fftw_plan_dft_r2c_2d(h->Ny, h->Nx, h->pad, h->acc, flags);
+  h->inv = fftw_plan_dft_c2r_2d(h->Ny, h->Nx, h->acc, h->pad, flags);
+  if (!h->fwd || !h->inv) return proto_fail(err, "history: FFTW planning failed");
+  const double scale = h->dt / ((double)h->Nx * h->Ny);
+  for (int k = 0; k < h->Qh; k++) {
+    place_kernel(m, h, k, h->pad);
+    fftw_execute_dft_r2c(h->fwd, h->pad, h->ghat + (size_t)k * h->nq);
+    for (int q = 0; q < h->nq; q++) {
+      h->ghat[(size_t)k * h->nq + q][0] *= scale;
+      h->ghat[(size_t)k * h->nq + q][1] *= scale;
     }
   }
+  return 0;
+}
+
+/* A real ĝ (even kernel): the lags summed directly keep each real ĝ twice
+ * (Re, Im) in ghat_re2; the full spectra were only needed to build the
+ * segments and this, they are freed. */
+static int keep_real_head(blk_history *h, proto_err *err) {
+  const int nk = h->n_lev ? h->head + 1 : h->Qh;
+  h->ghat_re2 = malloc((size_t)nk * 2 * h->nq * sizeof(double));
+  if (!h->ghat_re2) return proto_fail(err, "out of memory");
+  h->bytes += (size_t)nk * 2 * h->nq * sizeof(double);
+  for (size_t i = 0; i < (size_t)nk * h->nq; i++)
+    h->ghat_re2[2 * i] = h->ghat_re2[2 * i + 1] = h->ghat_re[i];
+  free(h->ghat_re);
+  fftw_free(h->ghat);
+  h->ghat_re = NULL;
+  h->ghat = NULL;
+  h->bytes -= (size_t)h->Qh * h->nq * sizeof(fftw_complex);
+  return 0;
+}
+
+int blk_history_init(const blk_model *m, blk_work *w, blk_history *h, proto_err *err) {
+  memset(h, 0, sizeof *h);
+  if (m->solver.quasi_static || (!m->g && !m->g_time)) return 0;
+  h->kind = m->solver.history;
+  if (h->kind == BLK_HIST_AUTO)
+    h->kind = m->g_time && m->M >= BLK_HIST_SEPARABLE_MIN ? BLK_HIST_SEPARABLE : BLK_HIST_FFT;
+  if (h->kind == BLK_HIST_SEPARABLE && !m->g_time)
+    return proto_fail(err, "solver.history = separable needs a separable Green's function "
+                      "(the synthetic layer); this one (%s) is stored in full", m->green_model);
+  h->Qh = truncated_length(m);
+  h->dt = 1.0 / m->rate;
+  if (h->Qh < 2) return 0; /* instantaneous response only: no history */
+  if (h->kind == BLK_HIST_DIRECT || h->kind == BLK_HIST_SEPARABLE)
+    return ring_init(m, w, h, err);
+  if (bins_alloc(m, h, err) || kernel_spectra(m, w, h, err)) return -1;
   /* an even kernel (g(Δ) = g(−Δ)) has a real spectrum: keep only Re */
-  double im = 0, mag = 0;
-  for (size_t i = 0; i < (size_t)h->Qh * h->nq; i++) {
-    im = fmax(im, fabs(h->ghat[i][1]));
-    mag = fmax(mag, fabs(h->ghat[i][0]));
-  }
-  if (im <= 1e-13 * mag) {
+  if (blk_spectrum_is_real(h->ghat, (size_t)h->Qh * h->nq)) {
     h->ghat_re = malloc((size_t)h->Qh * h->nq * sizeof(double));
     if (!h->ghat_re) return proto_fail(err, "out of memory");
     for (size_t i = 0; i < (size_t)h->Qh * h->nq; i++) h->ghat_re[i] = h->ghat[i][0];
   }
   if (partition_init(h, err)) return -1;
-  if (h->ghat_re) { /* the lags summed directly, each real ĝ twice (Re, Im) */
-    const int nk = h->n_lev ? h->head + 1 : h->Qh;
-    h->ghat_re2 = malloc((size_t)nk * 2 * h->nq * sizeof(double));
-    if (!h->ghat_re2) return proto_fail(err, "out of memory");
-    h->bytes += (size_t)nk * 2 * h->nq * sizeof(double);
-    for (size_t i = 0; i < (size_t)nk * h->nq; i++)
-      h->ghat_re2[2 * i] = h->ghat_re2[2 * i + 1] = h->ghat_re[i];
-    /* the full spectra were only needed to build the segments and this */
-    free(h->ghat_re);
-    fftw_free(h->ghat);
-    h->ghat_re = NULL;
-    h->ghat = NULL;
-    h->bytes -= (size_t)h->Qh * h->nq * sizeof(fftw_complex);
-  }
+  if (h->ghat_re && keep_real_head(h, err)) return -1;
   for (int l = 0; l < h->n_lev; l++) {
     const blk_level *lv = &h->lev[l];
     h->bytes += (size_t)(lv->S * lv->hl + (lv->S + 1) * 2 * lv->B) * h->nq *

@@ -5,6 +5,7 @@
 #include <fftw3.h>
 
 #include "contact_block/blk.h"
+#include "green/green.h"
 
 /* FFTW planning, once in blk_state_create (never in the step loop). The
  * per-step transforms are measured from BLK_FFTW_MEASURE_MIN elements on
@@ -54,6 +55,11 @@ size_t blk_fft_bytes(const blk_fft *f);
 /* Spectrum of scale · kern, kern [noy][nox] in the model's offset layout. */
 int blk_fft_kernel(blk_fft *f, const blk_model *m, const double *kern, double scale,
                    blk_kspec *ks, proto_err *err);
+/* An even kernel (g(Δ) = g(−Δ), reciprocity) has a real spectrum: true when
+ * every |Im| is below BLK_REAL_SPECTRUM_TOL of the largest |Re| (the
+ * round-off of the transform of the closed forms). */
+#define BLK_REAL_SPECTRUM_TOL 1e-13
+int blk_spectrum_is_real(const fftw_complex *spec, size_t n);
 void blk_kspec_free(blk_kspec *ks);
 size_t blk_kspec_bytes(const blk_fft *f, const blk_kspec *ks);
 /* y[M] = K * x[M]; x and y may alias. */
@@ -139,17 +145,37 @@ struct blk_work {
   blk_history hist;
 };
 
-/* blk_step.c: spring law of this sweep (compression branch; with adhesion
+/* blk_spring.c: spring law of this sweep (compression branch; with adhesion
  * the mirrored tensile branch for held elements, seed 002 ch. 5.1). */
 void blk_spring_law(const blk_model *m, const int *held, const double *d, double *F,
                     double *k);
 /* d(F) warm-started from d0 (≥ 0), for F ≥ 0. */
 double blk_spring_inverse_from(const blk_model *m, int e, double F, double d0);
-/* Spring terms of the dual at force F of element e (notes §5.1): the signed
- * compression d(F) (mirrored for F < 0), 1/k at d (capped), returns
- * Ψ(F) = |F| d − W(d). Rigid springs: all zero. d_guess: warm start. */
+/* Spring terms of the dual at force F of element e (the convex dual of the
+ * per-step problem, README "Solvers"): the signed compression d(F)
+ * (mirrored for F < 0), 1/k at d (capped), returns Ψ(F) = |F| d − W(d).
+ * Rigid springs: all zero. d_guess: warm start. */
 double blk_dual_element(const blk_model *m, const blk_work *w, int e, double F,
                         double d_guess, double *d, double *inv_k);
+/* The knot energies spr_W of every table (after the tables are set). */
+void blk_springs_energies(blk_model *m);
+
+/* 1/k used at the contact onset of a spring with k(0) = 0: far softer than
+ * the layer (× its self-compliance), so the element barely moves a Newton
+ * step (1 m/N if the step has no instantaneous compliance). */
+#define BLK_INV_K_CAP 1e8
+static inline double blk_inverse_stiffness(const blk_work *w, double k) {
+  return k > 0 ? 1.0 / k : w->c_self > 0 ? BLK_INV_K_CAP * w->c_self : 1.0;
+}
+
+/* Armijo constant of the backtracking line searches (sufficient decrease
+ * c·λ·slope, the usual 1e-4), and the relative decrease of
+ * J below which it is round-off of J: the step is taken as it is. */
+#define BLK_ARMIJO 1e-4
+#define BLK_DECREASE_ROUNDOFF 1e-13
+/* Backtracking halvings of the dual line searches (2^-40: no decrease left)
+ * and of the primal Newton's on ½|r|² (2^-30). */
+enum { BLK_MAX_CUTS = 40, BLK_PRIMAL_CUTS = 30 };
 
 /* blk_dense.c — dense solvers; on return w->CF = C F at the final forces.
  * Return the iterations used; *conv, *rmax (max |f|, m), *cuts, *factored. */

@@ -1,12 +1,17 @@
 /* blk_model.c — building and checking the block model: grid, road, roughness
  * springs (seed 002 ch. 3.2) and the thesis' spring softening (ch. 4.2.2).
- * Green's functions: blk_green.c. */
+ * Green's functions: blk_green.c; the springs' law, energy and inverse:
+ * blk_spring.c. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "contact_block/blk.h"
+#include "contact_block/blk_internal.h"
+
+/* Relative mismatch K(Δ) − K(Δ − n) of a periodic kernel taken as the
+ * round-off of its image sums (green/periodic.c converges far below). */
+#define BLK_PERIODIC_TOL 1e-9
 
 /* Elements per axis: the matrix-free solver's FFT box is 2n per axis. */
 enum { BLK_GRID_MAX = 4096 };
@@ -28,7 +33,7 @@ int blk_model_init(blk_model *m, int nx, int ny, double dx, double dy,
   m->noy = 2 * ny - 1;
   m->z_road = calloc((size_t)m->M, sizeof(double));
   if (!m->z_road) return proto_fail(err, "out of memory");
-  m->release_force = 0.6; /* N, seed 002 ch. 5.1 default */
+  m->release_force = GRN_RELEASE_FORCE_DEFAULT;
   m->solver.method = BLK_AUTO;
   m->solver.max_iter = 10;      /* appendix C default */
   m->solver.tol = 1e-13;        /* m; the thesis' 1e-15 is below round-off here */
@@ -173,27 +178,6 @@ static int springs_check(const blk_model *m, proto_err *err) {
   return 0;
 }
 
-/* ∫ of the cubic Hermite piece i of table t from its left knot over the
- * fraction x ∈ [0, 1] of the interval. */
-static double piece_energy(const blk_model *m, int t, int i, double x) {
-  const int K = m->n_knots;
-  const double *kd = m->spr_d + (size_t)t * K, *kF = m->spr_F + (size_t)t * K,
-               *kk = m->spr_k + (size_t)t * K;
-  const double h = kd[i + 1] - kd[i], x2 = x * x, x3 = x2 * x, x4 = x3 * x;
-  return h * ((x4 / 2 - x3 + x) * kF[i] + (x4 / 4 - 2 * x3 / 3 + x2 / 2) * h * kk[i] +
-              (-x4 / 2 + x3) * kF[i + 1] + (x4 / 4 - x3 / 3) * h * kk[i + 1]);
-}
-
-/* The stored energy at every knot (W[0] = 0), for O(1) energies. */
-static void springs_finish(blk_model *m) {
-  const int K = m->n_knots;
-  for (int t = 0; t < m->n_tables; t++) {
-    double *W = m->spr_W + (size_t)t * K;
-    W[0] = 0;
-    for (int i = 0; i + 1 < K; i++) W[i + 1] = W[i] + piece_energy(m, t, i, 1.0);
-  }
-}
-
 int blk_springs_table(blk_model *m, int K, const double *d, const double *F,
                       const double *k, proto_err *err) {
   if (K < 2) return proto_fail(err, "springs: need >= 2 knots (got %d)", K);
@@ -203,7 +187,7 @@ int blk_springs_table(blk_model *m, int K, const double *d, const double *F,
   memcpy(m->spr_F, F, n);
   memcpy(m->spr_k, k, n);
   if (springs_check(m, err)) return -1;
-  springs_finish(m);
+  blk_springs_energies(m);
   return 0;
 }
 
@@ -222,7 +206,7 @@ int blk_springs_linear(blk_model *m, const double *k, int per_element,
                         "(got %g)", e, ke);
     m->spr_scale[e] = ke;
   }
-  springs_finish(m);
+  blk_springs_energies(m);
   return 0;
 }
 
@@ -241,7 +225,7 @@ int blk_springs_stiffening(blk_model *m, double k0, double d0, double spread,
   }
   uint64_t s = seed;
   for (int e = 0; e < m->M; e++) m->spr_scale[e] = 1.0 + spread * (2.0 * uniform01(&s) - 1.0);
-  springs_finish(m);
+  blk_springs_energies(m);
   return 0;
 }
 
@@ -260,111 +244,6 @@ int blk_springs_rigid(blk_model *m, proto_err *err) {
   springs_release(m);
   m->rigid = 1;
   return 0;
-}
-
-/* The knot interval kd[lo] <= d < kd[lo+1] of 0 <= d < kd[K-1] (unique:
- * knots increase): guessed as for equally spaced knots (the synthetic
- * tables), checked, else bisection. */
-static int knot_interval(const double *kd, int K, double d) {
-  int lo = (int)(d / kd[K - 1] * (K - 1));
-  if (lo > K - 2) lo = K - 2;
-  if (lo < 0) lo = 0;
-  if (lo + 1 < K - 1 && kd[lo + 1] <= d) lo++;
-  else if (lo > 0 && kd[lo] > d) lo--;
-  if (kd[lo] <= d && d < kd[lo + 1]) return lo;
-  int hi = K - 1;
-  lo = 0;
-  while (hi - lo > 1) {
-    int mid = (lo + hi) / 2;
-    if (kd[mid] <= d) lo = mid; else hi = mid;
-  }
-  return lo;
-}
-
-/* Cubic Hermite on table t at 0 < d (linear beyond the last knot). */
-static void table_eval(const blk_model *m, int t, double d, double *F, double *k) {
-  const int K = m->n_knots;
-  const double *kd = m->spr_d + (size_t)t * K, *kF = m->spr_F + (size_t)t * K,
-               *kk = m->spr_k + (size_t)t * K;
-  if (d >= kd[K - 1]) { /* linear extension with the last slope */
-    *F = kF[K - 1] + kk[K - 1] * (d - kd[K - 1]);
-    *k = kk[K - 1];
-    return;
-  }
-  const int lo = knot_interval(kd, K, d), hi = lo + 1;
-  /* cubic Hermite on [d_lo, d_hi] (green/FORMATS.md) */
-  const double h = kd[hi] - kd[lo], x = (d - kd[lo]) / h, x2 = x * x, x3 = x2 * x;
-  const double h00 = 2 * x3 - 3 * x2 + 1, h10 = x3 - 2 * x2 + x,
-               h01 = -2 * x3 + 3 * x2, h11 = x3 - x2;
-  *F = h00 * kF[lo] + h10 * h * kk[lo] + h01 * kF[hi] + h11 * h * kk[hi];
-  const double d00 = (6 * x2 - 6 * x) / h, d10 = 3 * x2 - 4 * x + 1,
-               d01 = (-6 * x2 + 6 * x) / h, d11 = 3 * x2 - 2 * x;
-  *k = d00 * kF[lo] + d10 * kk[lo] + d01 * kF[hi] + d11 * kk[hi];
-  if (*k < 0) *k = 0; /* monotone data: only round-off can make it negative */
-}
-
-void blk_spring_eval(const blk_model *m, int e, double d, double *F, double *k) {
-  if (d <= 0 || m->rigid) {
-    *F = 0;
-    *k = 0;
-    return;
-  }
-  const double s = m->spr_scale[e];
-  table_eval(m, m->spr_table[e], d, F, k);
-  *F *= s;
-  *k *= s;
-}
-
-/* ∫_0^d F(s) ds of element e (the spring's stored energy W, d ≥ 0): exact
- * integral of the cubic Hermite pieces (knot energies tabulated), linear
- * beyond the last knot. */
-double blk_spring_energy(const blk_model *m, int e, double d) {
-  if (d <= 0 || m->rigid) return 0;
-  const int K = m->n_knots, t = m->spr_table[e];
-  const double *kd = m->spr_d + (size_t)t * K, *kF = m->spr_F + (size_t)t * K,
-               *kk = m->spr_k + (size_t)t * K, *W = m->spr_W + (size_t)t * K;
-  if (d >= kd[K - 1]) {
-    const double s = d - kd[K - 1];
-    return m->spr_scale[e] * (W[K - 1] + kF[K - 1] * s + 0.5 * kk[K - 1] * s * s);
-  }
-  const int i = knot_interval(kd, K, d);
-  return m->spr_scale[e] * (W[i] + piece_energy(m, t, i, (d - kd[i]) / (kd[i + 1] - kd[i])));
-}
-
-/* Relative Newton step below which the inverse has converged (round-off). */
-#define BLK_INVERSE_STEP 4e-16
-
-/* Inverse spring law: the compression d ≥ 0 at which element e carries F ≥ 0
- * (safeguarded Newton on the monotone Hermite piece). */
-double blk_spring_inverse(const blk_model *m, int e, double F) {
-  if (F <= 0 || m->rigid) return 0;
-  const int K = m->n_knots, t = m->spr_table[e];
-  const double *kd = m->spr_d + (size_t)t * K, *kF = m->spr_F + (size_t)t * K,
-               *kk = m->spr_k + (size_t)t * K;
-  F /= m->spr_scale[e]; /* on the table */
-  if (F >= kF[K - 1]) {
-    if (kk[K - 1] > 0) return kd[K - 1] + (F - kF[K - 1]) / kk[K - 1];
-    return kd[K - 1];
-  }
-  int lo = 0, hi = K - 1; /* kF[lo] <= F < kF[hi] */
-  while (hi - lo > 1) {
-    int mid = (lo + hi) / 2;
-    if (kF[mid] <= F) lo = mid; else hi = mid;
-  }
-  double a = kd[lo], b = kd[hi], x = a + (b - a) * (F - kF[lo]) / (kF[hi] - kF[lo]);
-  for (int it = 0; it < 100; it++) {
-    double Fx, kx;
-    table_eval(m, t, x, &Fx, &kx);
-    const double r = Fx - F;
-    if (r > 0) b = x; else a = x;
-    if (fabs(r) <= 1e-15 * F || b - a <= 1e-16 * b) break;
-    double xn = kx > 0 ? x - r / kx : 0.5 * (a + b);
-    if (!(xn > a && xn < b)) xn = 0.5 * (a + b);
-    /* F(x) is only known to a few ulp: a step below that is converged */
-    if (fabs(xn - x) <= BLK_INVERSE_STEP * x) return xn;
-    x = xn;
-  }
-  return x;
 }
 
 /* ------------------------------------------------------ cure 2: soften */
@@ -470,7 +349,7 @@ int blk_model_check(const blk_model *m, proto_err *err) {
           if (rj >= 0 && rj < m->noy && rj != dj)
             worst = fmax(worst, fabs(K[(size_t)dj * m->nox + di] - K[(size_t)rj * m->nox + di]));
         }
-      if (!(worst <= 1e-9 * kmax))
+      if (!(worst <= BLK_PERIODIC_TOL * kmax))
         return proto_fail(err, "grid.periodic: the Green's functions (%s) are not periodic "
                           "over the %d x %d grid (K(d) != K(d - n) by %.2g of the largest); "
                           "periodic grids need green.kind halfspace or synthetic",

@@ -1,89 +1,14 @@
 /* blk_step.c — one time step of the block model: the per-step contact
- * problem (seed 002 eq. 4–8) by the dense or the matrix-free solver,
- * adhesion with a release force (ch. 5.1), the tangent contact stiffness,
- * then the history term for the next step (eq. 5). Also the state's
- * allocation: nothing is allocated in blk_step. */
+ * problem (seed 002 eq. 4–8) by the dense or the matrix-free solver
+ * (blk_dense.c, blk_cg.c, which call down into the spring law of
+ * blk_spring.c), adhesion with a release force (ch. 5.1), the tangent
+ * contact stiffness, then the history term for the next step (eq. 5). Also
+ * the state's allocation: nothing is allocated in blk_step. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "contact_block/blk_internal.h"
-
-/* ------------------------------------------------------ spring helpers */
-
-void blk_spring_law(const blk_model *m, const int *held, const double *d, double *F,
-                    double *k) {
-  for (int e = 0; e < m->M; e++) {
-    if (d[e] > 0) {
-      blk_spring_eval(m, e, d[e], &F[e], &k[e]);
-    } else if (m->adhesion && held[e]) {
-      blk_spring_eval(m, e, -d[e], &F[e], &k[e]);
-      F[e] = -F[e];
-    } else {
-      F[e] = 0;
-      k[e] = 0;
-    }
-  }
-}
-
-/* Newton from the previous compression (one or two steps when the force
- * changed little), else the bracketed inverse of blk_model.c. k at the
- * result into *k. */
-static double inverse_from(const blk_model *m, int e, double F, double d0, double *k) {
-  if (d0 > 0) {
-    double x = d0;
-    for (int it = 0; it < 6; it++) {
-      double Fx;
-      blk_spring_eval(m, e, x, &Fx, k);
-      const double r = Fx - F;
-      if (fabs(r) <= 1e-15 * F) return x;
-      if (!(*k > 0)) break;
-      const double xn = x - r / *k;
-      if (!(xn > 0)) break;
-      if (fabs(xn - x) <= 4e-16 * x) { /* below the round-off of F(x) */
-        blk_spring_eval(m, e, xn, &Fx, k);
-        return xn;
-      }
-      x = xn;
-    }
-  }
-  const double x = blk_spring_inverse(m, e, F);
-  double Fx;
-  blk_spring_eval(m, e, x, &Fx, k);
-  return x;
-}
-
-double blk_spring_inverse_from(const blk_model *m, int e, double F, double d0) {
-  if (F <= 0 || m->rigid) return 0;
-  double k;
-  return inverse_from(m, e, F, d0, &k);
-}
-
-/* 1/k used at the contact onset of a spring with k(0) = 0: far softer than
- * the layer (× its self-compliance), so the element barely moves a Newton
- * step (1 m/N if the step has no instantaneous compliance). */
-#define BLK_INV_K_CAP 1e8
-
-double blk_dual_element(const blk_model *m, const blk_work *w, int e, double F,
-                        double d_guess, double *d, double *inv_k) {
-  if (m->rigid) {
-    *d = 0;
-    *inv_k = 0;
-    return 0;
-  }
-  const double a = fabs(F);
-  double x = 0, kx;
-  if (a > 0) { /* warm start only from a compression (d_guess < 0 is a gap) */
-    const double d0 = F > 0 ? d_guess : -d_guess;
-    x = inverse_from(m, e, a, d0 > 0 ? d0 : 0, &kx);
-  } else { /* unloaded: k at the onset d = 0+ */
-    const int K = m->n_knots;
-    kx = m->spr_scale[e] * m->spr_k[(size_t)m->spr_table[e] * K];
-  }
-  *inv_k = kx > 0 ? 1.0 / kx : w->c_self > 0 ? BLK_INV_K_CAP * w->c_self : 1.0;
-  *d = F < 0 ? -x : x;
-  return a * x - blk_spring_energy(m, e, x); /* Ψ = F d − W(d), Legendre */
-}
 
 /* --------------------------------------------------------------- state */
 
@@ -277,7 +202,7 @@ int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err) {
     if (!m->adhesion) break;
     int released = 0;
     for (int e = 0; e < M; e++)
-      if (w->held[e] && s->d_rs[e] < 0 && -s->force[e] > m->release_force) {
+      if (w->held[e] && s->d_rs[e] < 0 && grn_spring_released(s->force[e], m->release_force)) {
         w->held[e] = 0;
         released++;
       }

@@ -1,5 +1,5 @@
 /* accel.c — acceleration of the implicit scheme's fixed-point iteration
- * x = H(x) in one coupling step (notes/coupling-schemes.md §2-3):
+ * x = H(x) in one coupling step (docs/coupling-schemes.md §3):
  *   constant  x ← x + ω r,  r = H(x) − x;
  *   aitken    ω_k = −ω_{k−1} r_{k−1}·(r_k − r_{k−1}) / |r_k − r_{k−1}|²
  *             (Irons & Tuck 1969; the first ω of a step:
@@ -22,7 +22,7 @@
  * positions at the step start; zero for forces), or |r_f| ≤ tol |r_f,0|, the
  * first non-zero residual of the step — for a field that vanishes (the
  * forces when the grains leave the tread), which the first test cannot pass. */
-#include "run.h"
+#include "runner.h"
 
 #include <math.h>
 #include <stdlib.h>

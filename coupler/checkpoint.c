@@ -1,5 +1,5 @@
 /* checkpoint.c — checkpoints and restart (README "Checkpoints and restart";
- * notes/coupling.md §3: MUSCLE3's coordinated checkpoints at window
+ * Veen & Hoekstra 2020: MUSCLE3's coordinated checkpoints at window
  * boundaries). After step k (k a multiple of checkpoint.every) the coupler
  * asks every participant for its state (the `checkpoint` message; the reply
  * `state` carries the arrays its state_save makes, the same ones rollback
@@ -15,7 +15,7 @@
  * File layout: root attributes "cosim" (CKPT_MAGIC) and "config" (the scene
  * as run); /coupler/<name> one dataset per piece of the coupler's state
  * (step first); /participants/<name>/state.<x> with attribute "role". */
-#include "run.h"
+#include "runner.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -98,7 +98,7 @@ static int coupler_state(cpl_runner *r, int64_t *step, double *wall, int64_t *un
   v[n++] = (cpl_stateval){"road.a", PROTO_F8, &r->road.a, 1};
   v[n++] = (cpl_stateval){"road.force_last", PROTO_F8, &r->road.force_last, 1};
   if (r->carry) /* implicit: the impulse defect carried into the next step */
-    v[n++] = (cpl_stateval){"implicit.carry", PROTO_F8, r->carry, 3 * r->surf.n_nodes};
+    v[n++] = (cpl_stateval){"implicit.carry", PROTO_F8, r->carry, 3 * r->plan.surf.n_nodes};
   return n + cpl_accel_state(r->accel, v + n, MAX_VALS - n);
 }
 
@@ -226,6 +226,7 @@ static int write_file(cpl_runner *r, int64_t k, const char *path) {
   return rc;
 }
 
+/* (every participant's state, the coupler's) -> (checkpoint_<k>.h5) */
 int cpl_checkpoint_write(cpl_runner *r, int64_t k) {
   const cpl_scene *s = r->scene;
   /* the results hold every row up to step k before the checkpoint exists */

@@ -33,7 +33,7 @@ typedef enum { CPL_SCHEME_SERIAL, CPL_SCHEME_PARALLEL, CPL_SCHEME_IMPLICIT } cpl
 typedef enum { CPL_ACCEL_IQN_ILS, CPL_ACCEL_AITKEN, CPL_ACCEL_CONSTANT } cpl_accel_kind;
 
 /* coupling.implicit: iterate each step until the interface fields stop
- * changing (notes/coupling-schemes.md §2-3). */
+ * changing (Degroote et al. 2009; docs/coupling-schemes.md §3). */
 typedef struct cpl_implicit {
   double tolerance;        /* relative change per field */
   int64_t max_iterations;  /* per step */
@@ -170,6 +170,32 @@ int cpl_rim_advance(cpl_rim *rim, const cpl_scenario *s, double dt,
                     double vertical_load, proto_err *err);
 /* Prescribed road displacement at t (m); NAN for force-driven mode. */
 double cpl_road_displacement(const cpl_scenario *s, double t);
+
+/* The road body of the force-driven indentation (seed 002 fig. 49):
+ * road_mass pushed by road_force against the contact force. */
+typedef struct cpl_road {
+  double d, v, a;     /* displacement, velocity, acceleration at t_{k-1} */
+  double force_last;  /* contact force of the last step */
+} cpl_road;
+/* Explicit (serial, parallel): the force of the last step moves the body
+ * from t_{k-1} to t_k, v += dt a, d += dt v (symplectic Euler, equal to
+ * central differences); returns d at t_k. */
+double cpl_road_explicit(cpl_road *road, const cpl_scenario *s, double dt);
+/* Implicit: the trapezoidal rule (Newmark average acceleration, beta =
+ * 1/4, gamma = 1/2) with the contact force of t_k: *v, *a at t_k; returns
+ * d at t_k; road (t_{k-1}) is not changed. */
+double cpl_road_trapezoid(const cpl_road *road, const cpl_scenario *s, double dt,
+                          double force, double *v, double *a);
+
+/* Traction of seed 000 §5 from the grains' forces F on the tread nodes at
+ * positions X (n nodes, [n,3] world): T_H the sum of the positive x forces
+ * (along travel), T_R of the negative ones (against it), T_P = T_H - |T_R|,
+ * the vertical load (sum of z), the sinkage c0_z - c_z of the rim, and the
+ * torque about the axle (y of sum (x - c) x f). */
+enum { CPL_TR_T, CPL_TR_TH, CPL_TR_TR, CPL_TR_TP, CPL_TR_LOAD, CPL_TR_SINK, CPL_TR_TORQUE,
+       CPL_N_TRACTION };
+void cpl_traction(const double *F, const double *X, int64_t n, const cpl_rim *rim, double t,
+                  double row[CPL_N_TRACTION]);
 
 /* `cosim` command line. */
 int cpl_main(int argc, char **argv);

@@ -1,5 +1,6 @@
 /* liveness.c — receiving from the participants while watching them
- * (PROTOCOL.md "Liveness"; notes/coupling.md §5.2): a child that exits is
+ * (PROTOCOL.md "Liveness"; the supervisor of MUSCLE3, Veen & Hoekstra 2020,
+ * and ZMTP 3.1 heartbeats, ZeroMQ RFC 37): a child that exits is
  * named with the end of its log; one that announced heartbeats and falls
  * silent for coupling.heartbeat_timeout is named (stopped, hung, or its
  * host unreachable), whatever its init or step time; one that does not
@@ -9,7 +10,7 @@
  * not the coupler's pauses. Heartbeats carry init progress, which `cosim
  * run` shows. Messages from identities the scene does not name are logged
  * and ignored: a stray process cannot end the run. */
-#include "run.h"
+#include "runner.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -21,12 +22,15 @@
 #define WATCH_MAX_GAP_S 0.25
 #define STRANGERS_SHOWN 5   /* unknown identities logged; then only counted */
 
-double cpl_watch(cpl_runner *r) {
-  double now = proto_now(), gap = now - r->watch_wall;
+/* (wall clock now) -> (watch clock, advanced by at most WATCH_MAX_GAP_S) */
+double cpl_watch_at(cpl_runner *r, double now) {
+  double gap = now - r->watch_wall;
   r->watch_wall = now;
   if (gap > 0) r->watch += gap < WATCH_MAX_GAP_S ? gap : WATCH_MAX_GAP_S;
   return r->watch;
 }
+
+double cpl_watch(cpl_runner *r) { return cpl_watch_at(r, proto_now()); }
 
 void cpl_printable(char *out, size_t cap, const char *s) {
   size_t n = 0;
@@ -62,8 +66,8 @@ static int check_children(cpl_runner *r) {
   return 0;
 }
 
-/* A participant that promised heartbeats and has been silent too long. */
-static int check_silence(cpl_runner *r, double now) {
+/* (peers' last messages, watch clock) -> (the one silent too long, named) */
+int cpl_check_silence(cpl_runner *r, double now) {
   for (int i = 0; i < r->n; i++) {
     const cpl_peer *p = &r->peers[i];
     if (!p->connected || p->stopped || p->hb_s <= 0 ||
@@ -180,6 +184,7 @@ static int timed_out(cpl_runner *r, int expect, double timeout_s, const char *ke
                     expect >= 0 ? "'" : "", timeout_s, key);
 }
 
+/* (sockets, children, watch clock) -> (the next message, or the culprit named) */
 int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
                 proto_msg *m, int *from) {
   const double start = cpl_watch(r);
@@ -188,7 +193,7 @@ int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
       return proto_fail(&r->err, "interrupted by signal %d", cpl_interrupted);
     if (check_children(r) < 0) return -1;
     const double now = cpl_watch(r);
-    if (check_silence(r, now) < 0) return -1;
+    if (cpl_check_silence(r, now) < 0) return -1;
     double since = start;
     if (expect >= 0 && r->peers[expect].progressed > since) since = r->peers[expect].progressed;
     const double left = since + timeout_s - now;

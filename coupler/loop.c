@@ -1,5 +1,5 @@
 /* loop.c — the coupling schemes over the schedule (PROTOCOL.md "Schemes";
- * notes/coupling-schemes.md):
+ * docs/coupling-schemes.md; Gatzhammer 2014; Degroote et al. 2009):
  *   serial    the stages in order, each committed before the next (the
  *             grains' forces of step k reach the tread in step k);
  *   parallel  one stage, every process at once on the last committed fields
@@ -9,7 +9,7 @@
  *             processes rolled back between repeats.
  * Then the rows of the step: each process's series and snapshots, traction,
  * the coupler's series and timing. */
-#include "run.h"
+#include "runner.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -27,19 +27,19 @@ enum { IF_X, IF_F, IF_ROAD, N_IF };
 
 static int road_coupled(const cpl_runner *r) {
   const cpl_scenario *s = &r->scene->scenario;
-  return r->n_of_role[PROTO_ROLE_BLOCK] && s->kind == CPL_SCN_INDENTATION &&
+  return r->plan.n_of_role[PROTO_ROLE_BLOCK] && s->kind == CPL_SCN_INDENTATION &&
          s->profile == CPL_PROFILE_FORCE;
 }
 
 static int64_t if_len(const cpl_runner *r, int f) {
-  int surface = r->fem >= 0 && r->n_of_role[PROTO_ROLE_DEM];
-  return f == IF_ROAD ? road_coupled(r) : surface ? 3 * r->surf.n_nodes : 0;
+  int surface = r->plan.fem >= 0 && r->plan.n_of_role[PROTO_ROLE_DEM];
+  return f == IF_ROAD ? road_coupled(r) : surface ? 3 * r->plan.surf.n_nodes : 0;
 }
 
 static int implicit_init(cpl_runner *r) {
   int64_t len[N_IF], total = 0;
   for (int f = 0; f < N_IF; f++) total += len[f] = if_len(r, f);
-  size_t n3 = sizeof(double) * (size_t)(3 * r->surf.n_nodes + 1);
+  size_t n3 = sizeof(double) * (size_t)(3 * r->plan.surf.n_nodes + 1);
   r->xi = calloc((size_t)total + 1, sizeof(double));
   r->xt = calloc((size_t)total + 1, sizeof(double));
   r->x_start = calloc(1, n3);
@@ -52,14 +52,10 @@ static int implicit_init(cpl_runner *r) {
   return r->accel ? 0 : -1;
 }
 
-/* Road body by the trapezoidal rule (Newmark average acceleration) with the
- * force of t_k: the implicit counterpart of road_action in schedule.c. */
+/* Road body at t_k by the trapezoidal rule with the force of t_k
+ * (scenario.c): the implicit counterpart of the explicit road action. */
 static double road_trapezoid(const cpl_runner *r, double force, double *v, double *a) {
-  const cpl_scenario *s = &r->scene->scenario;
-  const double dt = r->scene->dt;
-  *a = (s->road_force - force) / s->road_mass;
-  *v = r->road.v + 0.5 * dt * (r->road.a + *a);
-  return r->road.d + 0.5 * dt * (r->road.v + *v);
+  return cpl_road_trapezoid(&r->road, &r->scene->scenario, r->scene->dt, force, v, a);
 }
 
 /* Sets the requests' inputs from the iterate xi. */
@@ -111,9 +107,9 @@ static int implicit_step(cpl_runner *r, int64_t k, int output) {
   const cpl_field *X = &r->fields[CPL_F_SURF_X], *V = &r->fields[CPL_F_SURF_V];
   const double dt = r->scene->dt;
   /* actions once, at the start (with the last step's load) */
-  for (int e = 0; e < r->nex; e++)
-    if (r->ex[e].peer < 0 && !(road_coupled(r) && r->ex[e].action == CPL_ACT_ROAD) &&
-        cpl_do_action(r, r->ex[e].action, k) < 0)
+  for (int e = 0; e < r->plan.nex; e++)
+    if (r->plan.ex[e].peer < 0 && !(road_coupled(r) && r->plan.ex[e].action == CPL_ACT_ROAD) &&
+        cpl_do_action(r, r->plan.ex[e].action, k) < 0)
       return -1;
   /* start: x_{k-1}; guess d_k = x_{k-1} + dt v, forces of the last step */
   memcpy(r->x_start, X->cur, sizeof(double) * (size_t)nx);
@@ -140,28 +136,14 @@ static int implicit_step(cpl_runner *r, int64_t k, int output) {
 
 /* ---------------------------------------------------------- recording */
 
-/* Traction of seed 000 §5 (T_R: forces against travel, T_H: along it,
- * T_P = T_H - |T_R|), vertical load, sinkage and the torque about the axle,
- * all from the grain forces on the tread nodes. */
-enum { TR_T, TR_TH, TR_TR, TR_TP, TR_LOAD, TR_SINK, TR_TORQUE, N_TR };
-static const char *const traction_cols[N_TR] = {"t", "T_H", "T_R", "T_P",
-                                                "vertical_load", "sinkage", "torque"};
-
+/* The traction row of step k (scenario.c) from the current fields. */
 static void traction(const cpl_runner *r, double t, double *row) {
-  double th = 0, tr = 0, fz = 0, torque = 0;
-  const double *F = r->fields[CPL_F_SURF_FORCE].cur, *X = r->fields[CPL_F_SURF_X].cur;
-  for (int64_t i = 0; i < r->surf.n_nodes; i++) {
-    const double *f = &F[3 * i], *x = &X[3 * i];
-    if (f[0] > 0) th += f[0];
-    else tr += f[0];
-    fz += f[2];
-    /* y-component of (x - c) × f */
-    torque += (x[2] - r->rim.c[2]) * f[0] - (x[0] - r->rim.c[0]) * f[2];
-  }
-  double sinkage = r->rim.c0[2] - r->rim.c[2];
-  double vals[N_TR] = {t, th, tr, th - fabs(tr), fz, sinkage, torque};
-  memcpy(row, vals, sizeof vals);
+  cpl_traction(r->fields[CPL_F_SURF_FORCE].cur, r->fields[CPL_F_SURF_X].cur, r->plan.surf.n_nodes,
+               &r->rim, t, row);
 }
+
+static const char *const traction_cols[CPL_N_TRACTION] = {
+    "t", "T_H", "T_R", "T_P", "vertical_load", "sinkage", "torque"};
 
 /* A row of the coupler's own series on the bus, its column names in the
  * header (as coupler.timing) so that a monitor can name what it plots. */
@@ -241,6 +223,7 @@ static const char *const coupler_cols[N_CS] = {
     "t", "wall_s", "iterations", "converged", "residual_x", "residual_force",
     "residual_road"};
 
+/* (fields, replies of step k, rim) -> (results.h5 rows and snapshots, bus) */
 static int record(cpl_runner *r, int64_t k, int output) {
   for (int i = 0; i < r->n; i++) {
     if (cpl_output_done(r->out, r->peers[i].proc->name, &r->peers[i].reply,
@@ -258,11 +241,12 @@ static int record(cpl_runner *r, int64_t k, int output) {
     return -1;
   publish(r, "coupler.series", "series", k, t, N_CS, crow, coupler_cols);
   if (r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL) {
-    double row[N_TR];
+    double row[CPL_N_TRACTION];
     traction(r, t, row);
-    if (cpl_output_coupler_row(r->out, "traction", N_TR, traction_cols, row, &r->err) < 0)
+    if (cpl_output_coupler_row(r->out, "traction", CPL_N_TRACTION, traction_cols, row,
+                               &r->err) < 0)
       return -1;
-    publish(r, "coupler.traction", "series", k, t, N_TR, row, traction_cols);
+    publish(r, "coupler.traction", "series", k, t, CPL_N_TRACTION, row, traction_cols);
   }
   /* at output steps everything so far goes to the disk: a run that fails
    * later keeps it */
@@ -287,6 +271,8 @@ int cpl_scheme_init(cpl_runner *r) {
   return r->scene->scheme == CPL_SCHEME_IMPLICIT ? implicit_init(r) : 0;
 }
 
+/* The orchestrator: per step the scheme's exchange and scenario stages
+ * (schedule.c, scenario_step.c), then record, timing and checkpoint. */
 int cpl_step_loop(cpl_runner *r) {
   const cpl_scene *s = r->scene;
   cpl_inputs_current(r);

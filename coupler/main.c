@@ -16,8 +16,9 @@ static void usage(FILE *f) {
           "       cosim road|springs|green ARGS...   (forwarded to cosim_green)\n"
           "       cosim terra plate|shear|fit|combine|curve ARGS...   (forwarded to cosim_terra)\n"
           "       cosim sweep SCENE --values KEY.PATH=V1,V2,... --out DIR [--set K=V]...\n"
-          "                   [--jobs N] [--terra-params P.json|--reference REF.csv]\n"
+          "                   [--jobs N] [--repeat N] [--terra-params P.json|--reference REF.csv]\n"
           "                   (forwarded to python3 -m cosim; --help for the rest)\n"
+          "       cosim watch RUN_DIR|ENDPOINT [--http 127.0.0.1:8080]   (forwarded to python3 -m cosim)\n"
           "\n"
           "run      starts the participants the scene names, couples them step by\n"
           "         step and writes results.h5 in output.dir. --attach waits for\n"
@@ -30,7 +31,9 @@ static void usage(FILE *f) {
           "monitor  prints what is published on a run's monitor bus (the endpoint,\n"
           "         or the run's output.dir, whose endpoints.json says where it is).\n"
           "sweep    one run per value of a scene key into DIR/<key>=<value>/, then\n"
-          "         DIR/summary.csv (traction over the steady travel) and summary.png.\n"
+          "         DIR/summary.csv (traction over the steady travel, 95 %% intervals;\n"
+          "         --repeat N: N beds per value) and summary.png.\n"
+          "watch    a live web page of a run (localhost; see python/README.md).\n"
           "roles    the role table: each role's messages and arrays (--json: for\n"
           "         other languages).\n"
           "Exit codes: 0 ok, 1 bad config or usage, 3 a participant failed,\n"
@@ -143,9 +146,11 @@ static int cmd_roles(int argc, char **argv) {
                                   v == PROTO_DIM_NODES ? "n" : "m");
       }
       snprintf(shape + len, sizeof shape - len, "]");
-      printf("  %-8s %-12s %s %-6s %-6s%s\n    %s\n", proto_msg_type(t[i].msg),
+      printf("  %-8s %-12s %s %-6s %-6s%s%s%s%s\n    %s\n", proto_msg_type(t[i].msg),
              t[i].name, proto_dtype_name(t[i].dtype), shape, t[i].units,
-             t[i].when == PROTO_WHEN_SURFACE ? " (with a surface)" : "", t[i].meaning);
+             t[i].when == PROTO_WHEN_SURFACE ? " (with a surface)" : "",
+             t[i].field ? " field " : "", t[i].field ? t[i].field : "",
+             t[i].sum ? " (summed)" : "", t[i].meaning);
     }
   }
   return 0;
@@ -165,7 +170,7 @@ static int forward(const char *name, char **argv) {
   return 1;
 }
 
-/* `cosim sweep ...` runs the Python package's sweep (python/cosim/sweep_cli.py)
+/* `cosim sweep|watch ...` runs the Python package's sweep (python/cosim/sweep_cli.py) or watch
  * with the interpreter $COSIM_PYTHON (default COSIM_PYTHON_DEFAULT), the
  * package from this source tree and this cosim binary for its runs. */
 static int forward_python(char **argv) {
@@ -207,7 +212,7 @@ int cpl_main(int argc, char **argv) {
       strcmp(cmd, "green") == 0)
     return forward("cosim_green", argv);
   if (strcmp(cmd, "terra") == 0) return forward("cosim_terra", argv + 1);
-  if (strcmp(cmd, "sweep") == 0) return forward_python(argv);
+  if (strcmp(cmd, "sweep") == 0 || strcmp(cmd, "watch") == 0) return forward_python(argv);
   if (strcmp(cmd, "run") != 0 && strcmp(cmd, "check") != 0) {
     fprintf(stderr, "cosim: unknown command '%s'\n", cmd);
     usage(stderr);

@@ -1,4 +1,4 @@
-/* output.c — results.h5 (DESIGN.md "Output"): a group per participant with
+/* output.c — results.h5 (README.md "Output"): a group per participant with
  * its time series (declared in its ready message, one row per step) and its
  * snapshots at output steps (arrays "snap.<name>" → /<p>/steps/<k>/<name>),
  * the coupler's own series, the config as an attribute, and an XDMF file per

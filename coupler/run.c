@@ -4,7 +4,7 @@
  * says its role), results.h5 (only once every participant has passed its
  * handshake), a restart's checkpoint, the schedule, the loop (loop.c), and
  * a teardown that leaves no process behind whatever happened. */
-#include "run.h"
+#include "runner.h"
 
 #include <errno.h>
 #include <math.h>
@@ -187,11 +187,11 @@ static int wait_hellos(cpl_runner *r) {
   }
   proto_msg_free(&m);
   proto_role roles[CPL_MAX_PROCS];
-  r->fem = -1;
+  r->plan.fem = -1;
   for (int i = 0; i < r->n; i++) {
     roles[i] = r->peers[i].role;
-    r->n_of_role[roles[i]]++;
-    if (roles[i] == PROTO_ROLE_FEM) r->fem = i;
+    r->plan.n_of_role[roles[i]]++;
+    if (roles[i] == PROTO_ROLE_FEM) r->plan.fem = i;
   }
   return cpl_check_roles(r->scene, roles, &r->err);
 }
@@ -225,7 +225,7 @@ static void fill_run_header(cpl_runner *r, proto_msg *w, const cpl_process *p) {
 static int take_surface(cpl_runner *r, const proto_msg *ready) {
   const proto_array *x0 = proto_msg_find(ready, PROTO_A_SURFACE_X0);
   const proto_array *tri = proto_msg_find(ready, PROTO_A_SURFACE_TRI);
-  cpl_surface *s = &r->surf;
+  cpl_surface *s = &r->plan.surf;
   s->n_nodes = x0->shape[0];
   s->n_tris = tri->shape[0];
   size_t nb = (size_t)s->n_nodes * 3 * sizeof(double);
@@ -238,14 +238,14 @@ static int take_surface(cpl_runner *r, const proto_msg *ready) {
   for (int64_t i = 0; i < 3 * s->n_tris; i++)
     if (t[i] < 0 || t[i] >= s->n_nodes)
       return proto_fail(&r->err, "participant '%s': surface_tri refers to node %d "
-                        "of %lld", r->peers[r->fem].proc->name, t[i],
+                        "of %lld", r->peers[r->plan.fem].proc->name, t[i],
                         (long long)s->n_nodes);
   return 0;
 }
 
 /* World positions at t = 0 and the rim frame into the fields. */
 static void init_fields(cpl_runner *r) {
-  const cpl_surface *s = &r->surf;
+  const cpl_surface *s = &r->plan.surf;
   double *x = r->fields[CPL_F_SURF_X].cur;
   for (int64_t i = 0; i < s->n_nodes; i++)
     for (int a = 0; a < 3; a++) {
@@ -264,10 +264,10 @@ static int welcome_one(cpl_runner *r, int i) {
   proto_msg w = {0};
   proto_msg_reset(&w, p->proc->name, proto_msg_type(PROTO_MSG_WELCOME), 0, 0);
   fill_run_header(r, &w, p->proc);
-  if (p->role == PROTO_ROLE_DEM && r->surf.n_nodes > 0) {
-    proto_msg_add_f8(&w, PROTO_A_SURFACE_X0, r->surf.n_nodes, 3,
+  if (p->role == PROTO_ROLE_DEM && r->plan.surf.n_nodes > 0) {
+    proto_msg_add_f8(&w, PROTO_A_SURFACE_X0, r->plan.surf.n_nodes, 3,
                      r->fields[CPL_F_SURF_X].cur);
-    proto_msg_add_i4(&w, PROTO_A_SURFACE_TRI, r->surf.n_tris, 3, r->surf.tri);
+    proto_msg_add_i4(&w, PROTO_A_SURFACE_TRI, r->plan.surf.n_tris, 3, r->plan.surf.tri);
   }
   /* the coupler's copy of the conversation's dims (n, m; surface or not) */
   int rc = proto_role_check(p->role, PROTO_MSG_WELCOME, &w, &p->dims, &r->err);
@@ -288,7 +288,7 @@ static int welcome_one(cpl_runner *r, int i) {
     rc = proto_wrap(&r->err, "participant '%s'", p->proc->name);
   p->rollback = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(p->reply.header,
                                                               PROTO_H_ROLLBACK));
-  if (rc == 0 && i == r->fem) rc = take_surface(r, &p->reply);
+  if (rc == 0 && i == r->plan.fem) rc = take_surface(r, &p->reply);
   if (rc < 0 && r->failed_peer < 0) r->failed_peer = i;
   return rc;
 }
@@ -297,8 +297,8 @@ static int welcome_one(cpl_runner *r, int i) {
  * the identity at t = 0). */
 static void rim_height_for(cpl_runner *r, double z) {
   double lowest = INFINITY;
-  for (int64_t i = 0; i < r->surf.n_nodes; i++) lowest = fmin(lowest, r->surf.x0[3 * i + 2]);
-  r->rim.c[2] = r->rim.c0[2] = z - (r->surf.n_nodes ? lowest : 0);
+  for (int64_t i = 0; i < r->plan.surf.n_nodes; i++) lowest = fmin(lowest, r->plan.surf.x0[3 * i + 2]);
+  r->rim.c[2] = r->rim.c0[2] = z - (r->plan.surf.n_nodes ? lowest : 0);
 }
 
 /* rim_center [x, y, "auto"]: the lowest tread node auto_gap above the
@@ -331,13 +331,13 @@ static int place_rim(cpl_runner *r) {
  * an "auto" rim waits parked above everything until the beds are settled. */
 static int welcome_all(cpl_runner *r) {
   const int rim_auto = r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL &&
-                       r->scene->scenario.rim_auto && r->fem >= 0;
-  if (r->fem >= 0 && welcome_one(r, r->fem) < 0) return -1;
-  if (cpl_fields_init(r, r->surf.n_nodes, &r->err) < 0) return -1;
+                       r->scene->scenario.rim_auto && r->plan.fem >= 0;
+  if (r->plan.fem >= 0 && welcome_one(r, r->plan.fem) < 0) return -1;
+  if (cpl_fields_init(r, r->plan.surf.n_nodes, &r->err) < 0) return -1;
   if (rim_auto) rim_height_for(r, CPL_AUTO_PARK_Z); /* out of the way while beds settle */
   init_fields(r);
   for (int i = 0; i < r->n; i++)
-    if (i != r->fem && welcome_one(r, i) < 0) return -1;
+    if (i != r->plan.fem && welcome_one(r, i) < 0) return -1;
   return rim_auto ? place_rim(r) : 0;
 }
 
@@ -444,8 +444,8 @@ static void teardown(cpl_runner *r, int ok) {
   cpl_zap_stop(r->zap); /* removes the key files */
   if (r->ctx) zmq_ctx_term(r->ctx);
   remove_run_dir(r);
-  free(r->surf.x0);
-  free(r->surf.tri);
+  free(r->plan.surf.x0);
+  free(r->plan.surf.tri);
   cpl_fields_free(r);
   cpl_accel_free(r->accel);
   free(r->xi), free(r->xt), free(r->x_start), free(r->v_dem), free(r->f_fem),
@@ -483,8 +483,10 @@ static int claim_output_dir(cpl_runner *r) {
 }
 
 static int prepare(cpl_runner *r) {
-  int rc = 0;
-  if (!r->opts->attach)
+  int nrows;
+  const proto_array_spec *table = proto_role_table(&nrows);
+  int rc = cpl_contract_build(&r->plan.contract, table, nrows, &r->err);
+  if (rc == 0 && !r->opts->attach)
     for (int i = 0; i < r->n && rc == 0; i++)
       rc = cpl_resolve_exec(&r->scene->procs[i], &r->err);
   if (rc == 0) rc = claim_output_dir(r);
@@ -530,7 +532,7 @@ int cpl_run(cpl_scene *s, const cpl_run_opts *opts) {
   r->scene = s;
   r->opts = opts;
   r->failed_peer = -1;
-  r->fem = -1;
+  r->plan.fem = -1;
   r->lock_fd = -1;
   r->n = s->nprocs;
   r->watch_wall = proto_now();

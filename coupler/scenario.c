@@ -1,5 +1,5 @@
 /* scenario.c — what the coupler prescribes.
- * tire_travel (seed 000 §5, DESIGN.md): the rim sinks at constant speed until
+ * tire_travel (seed 000 §5, docs/architecture.md): the rim sinks at constant speed until
  * the vertical load reaches the target, then rotates with omega about +y and
  * travels along +x with v = omega R (1 - s). Its height during travel:
  * frozen (rig "kinematic", the paper's) or a degree of freedom carrying the
@@ -121,4 +121,37 @@ double cpl_road_displacement(const cpl_scenario *s, double t) {
     return NAN;
   }
   return NAN;
+}
+
+/* (road body at t_{k-1}, contact force of the last step) -> (road at t_k) */
+double cpl_road_explicit(cpl_road *road, const cpl_scenario *s, double dt) {
+  double a = (s->road_force - road->force_last) / s->road_mass;
+  road->v += a * dt;
+  road->d += road->v * dt;
+  return road->d;
+}
+
+/* (road body at t_{k-1}, contact force of t_k) -> (road at t_k) */
+double cpl_road_trapezoid(const cpl_road *road, const cpl_scenario *s, double dt,
+                          double force, double *v, double *a) {
+  *a = (s->road_force - force) / s->road_mass;
+  *v = road->v + 0.5 * dt * (road->a + *a);
+  return road->d + 0.5 * dt * (road->v + *v);
+}
+
+/* (nodal forces, node positions, rim) -> (traction row) */
+void cpl_traction(const double *F, const double *X, int64_t n, const cpl_rim *rim, double t,
+                  double row[CPL_N_TRACTION]) {
+  double th = 0, tr = 0, fz = 0, torque = 0;
+  for (int64_t i = 0; i < n; i++) {
+    const double *f = &F[3 * i], *x = &X[3 * i];
+    if (f[0] > 0) th += f[0];
+    else tr += f[0];
+    fz += f[2];
+    /* y-component of (x - c) × f */
+    torque += (x[2] - rim->c[2]) * f[0] - (x[0] - rim->c[0]) * f[2];
+  }
+  double sinkage = rim->c0[2] - rim->c[2];
+  double vals[CPL_N_TRACTION] = {t, th, tr, th - fabs(tr), fz, sinkage, torque};
+  memcpy(row, vals, sizeof vals);
 }

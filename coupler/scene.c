@@ -1,4 +1,4 @@
-/* scene.c — the scene's core keys (DESIGN.md "Config"): name, time, output,
+/* scene.c — the scene's core keys (docs/architecture.md): name, time, output,
  * bus, coupling, scenario, processes.<name>.exec. The inside of a process
  * section belongs to that participant, which validates it itself
  * (`<exec> --check-config`). */
@@ -130,7 +130,7 @@ static int read_security(proto_cfg *root, cpl_scene *s) {
   return proto_cfg_end(&c);
 }
 
-/* coupling.implicit (notes/coupling-schemes.md §2-3). */
+/* coupling.implicit (Degroote et al. 2009; docs/coupling-schemes.md §3). */
 static int read_implicit(proto_cfg *parent, cpl_scene *s) {
   cpl_implicit *im = &s->implicit;
   im->tolerance = 1e-6;

@@ -1,6 +1,7 @@
-/* timing.c — where the time of a coupled step goes (notes/coupling.md §5:
- * compute / waiting / transfer per process, MUSCLE3's taxonomy, Chrono's
- * "sim time vs total time"). Per step and process:
+/* timing.c — where the time of a coupled step goes: compute / waiting /
+ * transfer per process (MUSCLE3's event taxonomy, Veen & Hoekstra 2020;
+ * Chrono's "sim time vs total time", Serban et al. 2018). Per step and
+ * process:
  *   compute   seconds the process spent in its step (its own report in
  *             `done`, incl. state save/restore),
  *   transfer  request sent → reply received, minus compute: both sides'
@@ -11,7 +12,7 @@
  * and output (HDF5, bus). One row per step in /coupler/timing (columns in
  * the "columns" attribute) and on the bus ("coupler.timing"); the totals as
  * a table when the run ends. */
-#include "run.h"
+#include "runner.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -57,6 +58,7 @@ void cpl_timing_reply(cpl_runner *r, int i, double now, double compute) {
   p->compute += compute;
 }
 
+/* (per-process times of step k) -> (/coupler/timing row, bus) */
 int cpl_timing_step(cpl_runner *r, int64_t k, double wall, double output_s) {
   cpl_timing *t = r->timing;
   double *row = t->row;

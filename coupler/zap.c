@@ -1,4 +1,4 @@
-/* zap.c — security.curve (README "Security"; notes/coupling.md §3): the
+/* zap.c — security.curve (README "Security"; CurveZMQ, ZeroMQ RFC 26): the
  * run's CURVE keys and the ZAP handler (RFC 27) that decides who may
  * connect. The coupler's key pair serves every socket it binds; each process
  * of the scene gets its own client pair and monitors one more; a client key

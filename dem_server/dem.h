@@ -1,8 +1,8 @@
 /* dem.h — the one public header of cosim's DEM part (prefix dem_).
  *
  * Spheres with Hertz–Mindlin contacts, exactly LIGGGHTS 3.8
- * `pair gran model hertz tangential history` (seed 000 eq. 16–27; the LIGGGHTS
- * Coulomb rule of ../shared/notes/dem.md §1.1), velocity Verlet (eq. 4–5) with
+ * `pair gran model hertz tangential history` (seed 000 eq. 16–27; the Coulomb
+ * rule of LIGGGHTS 3.8 `src/tangential_model_history.h`), velocity Verlet (eq. 4–5) with
  * optional quaternion orientation, linked cells + Verlet list with skin,
  * plane/box walls and triangle meshes (closest point, eq. 35; nodal reaction
  * by ζ, eq. 42; BVH and per-grain candidate lists). Any number of OpenMP
@@ -41,7 +41,8 @@ typedef struct dem_material {
   double rolling_friction;  /* μ_r of LIGGGHTS `rolling_friction cdt`, 0 = off */
 } dem_material;
 
-/* Per material pair, LIGGGHTS' effective values (notes §1.1). Restitution,
+/* Per material pair, LIGGGHTS' effective values (LIGGGHTS 3.8
+ * `src/normal_model_hertz.h`). Restitution,
  * friction and rolling friction: the mean of the two materials', or the
  * config's "pairs" entry for that pair (LIGGGHTS' peratomtypepair tables). */
 typedef struct dem_pair_law {
@@ -111,7 +112,7 @@ typedef struct dem_model {
   dem_mesh meshes[DEM_MAX_MESHES];
   int surface_material; /* material of the coupled FEM surface */
   double gravity[3];
-  double rayleigh_time;  /* over the smallest grain, notes §2 */
+  double rayleigh_time;  /* over the smallest grain (Li, Xu & Thornton 2005) */
   double skin;           /* neighbour-list skin (m) */
   double overlap_tolerance;   /* initial overlap allowed, fraction of the smaller radius */
   double bed_max_overlap;     /* a bed file saved by dem_bed_save records its largest overlap

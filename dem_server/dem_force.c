@@ -50,7 +50,8 @@ static void law_set(pair_batch *b, int q, const dem_pair_law *l) {
 
 /* Appends the touching pairs among k0..k1 of row i (list order; every pair
  * is written, the count advances only when it touches: no branch); open
- * pairs lose their spring (history deleted, notes §1.1) if they touched. */
+ * pairs lose their spring (history deleted, as in LIGGGHTS 3.8
+ * `src/tangential_model_history.h`) if they touched. */
 static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, int k1,
                          pair_batch *restrict b) {
   const double *restrict x = s->x, *restrict rad = s->radius;

@@ -16,6 +16,12 @@ typedef struct dem_bvh {
   double area_built;    /* sum of box surface areas right after the build */
 } dem_bvh;
 
+/* The effective pair values of materials a and b with the pair's restitution
+ * e, friction mu and rolling friction mu_roll (dem_model.c; the config reader
+ * dem_config.c calls it). */
+void dem_pair_law_set(const dem_material *a, const dem_material *b, double e, double mu, double mu_roll,
+                      int clamp, dem_pair_law *l);
+
 /* Grains per chunk: the fixed partition of the slots that the force sums
  * follow (dem_force.c), so results do not depend on the number of threads. */
 #define DEM_CHUNK 512
@@ -132,7 +138,7 @@ static inline void dem_cross(const double *a, const double *b, double *c) {
 }
 
 /* One Hertz–Mindlin contact, LIGGGHTS `model hertz tangential history`
- * (notes §1.1; seed 000 eq. 22–27 in LIGGGHTS' form):
+ * (LIGGGHTS 3.8 `src/tangential_model_history.h`; seed 000 eq. 22–27 in LIGGGHTS' form):
  *   n: unit normal towards grain i; delta > 0: overlap; rstar, mstar: eq. 16–17
  *   (walls: r_i, m_i); vc: velocity of i's contact point relative to the other
  *   body's; shear: the tangential spring (eq. 20), updated in place.

@@ -1,5 +1,5 @@
 /* dynamic.c — impulse responses of a viscoelastic layer on a rigid base by the
- * wavenumber–frequency method (seed 002 ch. 3.3; notes §2.3): per frequency
+ * wavenumber–frequency method (seed 002 ch. 3.3; Larsson & Kropp 2002): per frequency
  * the layer compliance H(|q|, ω) times the element shape S(q) is transformed
  * to every element offset (FFT on the zero-padded box, the long-range
  * half-space part in closed form), then each offset's spectrum goes to time
@@ -56,7 +56,7 @@ int grn_causal_response(int nf, double df, const double *spec_re,
     /* ZOH from the step response S(t) = (2/π) ∫ Re ĝ(ω) sin(ωt)/ω dω: its
      * integrand decays one power of ω faster than g's, so the increments
      * converge fast where a ZOH filter on g would feel the spectrum's
-     * truncation (notes §2.3). Trapezoid rule, DST-I over k = 1..K-1:
+     * truncation. Trapezoid rule, DST-I over k = 1..K-1:
      * S(t_n) = 2 df [X_0 t_n + Y_{n-1}], Y = DST-I of X_k/ω_k. Only Re ĝ
      * is needed (causality); spec_im is accepted for callers that check. */
     fftw_plan ps = fftw_plan_r2r_1d(K - 1, x, y, FFTW_RODFT00, FFTW_ESTIMATE);

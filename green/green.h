@@ -42,8 +42,8 @@ int grn_static_love_periodic(const grn_grid *g, double E, double nu, double *C,
                              proto_err *err);
 
 /* Static surface stiffness (Pa/m) of a layer of thickness h bonded to a rigid
- * base, frictionless free top, at wavenumber q (notes §2.2, checked in
- * tests/green). q = 0 gives the P-wave modulus / h (inf at nu = 0.5). */
+ * base, frictionless free top, at wavenumber q (the bonded-layer stiffness of
+ * ContactMechanics' PeriodicFFTElasticHalfSpace; checked in tests/green). q = 0 gives the P-wave modulus / h (inf at nu = 0.5). */
 double grn_layer_stiffness(double q, double h, double E, double nu);
 
 /* Static influence coefficients of the bonded layer (centre-point
@@ -76,8 +76,8 @@ int grn_material_load(grn_material *m, const char *path, proto_err *err);
 void grn_material_at(const grn_material *m, double f, double *E, double *eta);
 
 /* Dynamic surface compliance u_z/p (m/Pa) of the layer at wavenumber q and
- * angular frequency omega > 0, complex Lamé constants mu, lambda (notes §2.3,
- * 4x4 potential system; quasi-static formula when |k_s| << q). */
+ * angular frequency omega > 0, complex Lamé constants mu, lambda (4x4
+ * potential system of the wavenumber method, Larsson & Kropp 2002; quasi-static formula when |k_s| << q). */
 int grn_layer_dynamic(double q, double omega, double h, double rho,
                       double mu_re, double mu_im,
                       double lambda_re, double lambda_im, double *H_re,
@@ -195,12 +195,16 @@ typedef struct grn_spring_opts {
 
 void grn_spring_opts_default(grn_spring_opts *o);
 
+/* Coefficients c_0..c_10 of the thesis' 10th-order spring polynomial
+ * (seed 002 ch. 3.2). */
+enum { GRN_POLY_COEFFS = 11 };
+
 typedef struct grn_springs {
   int nx, ny, K;
   double dx, dy;
   double *z_road;  /* [ny][nx] */
   double *d, *F, *k; /* [M][K] */
-  double *poly;    /* [M][11] or NULL */
+  double *poly;    /* [M][GRN_POLY_COEFFS] or NULL */
   double *err_hermite, *err_poly; /* [M]: max |F_fit - F_raw| / F_raw(d_max) */
   int Kf;            /* raw-curve depths per element */
   double *raw_d, *raw_F, *raw_k; /* [M][Kf] */
@@ -215,18 +219,49 @@ int grn_spring_raw(const double *z, int cols, int rows, int stride,
                    double ds_x, double ds_y, const grn_punch_table *pt,
                    const grn_spring_opts *o, int nd, double *d, double *F,
                    double *kraw, proto_err *err);
-/* Fritsch–Carlson slopes of a monotone cubic Hermite interpolant. */
+/* pchip.c — Fritsch–Carlson slopes of a monotone cubic Hermite interpolant. */
 void grn_pchip_slopes(int n, const double *x, const double *y, double *m);
 /* Fritsch–Carlson limiter alone: clamps given slopes m (e.g. known
  * derivatives) so that the Hermite interpolant is monotone. */
 void grn_pchip_limit(int n, const double *x, const double *y, double *m);
+/* The interpolant at t (linear beyond either end knot); dydt may be NULL. */
 double grn_pchip_eval(int n, const double *x, const double *y, const double *m,
                       double t, double *dydt);
+/* The knot interval x[lo] <= t < x[lo+1] of x[0] <= t < x[n-1] (x increasing). */
+int grn_pchip_interval(int n, const double *x, double t);
+/* The cubic piece lo at t and, if dydt, its derivative. */
+double grn_pchip_piece(const double *x, const double *y, const double *m, int lo,
+                       double t, double *dydt);
 /* Least-squares F = Σ c_i d^i (i = 0..10, c_0 = 0) with dF/dd >= 0 on [0,
  * d_max] enforced by active constraints at check points. */
 int grn_polyfit_monotone(int n, const double *d, const double *F, double *c,
                          proto_err *err);
 double grn_poly_eval(const double *c, double d, double *dFdd);
+
+/* spring_law.c — the roughness-spring law (seed 002 ch. 3.2 and 5.1), used
+ * by contact_block too. One spring's knot table: K knots d (increasing, d[0]
+ * = 0), forces F, slopes k. */
+typedef struct grn_spring_table {
+  int K;
+  const double *d, *F, *k;
+} grn_spring_table;
+/* Compression branch: scale · F(d) and scale · dF/dd (>= 0) at d > 0 (cubic
+ * Hermite, linear beyond the last knot); 0 and 0 for d <= 0. */
+void grn_spring_compressed(const grn_spring_table *t, double scale, double d, double *F,
+                           double *k);
+/* The signed law: the compression branch at d > 0; at d <= 0 the mirrored
+ * tensile branch (F(d) = −F(−d), seed 002 fig. 13) if held (attached by
+ * adhesion), else 0. */
+void grn_spring_force(const grn_spring_table *t, double scale, double d, int held,
+                      double *F, double *k);
+/* Release force of the adhesion, N: seed 002 ch. 5.1 (fig. 39) sets 0.6 N as
+ * the default release criterion (appendix C.4: the runs with it). */
+#define GRN_RELEASE_FORCE_DEFAULT 0.6
+/* Adhesion: a held spring at force F lets go once its tension exceeds the
+ * release force (seed 002 ch. 5.1). */
+static inline int grn_spring_released(double F, double release_force) {
+  return -F > release_force;
+}
 
 /* Spring force of element e at compression d (FORMATS.md): the Hermite
  * table for d >= 0 (linear beyond the last knot); for d < 0 the mirrored

@@ -57,7 +57,7 @@ int grn_write_springs(const char *path, const grn_springs *sp,
   proto_h5 *f = proto_h5_create(path, err);
   if (!f) return -1;
   const int64_t M = (int64_t)sp->nx * sp->ny;
-  const int64_t dz[2] = {sp->ny, sp->nx}, dk[2] = {M, sp->K}, dp[2] = {M, 11},
+  const int64_t dz[2] = {sp->ny, sp->nx}, dk[2] = {M, sp->K}, dp[2] = {M, GRN_POLY_COEFFS},
                 df[2] = {M, sp->Kf}, de[1] = {M};
   int rc = grn_h5_write(f, G_SPRINGS, "z_road", 2, dz, sp->z_road, err);
   if (!rc) rc = grn_h5_write(f, G_SPRINGS, "d", 2, dk, sp->d, err);

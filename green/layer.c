@@ -1,5 +1,7 @@
 /* layer.c — elastic layer bonded to a rigid base: static surface stiffness
- * (notes §2.2), dynamic compliance from the 4x4 potential system (notes §2.3),
+ * (the bonded-layer k(q) of ContactMechanics' PeriodicFFTElasticHalfSpace),
+ * dynamic compliance from the 4x4 potential system (the wavenumber–frequency
+ * method of Larsson & Kropp 2002),
  * and static influence coefficients by FFT (zero-padded periodic box). */
 #include <complex.h>
 #include <fftw3.h>

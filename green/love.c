@@ -1,5 +1,5 @@
 /* love.c — Love (1929) influence coefficients of an elastic half-space for a
- * uniformly loaded rectangle (Johnson 1985 eq. 3.25; notes/contact.md §2.1). */
+ * uniformly loaded rectangle (Love 1929; Johnson 1985 eq. 3.25). */
 #include <math.h>
 
 #include "green/green.h"

@@ -5,7 +5,7 @@
  * The image sum of Love's kernel diverges (1/r), so the uniform mode is
  * fixed by convention: zero mean displacement per period (Stanley & Kato
  * 1997; the convention of ContactMechanics' periodic half-space). The sum is
- * split Ewald-like (notes/contact.md §2.2): 1/r = [1/r − 1/√(r²+c²)] +
+ * split Ewald-like (as layer.c splits the half-space part off): 1/r = [1/r − 1/√(r²+c²)] +
  * 1/√(r²+c²); the short-range bracket (∝ c²/r³) is summed over the nearest
  * images in real space with love.c's closed forms, the smooth long-range
  * part in wavenumber space, 2 e^{−qc}/(E* q) × element shape, its aliases

@@ -5,7 +5,7 @@
  * Derivation (Hankel transforms, Abel representation; cf. Lebedev & Ufliand
  * 1958): write the pressure transform as P(ξ) = ∫_0^a g(t) cos(ξt) dt and the
  * layer compliance as 1/k(ξ) = 2 (1 − N(ξh)) / (E* ξ), N = 1 − 1/R with R the
- * stiffening factor of notes §2.2 (grn_layer_factor). u(r) = δ on r < a gives,
+ * stiffening factor of the bonded layer (grn_layer_factor, layer.c). u(r) = δ on r < a gives,
  * with g = (E* δ / π) φ(a x),
  *   φ(x) − (λ/π) ∫_0^1 φ(y) [k(λ(x−y)) + k(λ(x+y))] dy = 1,   λ = a/h,
  *   k(v) = ∫_0^∞ N(τ) cos(τ v) dτ,
@@ -160,8 +160,9 @@ double grn_punch_phi(const grn_punch_table *t, double lam) {
     const double r = lam / t->lam[n - 1];
     if (t->nu < 0.4999) /* compressible thin layer: Winkler, F ∝ a² -> φ ∝ λ */
       return t->phi[n - 1] * r;
-    /* incompressible film: φ = (3π/64) λ³ (1 + c/λ) (notes §1.2 with
-     * E* = 4G), the λ² term matched to the last table entry */
+    /* incompressible film: φ = (3π/64) λ³ (1 + c/λ) (Yang 1998: the
+     * thin-film limit F = (3π/8) G a⁴ δ / h³, with E* = 4G), the λ² term
+     * matched to the last table entry */
     const double A = 3 * M_PI / 64, l3 = pow(t->lam[n - 1], 3);
     return A * l3 * r * r * r + (t->phi[n - 1] - A * l3) * r * r;
   }

@@ -1,8 +1,9 @@
 /* springs.c — roughness springs from fine road heights (seed 002 ch. 3.2):
  * contact patches above depth d, equivalent punch radii a = sqrt(A/π), the
  * flat-punch stiffness on a bonded incompressible film (punch.c), integrated
- * to F(d); represented by a monotone C¹ cubic Hermite (Fritsch–Carlson) and by
- * the thesis' 10th-order polynomial with dF/dd >= 0. */
+ * to F(d); represented by a monotone C¹ cubic Hermite (Fritsch–Carlson,
+ * pchip.c; evaluated by the spring law, spring_law.c) and by the thesis'
+ * 10th-order polynomial with dF/dd >= 0. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,7 +19,7 @@ void grn_spring_opts_default(grn_spring_opts *o) {
   o->h_floor_frac = 0.02;
   o->film_h = 0;
   o->refine = 8;
-  o->release_force = 0.6; /* N, seed 002 appendix C.4 */
+  o->release_force = GRN_RELEASE_FORCE_DEFAULT;
   o->poly = 1;
 }
 
@@ -36,6 +37,16 @@ typedef struct height_index {
   double z;
   int i;
 } height_index;
+
+/* Depth span of the knots of a flat element (no relief), m: far below any
+ * roughness, it only keeps the depths increasing. */
+#define GRN_FLAT_SPAN 1e-9
+/* The punch table's a/h range and size: from near the half-space (a/h =
+ * 1e-3) to the thin film (a/h = 40; beyond either end grn_punch_phi goes on
+ * with the asymptotic laws), 36 points log-spaced (punch.c). */
+#define GRN_PUNCH_LAM_MIN 1e-3
+#define GRN_PUNCH_LAM_MAX 40.0
+enum { GRN_PUNCH_POINTS = 36 };
 
 static int by_height_desc(const void *a, const void *b) {
   double za = ((const height_index *)a)->z, zb = ((const height_index *)b)->z;
@@ -74,7 +85,7 @@ int grn_spring_raw(const double *z, int cols, int rows, int stride,
   int next = 0, nact = 0;
   for (int m = 0; m < nd; m++) {
     /* a flat element (no relief) still gets increasing depths */
-    d[m] = fmax(o->d_max_frac * relief, 1e-9) * m / (nd - 1);
+    d[m] = fmax(o->d_max_frac * relief, GRN_FLAT_SPAN) * m / (nd - 1);
     /* points above the plane z_max − d join; merge with 4-neighbours */
     while (next < n && order[next].z >= zmax - d[m]) {
       int p = order[next++].i, pi = p % cols, pj = p / cols;
@@ -112,66 +123,9 @@ int grn_spring_raw(const double *z, int cols, int rows, int stride,
   return 0;
 }
 
-/* ------------------------------------------------ monotone cubic Hermite */
-
-void grn_pchip_slopes(int n, const double *x, const double *y, double *m) {
-  /* Fritsch & Carlson (1980): secants, harmonic-type interior slopes, then
-   * the alpha² + beta² <= 9 limiter keeps each cubic monotone */
-  if (n < 2) { if (n == 1) m[0] = 0; return; }
-  double *del = malloc((n - 1) * sizeof *del);
-  for (int i = 0; i < n - 1; i++)
-    del[i] = (y[i + 1] - y[i]) / (x[i + 1] - x[i]);
-  m[0] = del[0];
-  m[n - 1] = del[n - 2];
-  for (int i = 1; i < n - 1; i++)
-    m[i] = del[i - 1] * del[i] <= 0 ? 0 : 0.5 * (del[i - 1] + del[i]);
-  grn_pchip_limit(n, x, y, m);
-  free(del);
-}
-
-void grn_pchip_limit(int n, const double *x, const double *y, double *m) {
-  /* Fritsch–Carlson step 2: clamp slopes so every cubic piece is monotone */
-  for (int i = 0; i < n - 1; i++) {
-    double del = (y[i + 1] - y[i]) / (x[i + 1] - x[i]);
-    if (del == 0) { m[i] = m[i + 1] = 0; continue; }
-    if (m[i] / del < 0) m[i] = 0;
-    if (m[i + 1] / del < 0) m[i + 1] = 0;
-    double a = m[i] / del, b = m[i + 1] / del, s = a * a + b * b;
-    if (s > 9) {
-      double t = 3 / sqrt(s);
-      m[i] = t * a * del;
-      m[i + 1] = t * b * del;
-    }
-  }
-}
-
-double grn_pchip_eval(int n, const double *x, const double *y, const double *m,
-                      double t, double *dydt) {
-  if (t >= x[n - 1]) { /* linear beyond the last knot (FORMATS.md) */
-    if (dydt) *dydt = m[n - 1];
-    return y[n - 1] + m[n - 1] * (t - x[n - 1]);
-  }
-  if (t <= x[0]) {
-    if (dydt) *dydt = m[0];
-    return y[0] + m[0] * (t - x[0]);
-  }
-  int lo = 0, hi = n - 1;
-  while (hi - lo > 1) {
-    int mid = (lo + hi) / 2;
-    if (x[mid] <= t) lo = mid; else hi = mid;
-  }
-  double hh = x[hi] - x[lo], s = (t - x[lo]) / hh, s2 = s * s, s3 = s2 * s;
-  double h00 = 2 * s3 - 3 * s2 + 1, h10 = s3 - 2 * s2 + s, h01 = -2 * s3 + 3 * s2,
-         h11 = s3 - s2;
-  if (dydt)
-    *dydt = ((6 * s2 - 6 * s) * y[lo] + (3 * s2 - 4 * s + 1) * hh * m[lo] +
-             (-6 * s2 + 6 * s) * y[hi] + (3 * s2 - 2 * s) * hh * m[hi]) / hh;
-  return h00 * y[lo] + h10 * hh * m[lo] + h01 * y[hi] + h11 * hh * m[hi];
-}
-
 /* ------------------------------------------- 10th-order monotone poly fit */
 
-#define NP 10 /* unknowns c_1..c_10 (c_0 = 0: F(0) = 0) */
+#define NP (GRN_POLY_COEFFS - 1) /* unknowns c_1..c_10 (c_0 = 0: F(0) = 0) */
 
 /* Weighted least squares by Householder QR of the rows (A | b). */
 static int lsq(int rows, double *A, double *b, double *x) {
@@ -209,7 +163,7 @@ static int lsq(int rows, double *A, double *b, double *x) {
 
 double grn_poly_eval(const double *c, double d, double *dFdd) {
   double F = 0, dF = 0;
-  for (int i = 10; i >= 1; i--) {
+  for (int i = NP; i >= 1; i--) {
     F = (F + c[i]) * d;
     if (dFdd) dF = dF * d + i * c[i];
   }
@@ -262,26 +216,6 @@ done:
   return rc;
 }
 
-double grn_spring_eval(const grn_springs *sp, int e, double d, int *attached,
-                       double *k) {
-  const int K = sp->K;
-  const double *x = sp->d + (size_t)e * K, *F = sp->F + (size_t)e * K,
-               *m = sp->k + (size_t)e * K;
-  double slope = 0, f = 0;
-  if (d >= 0) {
-    *attached = 1;
-    f = grn_pchip_eval(K, x, F, m, d, &slope);
-  } else if (*attached) { /* mirrored tensile branch (seed 002 fig. 13) */
-    f = -grn_pchip_eval(K, x, F, m, -d, &slope);
-    if (-f > sp->release_force) {
-      *attached = 0;
-      f = slope = 0;
-    }
-  }
-  if (k) *k = slope;
-  return f;
-}
-
 /* ------------------------------------------------------ all elements */
 
 void grn_springs_free(grn_springs *sp) {
@@ -310,7 +244,7 @@ int grn_springs_build(const grn_surface *s, int nx, int ny,
   out->d = malloc((size_t)M * K * sizeof(double));
   out->F = malloc((size_t)M * K * sizeof(double));
   out->k = malloc((size_t)M * K * sizeof(double));
-  out->poly = o->poly ? malloc((size_t)M * 11 * sizeof(double)) : NULL;
+  out->poly = o->poly ? malloc((size_t)M * GRN_POLY_COEFFS * sizeof(double)) : NULL;
   out->err_hermite = malloc(M * sizeof(double));
   out->err_poly = malloc(M * sizeof(double));
   out->raw_d = malloc((size_t)M * Kf * sizeof(double));
@@ -330,7 +264,8 @@ int grn_springs_build(const grn_surface *s, int nx, int ny,
   out->dy = py * s->dy;
   grn_punch_table pt;
   /* a/h from half-space to thin film; beyond: the asymptotic laws */
-  if (grn_punch_table_build(&pt, o->nu, 1e-3, 40.0, 36, err)) {
+  if (grn_punch_table_build(&pt, o->nu, GRN_PUNCH_LAM_MIN, GRN_PUNCH_LAM_MAX,
+                            GRN_PUNCH_POINTS, err)) {
     grn_springs_free(out);
     return proto_wrap(err, "springs");
   }
@@ -356,7 +291,7 @@ int grn_springs_build(const grn_surface *s, int nx, int ny,
       eh = fmax(eh, fabs(grn_pchip_eval(K, d, F, k, rd[j], NULL) - rF[j]));
     out->err_hermite[e] = eh / scale;
     if (o->poly) {
-      double *c = out->poly + (size_t)e * 11;
+      double *c = out->poly + (size_t)e * GRN_POLY_COEFFS;
       if (rd[Kf - 1] > 0) {
         if (grn_polyfit_monotone(Kf, rd, rF, c, err)) {
           grn_punch_table_free(&pt);
@@ -366,7 +301,7 @@ int grn_springs_build(const grn_surface *s, int nx, int ny,
         for (int j = 0; j < Kf; j++)
           ep = fmax(ep, fabs(grn_poly_eval(c, rd[j], NULL) - rF[j]));
       } else {
-        memset(c, 0, 11 * sizeof *c);
+        memset(c, 0, GRN_POLY_COEFFS * sizeof *c);
       }
       out->err_poly[e] = ep / scale;
     } else {

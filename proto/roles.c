@@ -23,58 +23,74 @@ static const proto_array_spec table[] = {
     {PROTO_ROLE_FEM, PROTO_MSG_READY, PROTO_A_SURFACE_X0, PROTO_F8, 2, N3, "m",
      PROTO_WHEN_ALWAYS,
      "coupled surface nodes in the rim frame at rest (after any initial static "
-     "solve); binds n"},
+     "solve); binds n",
+     NULL, 0},
     {PROTO_ROLE_FEM, PROTO_MSG_READY, PROTO_A_SURFACE_TRI, PROTO_I4, 2, M3, "-",
      PROTO_WHEN_ALWAYS,
      "surface triangles, indices into surface_x0, outward normals by the "
-     "right-hand rule; binds m"},
+     "right-hand rule; binds m",
+     NULL, 0},
     {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_NODAL_FORCE, PROTO_F8, 2, N3, "N",
      PROTO_WHEN_ALWAYS,
      "force of the grains on each surface node, world frame, constant over "
      "[t_{k-1}, t_k]: the impulse the grains exchanged with the node over the "
      "coupling step divided by dt. Apply it unchanged in every sub-step "
-     "(zero at step 1)"},
+     "(zero at step 1)",
+     "surface.force", 0},
     {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_RIM_R, PROTO_F8, 2, {3, 3}, "-",
-     PROTO_WHEN_ALWAYS, "rotation rim -> world at t_k, row-major"},
+     PROTO_WHEN_ALWAYS, "rotation rim -> world at t_k, row-major",
+     "rim.R", 0},
     {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_RIM_C, PROTO_F8, 1, {3}, "m",
-     PROTO_WHEN_ALWAYS, "rim centre at t_k, world frame"},
+     PROTO_WHEN_ALWAYS, "rim centre at t_k, world frame",
+     "rim.c", 0},
     {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_RIM_OMEGA, PROTO_F8, 1, {3},
-     "rad/s", PROTO_WHEN_ALWAYS, "rim angular velocity over the step, world"},
+     "rad/s", PROTO_WHEN_ALWAYS, "rim angular velocity over the step, world",
+     "rim.omega", 0},
     {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_RIM_V, PROTO_F8, 1, {3}, "m/s",
-     PROTO_WHEN_ALWAYS, "rim centre velocity over the step, world"},
+     PROTO_WHEN_ALWAYS, "rim centre velocity over the step, world",
+     "rim.v", 0},
     {PROTO_ROLE_FEM, PROTO_MSG_DONE, PROTO_A_X, PROTO_F8, 2, N3, "m",
-     PROTO_WHEN_ALWAYS, "surface node positions at t_k, world frame"},
+     PROTO_WHEN_ALWAYS, "surface node positions at t_k, world frame",
+     "surface.x", 0},
     {PROTO_ROLE_FEM, PROTO_MSG_DONE, PROTO_A_V, PROTO_F8, 2, N3, "m/s",
-     PROTO_WHEN_ALWAYS, "surface node velocities at t_k, world frame"},
+     PROTO_WHEN_ALWAYS, "surface node velocities at t_k, world frame",
+     "surface.v", 0},
     /* ---- dem: the grains. Gets the surface when the scene has one. */
     {PROTO_ROLE_DEM, PROTO_MSG_WELCOME, PROTO_A_SURFACE_X0, PROTO_F8, 2, N3, "m",
      PROTO_WHEN_SURFACE,
      "the coupled surface in the world frame at t = 0 (only when the scene has "
-     "one); binds n"},
+     "one); binds n",
+     NULL, 0},
     {PROTO_ROLE_DEM, PROTO_MSG_WELCOME, PROTO_A_SURFACE_TRI, PROTO_I4, 2, M3,
-     "-", PROTO_WHEN_SURFACE, "its triangles (as the fem's); binds m"},
+     "-", PROTO_WHEN_SURFACE, "its triangles (as the fem's); binds m",
+     NULL, 0},
     {PROTO_ROLE_DEM, PROTO_MSG_STEP, PROTO_A_X, PROTO_F8, 2, N3, "m",
-     PROTO_WHEN_SURFACE, "surface node positions at t_{k-1}, world frame"},
+     PROTO_WHEN_SURFACE, "surface node positions at t_{k-1}, world frame",
+     "surface.x", 0},
     {PROTO_ROLE_DEM, PROTO_MSG_STEP, PROTO_A_V, PROTO_F8, 2, N3, "m/s",
      PROTO_WHEN_SURFACE,
      "surface velocity over the step: within [t_{k-1}, t_k] the surface is at "
-     "x + (t - t_{k-1}) v (contact damping and friction use v)"},
+     "x + (t - t_{k-1}) v (contact damping and friction use v)",
+     "surface.v", 0},
     {PROTO_ROLE_DEM, PROTO_MSG_DONE, PROTO_A_NODAL_FORCE, PROTO_F8, 2, N3, "N",
      PROTO_WHEN_SURFACE,
      "force of the grains ON each surface node, world frame, as the impulse "
      "over [t_{k-1}, t_k] divided by dt: (1/dt) sum_j dt_j f_j over the "
      "sub-steps j of the step, f_j the nodal force evaluated in sub-step j "
      "(each evaluation kicks the grains with -dt_j f_j in total). Its sum is "
-     "minus the impulse/dt the grains received from the surface"},
+     "minus the impulse/dt the grains received from the surface",
+     "surface.force", 1},
     /* ---- block: the tread block on the road. */
     {PROTO_ROLE_BLOCK, PROTO_MSG_STEP, PROTO_A_D_ROAD, PROTO_F8, 1, {1}, "m",
      PROTO_WHEN_ALWAYS,
-     "road displacement towards the block at t_k (positive = indentation)"},
+     "road displacement towards the block at t_k (positive = indentation)",
+     "road.d", 0},
     {PROTO_ROLE_BLOCK, PROTO_MSG_DONE, PROTO_A_FORCE, PROTO_F8, 1, {1}, "N",
      PROTO_WHEN_ALWAYS,
      "total normal contact force (positive = compression, negative = "
      "adhesion): at t_k, or the impulse over the step divided by dt if the "
-     "block sub-steps"},
+     "block sub-steps",
+     "road.force", 1},
 };
 
 const proto_array_spec *proto_role_table(int *n) {
@@ -365,6 +381,10 @@ cJSON *proto_role_table_json(void) {
       cJSON_AddStringToObject(a, "when", s->when == PROTO_WHEN_SURFACE
                                              ? "with_surface" : "always");
       cJSON_AddStringToObject(a, "meaning", s->meaning);
+      if (s->field) {
+        cJSON_AddStringToObject(a, "field", s->field);
+        cJSON_AddBoolToObject(a, "summed", s->sum);
+      }
       cJSON_AddItemToArray(list, a);
     }
   }

@@ -1,5 +1,5 @@
 /* secure.c — ZeroMQ CURVE for cosim's sockets (PROTOCOL.md "Security";
- * RFC 26 CurveZMQ, notes/coupling.md §3): key pairs, the client key file a
+ * ZeroMQ RFC 26 CurveZMQ and RFC 27 ZAP): key pairs, the client key file a
  * participant or monitor reads, and the socket options of either side. The
  * coupler's ZAP handler (which client keys it lets in) lives in the
  * coupler. Keys never go on a command line: a 0600 file, named by an

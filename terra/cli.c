@@ -172,10 +172,113 @@ static int shear_plateau(const ter_series *t, const char *path, double *tau_pl, 
   return 0;
 }
 
+/* Reads the plate records: their widths b, the largest top-grain diameter
+ * *dtop and the shallowest record's end *zrec; *nread counts those to free. */
+static int read_plates(int np, const char *const *plates, ter_series *P, double *b, double *dtop,
+                       double *zrec, int *nread, proto_err *err) {
+  for (int i = 0; i < np; i++) {
+    int rc = ter_series_read(&P[i], plates[i], err);
+    if (rc) return rc;
+    (*nread)++;
+    double d;
+    rc = ter_series_meta_num(&P[i], "width_m", &b[i], err) ||
+         ter_series_meta_num(&P[i], "top_grain_diameter_m", &d, err);
+    if (rc) {
+      proto_wrap(err, "%s", plates[i]);
+      return rc;
+    }
+    *dtop = fmax(*dtop, d);
+    int cz = ter_series_col(&P[i], "z");
+    if (cz < 0 || P[i].n < 3) return proto_fail(err, "%s: not a plate record", plates[i]);
+    *zrec = fmin(*zrec, P[i].row[(size_t)(P[i].n - 1) * P[i].ncol + cz]);
+  }
+  return 0;
+}
+
+/* One shear record: its plateau (*tau, *sig) and the Janosi–Hanamoto fit of
+ * tau(j) up to jfit (<= 0: the whole record) for *K; appends its entry to js. */
+static int fit_shear(const ter_series *S, const char *path, double jfit, double *tau, double *sig,
+                     double *K_out, cJSON *js, proto_err *err) {
+  double peak = 0, tf = 0, K = 0, rms = 0;
+  int rc = shear_plateau(S, path, tau, sig, &peak, err);
+  int cj = ter_series_col(S, "j"), ct = ter_series_col(S, "tau");
+  double *jj = malloc(sizeof *jj * S->n), *tt = malloc(sizeof *tt * S->n);
+  for (int r = 0; r < S->n && !rc; r++) {
+    jj[r] = S->row[(size_t)r * S->ncol + cj];
+    tt[r] = S->row[(size_t)r * S->ncol + ct];
+  }
+  if (!rc) rc = ter_fit_janosi(S->n, jj, tt, jfit > 0 ? jfit : INFINITY, &tf, &K, &rms, err);
+  if (rc) proto_wrap(err, "%s", path);
+  free(jj);
+  free(tt);
+  *K_out = K;
+  cJSON *e = cJSON_CreateObject();
+  cJSON_AddStringToObject(e, "file", path);
+  cJSON_AddNumberToObject(e, "sigma", *sig);
+  cJSON_AddNumberToObject(e, "tau_plateau", *tau);
+  cJSON_AddNumberToObject(e, "tau_peak", peak);
+  cJSON_AddNumberToObject(e, "tau_f_fit", tf);
+  cJSON_AddNumberToObject(e, "K", K);
+  cJSON_AddNumberToObject(e, "rms", rms);
+  cJSON_AddItemToArray(js, e);
+  return rc;
+}
+
+/* Mohr–Coulomb tau = c + sigma tan(phi) through the plateaus (least squares);
+ * a cohesionless soil's negative intercept is curvature: refit through 0. */
+static int fit_mohr_coulomb(int ns, const double *sig, const double *tau, double *c, double *tphi,
+                            int *origin, proto_err *err) {
+  int rc = ter_fit_line(ns, sig, tau, c, tphi, NULL, NULL, err);
+  if (!rc && *c < 0) {
+    double sst = 0, sss = 0;
+    for (int i = 0; i < ns; i++) {
+      sst += sig[i] * tau[i];
+      sss += sig[i] * sig[i];
+    }
+    *tphi = sst / sss;
+    *c = 0;
+    *origin = 1;
+  }
+  return rc;
+}
+
+/* root.plate_fit: the range, the shared fit and each plate's own (takes jp). */
+static void plate_fit_json(cJSON *root, double zmin, double zmax, const ter_plate_fit *pf, int np,
+                           const char *const *plates, const double *b, cJSON *jp) {
+  cJSON *pfj = cJSON_AddObjectToObject(root, "plate_fit");
+  cJSON_AddNumberToObject(pfj, "z_min", zmin);
+  cJSON_AddNumberToObject(pfj, "z_max", zmax);
+  cJSON_AddNumberToObject(pfj, "n_shared", pf->n);
+  cJSON_AddNumberToObject(pfj, "rms_log_p", pf->rms_log);
+  for (int i = 0; i < np; i++) {
+    cJSON *e = cJSON_CreateObject();
+    cJSON_AddStringToObject(e, "file", plates[i]);
+    cJSON_AddNumberToObject(e, "width", b[i]);
+    cJSON_AddNumberToObject(e, "k_eq", pf->k_eq[i]);
+    cJSON_AddNumberToObject(e, "n_own", pf->n_own[i]);
+    cJSON_AddNumberToObject(e, "k_own", pf->k_own[i]);
+    cJSON_AddNumberToObject(e, "points", pf->points[i]);
+    cJSON_AddItemToArray(jp, e);
+  }
+  cJSON_AddItemToObject(pfj, "plates", jp);
+}
+
+static int write_json(const char *out, const cJSON *root, proto_err *err) {
+  int rc = 0;
+  char *text = cJSON_Print(root);
+  FILE *f = fopen(out, "w");
+  if (!f || fputs(text, f) < 0 || fputc('\n', f) < 0) rc = proto_fail(err, "%s: cannot write", out);
+  if (f) fclose(f);
+  free(text);
+  return rc;
+}
+
 static int cmd_fit(int argc, char **argv, proto_err *err) {
   const char *plates[MAX_FILES], *shears[MAX_FILES], *out = NULL;
   int np = 0, ns = 0;
-  double zmin = -1, zmax = -1, jfit = -1, c1 = 0.43, c2 = 0.32;
+  ter_soil soil;
+  ter_soil_defaults(&soil); /* c1, c2 unless given */
+  double zmin = -1, zmax = -1, jfit = -1, c1 = soil.c1, c2 = soil.c2;
   const opt o[] = {{"plate", OPT_LIST, plates, &np}, {"shear", OPT_LIST, shears, &ns},
                    {"zmin", OPT_NUM, &zmin, 0},      {"zmax", OPT_NUM, &zmax, 0},
                    {"jfit", OPT_NUM, &jfit, 0},      {"c1", OPT_NUM, &c1, 0},
@@ -185,76 +288,30 @@ static int cmd_fit(int argc, char **argv, proto_err *err) {
   ter_series P[MAX_FILES], S[MAX_FILES];
   const ter_series *pp[MAX_FILES];
   double b[MAX_FILES], dtop = 0, zrec = INFINITY;
-  int rc = 0, nread_p = 0, nread_s = 0;
-  for (int i = 0; i < np && !rc; i++) {
-    rc = ter_series_read(&P[i], plates[i], err);
-    if (rc) break;
-    nread_p++;
-    double d;
-    rc = ter_series_meta_num(&P[i], "width_m", &b[i], err) ||
-         ter_series_meta_num(&P[i], "top_grain_diameter_m", &d, err);
-    if (rc) { proto_wrap(err, "%s", plates[i]); break; }
-    dtop = fmax(dtop, d);
-    int cz = ter_series_col(&P[i], "z");
-    if (cz < 0 || P[i].n < 3) { rc = proto_fail(err, "%s: not a plate record", plates[i]); break; }
-    zrec = fmin(zrec, P[i].row[(size_t)(P[i].n - 1) * P[i].ncol + cz]);
-    pp[i] = &P[i];
-  }
+  int nread_p = 0, nread_s = 0;
+  for (int i = 0; i < np; i++) pp[i] = &P[i];
+  int rc = read_plates(np, plates, P, b, &dtop, &zrec, &nread_p, err);
   for (int i = 0; i < ns && !rc; i++) {
     rc = ter_series_read(&S[i], shears[i], err);
     if (!rc) nread_s++;
   }
-  /* default range: from one top-grain diameter (notes §6.2: 1-2 d50) to the shallowest record's end */
+  /* default range: from one top-grain diameter (the fit starts 1–2 d50 deep,
+   * docs/terramechanics.md §2) to the shallowest record's end */
   if (zmin < 0) zmin = dtop;
   if (zmax < 0) zmax = zrec;
   ter_plate_fit pf;
-  ter_soil soil;
-  ter_soil_defaults(&soil);
   soil.c1 = c1;
   soil.c2 = c2;
   cJSON *root = cJSON_CreateObject(), *js = cJSON_CreateArray(), *jp = cJSON_CreateArray();
   if (!rc) rc = ter_fit_plates(np, b, pp, "z", "p", zmin, zmax, &pf, err);
   double sig[MAX_FILES], tau[MAX_FILES], Ksum = 0, Ks[MAX_FILES];
   for (int i = 0; i < ns && !rc; i++) {
-    double peak = 0, tf = 0, K = 0, rms = 0;
-    rc = shear_plateau(&S[i], shears[i], &tau[i], &sig[i], &peak, err);
-    int cj = ter_series_col(&S[i], "j"), ct = ter_series_col(&S[i], "tau");
-    double *jj = malloc(sizeof *jj * S[i].n), *tt = malloc(sizeof *tt * S[i].n);
-    for (int r = 0; r < S[i].n && !rc; r++) {
-      jj[r] = S[i].row[(size_t)r * S[i].ncol + cj];
-      tt[r] = S[i].row[(size_t)r * S[i].ncol + ct];
-    }
-    if (!rc) rc = ter_fit_janosi(S[i].n, jj, tt, jfit > 0 ? jfit : INFINITY, &tf, &K, &rms, err);
-    if (rc) proto_wrap(err, "%s", shears[i]);
-    free(jj);
-    free(tt);
-    Ks[i] = K;
-    Ksum += K;
-    cJSON *e = cJSON_CreateObject();
-    cJSON_AddStringToObject(e, "file", shears[i]);
-    cJSON_AddNumberToObject(e, "sigma", sig[i]);
-    cJSON_AddNumberToObject(e, "tau_plateau", tau[i]);
-    cJSON_AddNumberToObject(e, "tau_peak", peak);
-    cJSON_AddNumberToObject(e, "tau_f_fit", tf);
-    cJSON_AddNumberToObject(e, "K", K);
-    cJSON_AddNumberToObject(e, "rms", rms);
-    cJSON_AddItemToArray(js, e);
+    rc = fit_shear(&S[i], shears[i], jfit, &tau[i], &sig[i], &Ks[i], js, err);
+    Ksum += Ks[i];
   }
   double c = 0, tphi = 0;
   int origin = 0;
-  if (!rc) {
-    rc = ter_fit_line(ns, sig, tau, &c, &tphi, NULL, NULL, err);
-    if (!rc && c < 0) { /* a cohesionless soil: a negative intercept is curvature, fit through 0 */
-      double sst = 0, sss = 0;
-      for (int i = 0; i < ns; i++) {
-        sst += sig[i] * tau[i];
-        sss += sig[i] * sig[i];
-      }
-      tphi = sst / sss;
-      c = 0;
-      origin = 1;
-    }
-  }
+  if (!rc) rc = fit_mohr_coulomb(ns, sig, tau, &c, &tphi, &origin, err);
   if (!rc) {
     soil.n = pf.n;
     soil.k_c = pf.k_c;
@@ -265,24 +322,8 @@ static int cmd_fit(int argc, char **argv, proto_err *err) {
     double Kvar = 0;
     for (int i = 0; i < ns; i++) Kvar += (Ks[i] - soil.K) * (Ks[i] - soil.K);
     rc = ter_soil_check(&soil, "fit", err);
-    cJSON *so = cJSON_AddObjectToObject(root, "soil");
-    ter_soil_write(so, &soil);
-    cJSON *pfj = cJSON_AddObjectToObject(root, "plate_fit");
-    cJSON_AddNumberToObject(pfj, "z_min", zmin);
-    cJSON_AddNumberToObject(pfj, "z_max", zmax);
-    cJSON_AddNumberToObject(pfj, "n_shared", pf.n);
-    cJSON_AddNumberToObject(pfj, "rms_log_p", pf.rms_log);
-    for (int i = 0; i < np; i++) {
-      cJSON *e = cJSON_CreateObject();
-      cJSON_AddStringToObject(e, "file", plates[i]);
-      cJSON_AddNumberToObject(e, "width", b[i]);
-      cJSON_AddNumberToObject(e, "k_eq", pf.k_eq[i]);
-      cJSON_AddNumberToObject(e, "n_own", pf.n_own[i]);
-      cJSON_AddNumberToObject(e, "k_own", pf.k_own[i]);
-      cJSON_AddNumberToObject(e, "points", pf.points[i]);
-      cJSON_AddItemToArray(jp, e);
-    }
-    cJSON_AddItemToObject(pfj, "plates", jp);
+    ter_soil_write(cJSON_AddObjectToObject(root, "soil"), &soil);
+    plate_fit_json(root, zmin, zmax, &pf, np, plates, b, jp);
     jp = NULL;
     cJSON *mc = cJSON_AddObjectToObject(root, "mohr_coulomb");
     cJSON_AddNumberToObject(mc, "c", c);
@@ -292,13 +333,7 @@ static int cmd_fit(int argc, char **argv, proto_err *err) {
     cJSON_AddItemToObject(mc, "tests", js);
     js = NULL;
   }
-  if (!rc) {
-    char *text = cJSON_Print(root);
-    FILE *f = fopen(out, "w");
-    if (!f || fputs(text, f) < 0 || fputc('\n', f) < 0) rc = proto_fail(err, "%s: cannot write", out);
-    if (f) fclose(f);
-    free(text);
-  }
+  if (!rc) rc = write_json(out, root, err);
   cJSON_Delete(root);
   cJSON_Delete(js);
   cJSON_Delete(jp);
@@ -370,12 +405,7 @@ static int cmd_combine(int argc, char **argv, proto_err *err) {
     cJSON_AddNumberToObject(so, SOIL_KEYS[k], mean[k]);
     cJSON_AddNumberToObject(sj, SOIL_KEYS[k], sqrt(sd[k]));
   }
-  int rc = 0;
-  char *text = cJSON_Print(root);
-  FILE *f = fopen(out, "w");
-  if (!f || fputs(text, f) < 0 || fputc('\n', f) < 0) rc = proto_fail(err, "%s: cannot write", out);
-  if (f) fclose(f);
-  free(text);
+  int rc = write_json(out, root, err);
   cJSON_Delete(root);
   return rc;
 }

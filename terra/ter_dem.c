@@ -1,4 +1,5 @@
-/* ter_dem.c — virtual soil tests on dem_server's library (notes §6), through
+/* ter_dem.c — virtual soil tests on dem_server's library (the bevameter of
+ * Bekker 1969 and the direct shear box of ASTM D3080), through
  * its public API only (dem_server/dem.h): the model from a JSON section built
  * here from the scene's DEM section, dem_state_init, dem_settle, dem_step,
  * dem_mesh_set_nodes to move rigid meshes, wall forces.
@@ -20,7 +21,7 @@
 #define TER_SOLID_FRACTION 0.6  /* to size a shear specimen from its volume */
 #define TER_BED_GAP 0.5e-3      /* clearance of the lattice placement (m) */
 #define TER_SERVO_FILTER 20     /* platen force low-pass, in DEM steps */
-#define TER_CONSOLIDATE_TOL 0.02
+#define TER_CONSOLIDATE_TOL 0.02   /* |N/N_target - 1| that counts as holding sigma_n */
 #define TER_CONSOLIDATE_HOLD 0.02 /* s within tolerance before shearing */
 #define TER_CONSOLIDATE_MAX 2.0   /* s */
 #define TER_PLATEN_INSET 0.2      /* platen edge inside the box, fraction of d_min */
@@ -348,6 +349,187 @@ static double servo_velocity(servo *sv, double N) {
   return vz > sv->vmax ? sv->vmax : vz < -sv->vmax ? -sv->vmax : vz;
 }
 
+/* The box's walls = meshes, in this order. */
+enum { W_LOW, W_LFLANGE, W_RING, W_UFLANGE, W_PLAT };
+
+/* One shear test in progress: the box, the DEM, the servo and the specimen. */
+typedef struct shear_run {
+  const ter_shear_spec *sp;
+  double L, W, H, hs, d0, d1, in, ztop; /* box (m), diameters, platen inset, lattice top */
+  int64_t count;                        /* grains */
+  dem_model m;
+  dem_state s;
+  servo sv;
+  double A0, rho, mass_up;              /* platen area, grain density, grains above the plane (kg) */
+  double z_plat0, t_cons0;              /* specimen height after consolidation; its start time */
+  double xbuf[3 * 24], vbuf[3 * 24];
+} shear_run;
+
+/* Grains for the box: diameters uniform in [d_min, d_max], enough for height H. */
+static int shear_size(shear_run *r, proto_err *err) {
+  const ter_shear_spec *sp = r->sp;
+  r->L = sp->length;
+  r->W = sp->width;
+  r->H = sp->height;
+  r->hs = 0.5 * r->H;
+  const double d0 = r->d0 = sp->d_min, d1 = r->d1 = sp->d_max;
+  const double d3 = (pow(d1, 4) - pow(d0, 4)) / (4 * fmax(d1 - d0, 1e-300)); /* E[d^3] */
+  const double vgrain = M_PI / 6 * (d1 > d0 ? d3 : d0 * d0 * d0);
+  r->count = (int64_t)ceil(TER_SOLID_FRACTION * r->L * r->W * r->H / vgrain);
+  const double pitch = d1 + TER_BED_GAP;
+  const int64_t per_level = (int64_t)floor(r->L / pitch) * (int64_t)floor(r->W / pitch);
+  if (per_level < 1) return proto_fail(err, "shear test: box smaller than one grain");
+  const double lattice_top = ceil((double)r->count / per_level) * pitch;
+  r->ztop = fmax(lattice_top, r->H) + 2 * d1;
+  r->in = TER_PLATEN_INSET * d0;
+  return 0;
+}
+
+/* The DEM section: one placeholder grain (the bed replaces it) and the box.
+ * Zero-thickness walls leave the upper half's overhang (x in [L, L + j])
+ * without support and the lower half's top at x in [0, j] uncovered: two
+ * flanges in the shear plane stand for the walls' thickness of a real box,
+ * each its own wall so that its friction stays out of the plane's shear. */
+static cJSON *shear_section(const ter_dem_soil *soil, const shear_run *r, proto_err *err) {
+  const double L = r->L, W = r->W, hs = r->hs, in = r->in, jm = r->sp->j_max + 2 * r->d1;
+  cJSON *sec = base_section(soil, err);
+  if (!sec) return NULL;
+  cJSON *parts = cJSON_AddArrayToObject(sec, "particles"), *g = cJSON_CreateObject();
+  cJSON_AddItemToObject(g, "x", vec3(0.5 * L, 0.5 * W, 0.5 * r->H));
+  cJSON_AddNumberToObject(g, "r", 0.5 * r->d0);
+  cJSON_AddNumberToObject(g, "material", soil->grain_material);
+  cJSON_AddItemToArray(parts, g);
+  cJSON *walls = cJSON_GetObjectItemCaseSensitive(sec, "walls");
+  const int wm = soil->wall_material;
+  add_box_mesh(walls, wm, (const double[3]){0, 0, 0}, (const double[3]){L, W, hs}, F_BOTTOM | F_SIDES);
+  add_box_mesh(walls, wm, (const double[3]){L, 0, hs}, (const double[3]){L + jm, W, hs}, F_BOTTOM);
+  add_box_mesh(walls, wm, (const double[3]){0, 0, hs}, (const double[3]){L, W, r->ztop}, F_SIDES);
+  add_box_mesh(walls, wm, (const double[3]){-jm, 0, hs}, (const double[3]){0, W, hs}, F_BOTTOM);
+  add_box_mesh(walls, soil->grain_material, (const double[3]){in, in, TER_PARK_Z},
+               (const double[3]){L - in, W - in, TER_PARK_Z + 1}, F_BOTTOM); /* platen */
+  return sec;
+}
+
+/* Model and state: the section, then the bed placed in the lower box's
+ * footprint (the state's dt checked against the new grains). */
+static int shear_build(const ter_dem_soil *soil, shear_run *r, proto_err *err) {
+  cJSON *sec = shear_section(soil, r, err);
+  if (!sec) return -1;
+  int rc = dem_model_from_json(&r->m, sec, soil->path, err);
+  cJSON_Delete(sec);
+  if (rc) return proto_wrap(err, "shear test");
+  dem_bed_spec bed = {.size = {r->L, r->W}, .n_layers = 1, .material = soil->grain_material,
+                      .gap = TER_BED_GAP, .seed = r->sp->seed};
+  bed.layers[0] = (dem_bed_layer){.diameter = 0.5 * (r->d0 + r->d1), .spread = 0.5 * (r->d1 - r->d0),
+                                  .count = r->count};
+  if (dem_bed_place(&r->m, &bed, err)) {
+    dem_model_free(&r->m);
+    return proto_wrap(err, "shear test");
+  }
+  r->m.rayleigh_time = dem_model_rayleigh(&r->m);
+  if (dem_state_init(&r->m, &r->s, 0, err)) {
+    dem_model_free(&r->m);
+    return proto_wrap(err, "shear test");
+  }
+  return 0;
+}
+
+/* Platen down onto the settled grains, servo only, until sigma_n holds within
+ * TER_CONSOLIDATE_TOL for TER_CONSOLIDATE_HOLD; then the specimen's height and
+ * the mass above the shear plane. */
+static int shear_consolidate(shear_run *r, proto_err *err) {
+  const ter_shear_spec *sp = r->sp;
+  dem_state *s = &r->s;
+  servo *sv = &r->sv;
+  double top = 0;
+  for (int i = 0; i < s->n; i++) top = fmax(top, s->x[3 * i + 2] + s->radius[i]);
+  *sv = (servo){.N_target = sp->sigma_n * r->A0, .alpha = 1.0 / TER_SERVO_FILTER,
+                .gain = sp->servo_gain > 0 ? sp->servo_gain : 30 * sp->speed,
+                .vmax = sp->servo_vmax > 0 ? sp->servo_vmax : fmax(0.05, 3 * sp->speed)};
+  double vz0[3] = {0, 0, -sv->vmax};
+  move_mesh(&r->m, s, W_PLAT, top + 0.5 * r->d1 - TER_PARK_Z, vz0, r->xbuf, r->vbuf);
+  double held = 0;
+  r->t_cons0 = s->t;
+  while (held < TER_CONSOLIDATE_HOLD) {
+    if (dem_step(&r->m, s, err)) return -1;
+    double v[3] = {0, 0, servo_velocity(sv, s->wall_force[3 * W_PLAT + 2])};
+    move_mesh(&r->m, s, W_PLAT, 0, v, r->xbuf, r->vbuf);
+    held = fabs(sv->N_filt / sv->N_target - 1) < TER_CONSOLIDATE_TOL ? held + s->dt : 0;
+    if (s->t - r->t_cons0 > TER_CONSOLIDATE_MAX)
+      return proto_fail(err, "the platen did not hold sigma_n within %g %% in %g s (at %g Pa)",
+                        100 * TER_CONSOLIDATE_TOL, TER_CONSOLIDATE_MAX, sv->N_filt / r->A0);
+  }
+  r->z_plat0 = s->mesh_x[W_PLAT][2];
+  r->mass_up = 0;
+  for (int i = 0; i < s->n; i++)
+    if (s->x[3 * i + 2] > r->hs) r->mass_up += 4.0 / 3 * M_PI * pow(s->radius[i], 3) * r->rho;
+  return 0;
+}
+
+static void shear_meta(const shear_run *r, ter_series *out, FILE *log) {
+  const ter_shear_spec *sp = r->sp;
+  const dem_state *s = &r->s;
+  ter_series_meta(out, "test", "shear");
+  ter_series_meta(out, "sigma_n_Pa", "%.6g", sp->sigma_n);
+  ter_series_meta(out, "box_m", "%.6g x %.6g x %.6g", r->L, r->W, r->H);
+  ter_series_meta(out, "diameters_m", "%.6g..%.6g", r->d0, r->d1);
+  ter_series_meta(out, "grains", "%d", s->n);
+  ter_series_meta(out, "specimen_height_m", "%.6g", r->z_plat0);
+  ter_series_meta(out, "speed_m_s", "%.6g", sp->speed);
+  ter_series_meta(out, "seed", "%llu", (unsigned long long)sp->seed);
+  ter_series_meta(out, "dt_s", "%.6g", s->dt);
+  ter_series_meta(out, "servo", "v_z = -%.4g m/s x (N_target - N)/N_target, |v_z| <= %.4g m/s", r->sv.gain,
+                  r->sv.vmax);
+  if (log)
+    fprintf(log, "terra: shear box %d grains, specimen %.4g m high, consolidated to %.4g Pa in %.3g s\n",
+            s->n, r->z_plat0, r->sv.N_filt / r->A0, s->t - r->t_cons0);
+}
+
+/* Shear: the upper ring and the platen move along +x up to j_max; one row per
+ * dj of displacement j, the means over its steps of the stresses on the
+ * plane of contact area (L - j) W. */
+static int shear_displace(shear_run *r, ter_series *out, FILE *log, proto_err *err) {
+  const ter_shear_spec *sp = r->sp;
+  dem_state *s = &r->s;
+  const double x_ring0 = s->mesh_x[W_RING][0];
+  const double vr[3] = {sp->speed, 0, 0};
+  move_mesh(&r->m, s, W_RING, 0, vr, r->xbuf, r->vbuf);
+  move_mesh(&r->m, s, W_UFLANGE, 0, vr, r->xbuf, r->vbuf);
+  double acc[5] = {0, 0, 0, 0, 0}, t0 = proto_now();
+  int nacc = 0, bin = 0;
+  const int64_t k0 = s->step;
+  while (1) {
+    if (dem_step(&r->m, s, err)) return -1;
+    const double *F = s->wall_force; /* force of the grains ON each wall */
+    double v[3] = {sp->speed, 0, servo_velocity(&r->sv, F[3 * W_PLAT + 2])};
+    move_mesh(&r->m, s, W_PLAT, 0, v, r->xbuf, r->vbuf);
+    const double j = s->mesh_x[W_RING][0] - x_ring0, Ac = (r->L - j) * r->W;
+    /* equilibrium of the lower grains (lower box, upper flange) and of the
+     * upper grains (ring, platen, lower flange, weight) across the plane */
+    acc[0] += (F[3 * W_LOW] + F[3 * W_UFLANGE]) / Ac;
+    acc[1] += -(F[3 * W_RING] + F[3 * W_PLAT] + F[3 * W_LFLANGE]) / Ac;
+    acc[2] += (F[3 * W_PLAT + 2] + F[3 * W_RING + 2] + F[3 * W_LFLANGE + 2] + r->mass_up * -r->m.gravity[2]) / Ac;
+    acc[3] += F[3 * W_PLAT + 2] / Ac;
+    acc[4] += s->mesh_x[W_PLAT][2] - r->z_plat0;
+    nacc++;
+    if (j >= (bin + 1) * sp->dj || j >= sp->j_max) {
+      double sig = acc[2] / nacc;
+      const double row[N_SH] = {[SH_J] = j - 0.5 * sp->dj, [SH_TAU] = acc[0] / nacc,
+                                [SH_TAU_UPPER] = acc[1] / nacc, [SH_SIGMA] = sig,
+                                [SH_SIGMA_PLATEN] = acc[3] / nacc, [SH_DILATION] = acc[4] / nacc,
+                                [SH_INERTIAL] = sig > 0 ? sp->speed / (10 * sqrt(sig / r->rho)) : INFINITY};
+      if (ter_series_add(out, row, err)) return -1;
+      memset(acc, 0, sizeof acc);
+      nacc = 0;
+      bin++;
+      if (log && bin % (int)fmax(1, floor(0.1 * sp->j_max / sp->dj)) == 0)
+        fprintf(log, "terra: shear j %.1f mm, tau %.4g Pa, sigma %.4g Pa, dilation %.3g mm, %.3g grain-steps/s\n",
+                1e3 * j, row[SH_TAU], row[SH_SIGMA], 1e3 * row[SH_DILATION], rate(s, k0, t0));
+    }
+    if (j >= sp->j_max) return 0;
+  }
+}
+
 int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log, ter_series *out,
                    proto_err *err) {
   if (!(sp->length > 0 && sp->width > 0 && sp->height > 0 && sp->d_min > 0 && sp->d_max >= sp->d_min &&
@@ -360,146 +542,22 @@ int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log
       [SH_J] = "j", [SH_TAU] = "tau", [SH_TAU_UPPER] = "tau_upper", [SH_SIGMA] = "sigma",
       [SH_SIGMA_PLATEN] = "sigma_platen", [SH_DILATION] = "dilation", [SH_INERTIAL] = "inertial"};
   if (ter_series_init(out, N_SH, cols, err)) return -1;
-  const double L = sp->length, W = sp->width, H = sp->height, hs = 0.5 * H;
-  /* grains: diameters uniform in [d_min, d_max], enough for the height H */
-  const double d0 = sp->d_min, d1 = sp->d_max;
-  const double d3 = (pow(d1, 4) - pow(d0, 4)) / (4 * fmax(d1 - d0, 1e-300)); /* E[d^3] */
-  const double vgrain = M_PI / 6 * (d1 > d0 ? d3 : d0 * d0 * d0);
-  const int64_t count = (int64_t)ceil(TER_SOLID_FRACTION * L * W * H / vgrain);
-  const double pitch = d1 + TER_BED_GAP;
-  const int64_t per_level = (int64_t)floor(L / pitch) * (int64_t)floor(W / pitch);
-  if (per_level < 1) return proto_fail(err, "shear test: box smaller than one grain");
-  const double lattice_top = ceil((double)count / per_level) * pitch;
-  const double ztop = fmax(lattice_top, H) + 2 * d1;
-  cJSON *sec = base_section(soil, err);
-  if (!sec) return -1;
-  cJSON *parts = cJSON_AddArrayToObject(sec, "particles"), *g = cJSON_CreateObject();
-  cJSON_AddItemToObject(g, "x", vec3(0.5 * L, 0.5 * W, 0.5 * H));
-  cJSON_AddNumberToObject(g, "r", 0.5 * d0);
-  cJSON_AddNumberToObject(g, "material", soil->grain_material);
-  cJSON_AddItemToArray(parts, g);
-  cJSON *walls = cJSON_GetObjectItemCaseSensitive(sec, "walls");
-  /* Zero-thickness walls leave the upper half's overhang (x in [L, L + j])
-   * without support and the lower half's top at x in [0, j] uncovered: two
-   * flanges in the shear plane stand for the walls' thickness of a real box,
-   * each its own wall so that its friction stays out of the plane's shear. */
-  const double in = TER_PLATEN_INSET * d0, jm = sp->j_max + 2 * d1;
-  add_box_mesh(walls, soil->wall_material, (const double[3]){0, 0, 0}, (const double[3]){L, W, hs},
-               F_BOTTOM | F_SIDES);                                          /* lower half */
-  add_box_mesh(walls, soil->wall_material, (const double[3]){L, 0, hs}, (const double[3]){L + jm, W, hs},
-               F_BOTTOM);                                                    /* its flange */
-  add_box_mesh(walls, soil->wall_material, (const double[3]){0, 0, hs}, (const double[3]){L, W, ztop},
-               F_SIDES);                                                     /* upper ring */
-  add_box_mesh(walls, soil->wall_material, (const double[3]){-jm, 0, hs}, (const double[3]){0, W, hs},
-               F_BOTTOM);                                                    /* its flange */
-  add_box_mesh(walls, soil->grain_material, (const double[3]){in, in, TER_PARK_Z},
-               (const double[3]){L - in, W - in, TER_PARK_Z + 1}, F_BOTTOM); /* platen */
-  /* walls = meshes, in this order */
-  const int w_low = 0, w_lflange = 1, w_ring = 2, w_uflange = 3, w_plat = 4;
-  dem_model m;
-  dem_state s;
-  int rc = dem_model_from_json(&m, sec, soil->path, err);
-  cJSON_Delete(sec);
-  if (rc) return proto_wrap(err, "shear test");
-  dem_bed_spec bed = {.size = {L, W}, .n_layers = 1, .material = soil->grain_material,
-                      .gap = TER_BED_GAP, .seed = sp->seed};
-  bed.layers[0] = (dem_bed_layer){.diameter = 0.5 * (d0 + d1), .spread = 0.5 * (d1 - d0), .count = count};
-  if (dem_bed_place(&m, &bed, err)) {
-    dem_model_free(&m);
-    return proto_wrap(err, "shear test");
-  }
-  m.rayleigh_time = dem_model_rayleigh(&m);
-  if (dem_state_init(&m, &s, 0, err)) { /* its dt checked against the new grains */
-    dem_model_free(&m);
-    return proto_wrap(err, "shear test");
-  }
-  double xbuf[3 * 24], vbuf[3 * 24];
-  const double rho = grain_density(&m, soil->grain_material), A0 = (L - 2 * in) * (W - 2 * in);
-  if (settle(&m, &s, sp->settle_ke, sp->settle_max_steps, log, err)) goto fail;
-  double top = 0;
-  for (int i = 0; i < s.n; i++) top = fmax(top, s.x[3 * i + 2] + s.radius[i]);
-  servo sv = {.N_target = sp->sigma_n * A0, .alpha = 1.0 / TER_SERVO_FILTER,
-              .gain = sp->servo_gain > 0 ? sp->servo_gain : 30 * sp->speed,
-              .vmax = sp->servo_vmax > 0 ? sp->servo_vmax : fmax(0.05, 3 * sp->speed)};
-  double vz0[3] = {0, 0, -sv.vmax};
-  move_mesh(&m, &s, w_plat, top + 0.5 * d1 - TER_PARK_Z, vz0, xbuf, vbuf);
-  /* consolidation: servo only, until the stress holds within tolerance */
-  double held = 0;
-  const double t_cons0 = s.t;
-  while (held < TER_CONSOLIDATE_HOLD) {
-    if (dem_step(&m, &s, err)) goto fail;
-    double v[3] = {0, 0, servo_velocity(&sv, s.wall_force[3 * w_plat + 2])};
-    move_mesh(&m, &s, w_plat, 0, v, xbuf, vbuf);
-    held = fabs(sv.N_filt / sv.N_target - 1) < TER_CONSOLIDATE_TOL ? held + s.dt : 0;
-    if (s.t - t_cons0 > TER_CONSOLIDATE_MAX) {
-      proto_fail(err, "the platen did not hold sigma_n within %g %% in %g s (at %g Pa)",
-                 100 * TER_CONSOLIDATE_TOL, TER_CONSOLIDATE_MAX, sv.N_filt / A0);
-      goto fail;
-    }
-  }
-  const double z_plat0 = s.mesh_x[w_plat][2];
-  double mass_up = 0;
-  for (int i = 0; i < s.n; i++)
-    if (s.x[3 * i + 2] > hs) mass_up += 4.0 / 3 * M_PI * pow(s.radius[i], 3) * rho;
-  ter_series_meta(out, "test", "shear");
-  ter_series_meta(out, "sigma_n_Pa", "%.6g", sp->sigma_n);
-  ter_series_meta(out, "box_m", "%.6g x %.6g x %.6g", L, W, H);
-  ter_series_meta(out, "diameters_m", "%.6g..%.6g", d0, d1);
-  ter_series_meta(out, "grains", "%d", s.n);
-  ter_series_meta(out, "specimen_height_m", "%.6g", z_plat0);
-  ter_series_meta(out, "speed_m_s", "%.6g", sp->speed);
-  ter_series_meta(out, "seed", "%llu", (unsigned long long)sp->seed);
-  ter_series_meta(out, "dt_s", "%.6g", s.dt);
-  ter_series_meta(out, "servo", "v_z = -%.4g m/s x (N_target - N)/N_target, |v_z| <= %.4g m/s", sv.gain, sv.vmax);
-  if (log)
-    fprintf(log, "terra: shear box %d grains, specimen %.4g m high, consolidated to %.4g Pa in %.3g s\n",
-            s.n, z_plat0, sv.N_filt / A0, s.t - t_cons0);
-  /* shear: the upper ring and the platen move along +x */
-  const double x_ring0 = s.mesh_x[w_ring][0];
-  const double vr[3] = {sp->speed, 0, 0};
-  move_mesh(&m, &s, w_ring, 0, vr, xbuf, vbuf);
-  move_mesh(&m, &s, w_uflange, 0, vr, xbuf, vbuf);
-  double acc[5] = {0, 0, 0, 0, 0}, t0 = proto_now();
-  int nacc = 0, bin = 0;
-  const int64_t k0 = s.step;
-  while (1) {
-    if (dem_step(&m, &s, err)) goto fail;
-    const double *F = s.wall_force; /* force of the grains ON each wall */
-    double v[3] = {sp->speed, 0, servo_velocity(&sv, F[3 * w_plat + 2])};
-    move_mesh(&m, &s, w_plat, 0, v, xbuf, vbuf);
-    const double j = s.mesh_x[w_ring][0] - x_ring0, Ac = (L - j) * W;
-    /* equilibrium of the lower grains (lower box, upper flange) and of the
-     * upper grains (ring, platen, lower flange, weight) across the plane */
-    acc[0] += (F[3 * w_low] + F[3 * w_uflange]) / Ac;
-    acc[1] += -(F[3 * w_ring] + F[3 * w_plat] + F[3 * w_lflange]) / Ac;
-    acc[2] += (F[3 * w_plat + 2] + F[3 * w_ring + 2] + F[3 * w_lflange + 2] + mass_up * -m.gravity[2]) / Ac;
-    acc[3] += F[3 * w_plat + 2] / Ac;
-    acc[4] += s.mesh_x[w_plat][2] - z_plat0;
-    nacc++;
-    if (j >= (bin + 1) * sp->dj || j >= sp->j_max) {
-      double sig = acc[2] / nacc;
-      const double row[N_SH] = {[SH_J] = j - 0.5 * sp->dj, [SH_TAU] = acc[0] / nacc,
-                                [SH_TAU_UPPER] = acc[1] / nacc, [SH_SIGMA] = sig,
-                                [SH_SIGMA_PLATEN] = acc[3] / nacc, [SH_DILATION] = acc[4] / nacc,
-                                [SH_INERTIAL] = sig > 0 ? sp->speed / (10 * sqrt(sig / rho)) : INFINITY};
-      if (ter_series_add(out, row, err)) goto fail;
-      memset(acc, 0, sizeof acc);
-      nacc = 0;
-      bin++;
-      if (log && bin % (int)fmax(1, floor(0.1 * sp->j_max / sp->dj)) == 0)
-        fprintf(log, "terra: shear j %.1f mm, tau %.4g Pa, sigma %.4g Pa, dilation %.3g mm, %.3g grain-steps/s\n",
-                1e3 * j, row[SH_TAU], row[SH_SIGMA], 1e3 * row[SH_DILATION], rate(&s, k0, t0));
-    }
-    if (j >= sp->j_max) break;
-  }
+  shear_run run = {.sp = sp}, *r = &run;
+  if (shear_size(r, err) || shear_build(soil, r, err)) return -1;
+  r->rho = grain_density(&r->m, soil->grain_material);
+  r->A0 = (r->L - 2 * r->in) * (r->W - 2 * r->in);
+  if (settle(&r->m, &r->s, sp->settle_ke, sp->settle_max_steps, log, err) || shear_consolidate(r, err))
+    goto fail;
+  shear_meta(r, out, log);
+  if (shear_displace(r, out, log, err)) goto fail;
   int lost = 0;
-  for (int i = 0; i < s.n; i++) lost += s.x[3 * i + 2] < -s.radius[i];
+  for (int i = 0; i < r->s.n; i++) lost += r->s.x[3 * i + 2] < -r->s.radius[i];
   ter_series_meta(out, "lost_grains", "%d", lost);
   if (log && lost) fprintf(log, "terra: %d grains fell out of the box\n", lost);
-  release(&m, &s);
+  release(&r->m, &r->s);
   return 0;
 fail:
-  release(&m, &s);
+  release(&r->m, &r->s);
   ter_series_free(out);
   return proto_wrap(err, "shear test (sigma_n = %g Pa)", sp->sigma_n);
 }

@@ -1,4 +1,5 @@
-/* ter_fit.c — soil parameters from the virtual tests (notes §6.2, §6.3). */
+/* ter_fit.c — soil parameters from the virtual tests (Bekker 1969 plate
+ * sinkage; Mohr–Coulomb and Janosi & Hanamoto 1961 from the shear box). */
 #include "terra/terra.h"
 
 #include <math.h>

@@ -1,4 +1,5 @@
-/* ter_wheel.c — rigid driven wheel on soil (notes "terramechanics" §2–§5).
+/* ter_wheel.c — rigid driven wheel on soil (Bekker 1969, Wong & Reece
+ * 1967, Janosi & Hanamoto 1961).
  *
  * Angles from the downward vertical through the axle, positive forwards;
  * entry theta_1 = acos(1 - z/r), exit theta_2 = 0 (no rebound).
@@ -20,11 +21,11 @@
 #include <math.h>
 #include <string.h>
 
-#define TER_GL_POINTS 16        /* per branch (notes §5) */
+#define TER_GL_POINTS 16        /* Gauss–Legendre points per branch of the rim integrals */
 #define TER_MAX_GL 64
 #define TER_Z_MAX_FRACTION 0.9  /* sinkage bracket (0, 0.9 r] */
 #define TER_Z_TOL 1e-10         /* bisection tolerance, fraction of r */
-#define TER_C1_DEFAULT 0.43     /* theta_m coefficients (notes §3) */
+#define TER_C1_DEFAULT 0.43     /* theta_m = (c1 + c2 s) theta_1 (Wong & Reece 1967) */
 #define TER_C2_DEFAULT 0.32
 
 void ter_soil_defaults(ter_soil *p) {

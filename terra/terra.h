@@ -1,11 +1,11 @@
 /* terra.h — the one public header of cosim's terramechanics part (prefix ter_).
  *
  * The classical rigid-wheel prediction that the DEM–FEM tyre is compared
- * with (../shared notes "terramechanics", §2–§5): Bekker pressure–sinkage,
- * Wong–Reece normal stress on the rim, Janosi–Hanamoto shear, the force
- * balance and the sinkage at a given load and slip; the fits that measure
- * the soil parameters from virtual plate-sinkage and shear-box tests (§6),
- * and those tests themselves, run with dem_server's library on the scenes'
+ * with: Bekker pressure–sinkage (Bekker 1969), Wong–Reece normal stress on the
+ * rim (Wong & Reece 1967), Janosi–Hanamoto shear (Janosi & Hanamoto 1961), the
+ * force balance and the sinkage at a given load and slip; the fits that
+ * measure the soil parameters from virtual plate-sinkage and shear-box tests
+ * (docs/terramechanics.md §2–3), and those tests themselves, run with dem_server's library on the scenes'
  * grains (ter_dem.c).
  *
  * Units SI; angles in radians inside (degrees only in JSON, key phi_deg).
@@ -21,7 +21,7 @@
 
 /* ------------------------------------------------------------ soil, wheel */
 
-/* Soil parameters of the model (notes §2, §3). */
+/* Soil parameters of the model (Bekker 1969; Wong & Reece 1967). */
 typedef struct ter_soil {
   double n;      /* sinkage exponent */
   double k_c;    /* cohesive modulus, N/m^(n+1) */
@@ -60,7 +60,7 @@ typedef struct ter_forces {
   double eff;               /* tractive efficiency DP r (1 - s) / T (0 if T = 0) */
 } ter_forces;
 
-/* Forces at sinkage z and slip s (notes §4; theta_2 = 0). n_mid = 0: 16-point
+/* Forces at sinkage z and slip s (Wong & Reece 1967, the force balance; theta_2 = 0). n_mid = 0: 16-point
  * Gauss–Legendre on [0, theta_m] and [theta_m, theta_1] (sigma has a kink
  * at theta_m); n_mid > 0: the midpoint rule with n_mid points on
  * [0, theta_1] (a brute-force cross-check). Needs 0 < z < r, 0 <= s < 1. */
@@ -118,7 +118,7 @@ int ter_series_read(ter_series *t, const char *path, proto_err *err);
 int ter_fit_line(int n, const double *x, const double *y, double *a, double *b, double *se_a,
                  double *se_b, proto_err *err);
 
-/* Bekker fit over several plates (notes §6.2): per plate i, points
+/* Bekker fit over several plates (Bekker 1969; docs/terramechanics.md §2): per plate i, points
  * (z, p) with z_lo <= z <= z_hi and p > 0; ln p = ln k_i + n ln z with one
  * shared n (linear least squares), and each plate's own n for the check;
  * then k_i = k_c / b_i + k_phi (regression on 1/b; exact for 2 plates). */
@@ -158,7 +158,7 @@ typedef struct ter_dem_soil {
  * and its materials. */
 int ter_dem_soil_from_scene(const cJSON *scene, ter_dem_soil *soil, proto_err *err);
 
-/* Virtual bevameter (notes §6.2): the scene's bed (the paper's three layers,
+/* Virtual bevameter (Bekker 1969; docs/terramechanics.md §2): the scene's bed (the paper's three layers,
  * grains per m^2 x depth_factor) settled in a square box of side container,
  * a rigid square plate of side width pushed at constant speed from just above
  * the highest grain under it to sinkage z_max, the sinkage counted from the
@@ -176,7 +176,7 @@ void ter_plate_defaults(ter_plate_spec *p);
 int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *spec, FILE *log,
                    ter_series *out, proto_err *err);
 
-/* Virtual direct shear (notes §6.3): grains of diameters uniform in
+/* Virtual direct shear (ASTM D3080; Wang & Gutierrez 2010): grains of diameters uniform in
  * [d_min, d_max] settled in a split box (length x width, lower half of
  * height/2, the upper ring above), a rough top platen servo-controlled to
  * sigma_n (proportional law on its velocity), then the upper half moved at

@@ -152,7 +152,7 @@ def stability():
 
 
 def kcrit_table(runs, qs):
-    """Per-element loop (notes/contact.md §5.3): the critical stiffness of ONE
+    """Per-element loop (docs/block-stability.md): the critical stiffness of ONE
     contact spring on the synthetic layer's self-term, point vs ZOH samples,
     found by bisection on growth of the scalar recursion
     F(n) = K (1 − Δt Σ_{k≥1} g_k F(n−k)) / (1 + K Δt g_0) over 12 g-lengths."""
@@ -196,7 +196,7 @@ def kcrit_table(runs, qs):
     b = blowup(runs["plain Newton, point x1"], qs)
     qd = qs["d"]
     k_at = np.interp(b * 1e-3, qd["d_road"], qd["k_max"]) if b else float("nan")
-    md.append("Why: the per-step feedback loop (notes/contact.md §5.3). One contact spring K on the "
+    md.append("Why: the per-step feedback loop (docs/block-stability.md). One contact spring K on the "
               "layer's self-term: smallest K for which the time stepping grows (bisection on the "
               "scalar recursion with the implicit g_0 term, 12 Green's-function lengths):\n")
     md.append("| rate | K_crit, point samples | K_crit, ZOH samples |")

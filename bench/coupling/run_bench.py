@@ -408,7 +408,7 @@ def report():
                f"coupling: errors at dt = 1e-4, 5e-5, 2.5e-5 s: serial {sink_errs('serial')}; "
                f"parallel {sink_errs('parallel')}; implicit {sink_errs('implicit')}. Serial converges "
                f"to the floor by dt = 5e-5 s. The parallel scheme's one-step force lag injects energy "
-               f"(negative damping, notes §1): at 5e-5 s the tread's kinetic energy grew from 2e-6 J to "
+               f"(negative damping, docs/coupling-schemes.md §1): at 5e-5 s the tread's kinetic energy grew from 2e-6 J to "
                f"0.6 J (serial: 2e-5 J) and its load curve left the others'; at 2.5e-5 s it stayed "
                f"stable. The implicit scheme removes the lag but, here, is not more "
                f"accurate than serial (whose grains see the surface of the last step and whose tread "

@@ -62,7 +62,7 @@ int main(int argc, char **argv) {
   const int threads = atoi(argv[5]);
   const double dt = argc > 6 ? atof(argv[6]) : 5e-5;
   char json[1024];
-  /* the notes §3.1 scene: E = 5e6, nu = 0.3, e = 0.5, mu = 0.6, rho = 2600; skin 2 mm; L x L box */
+  /* the settling-bed scene (docs/dem-bench.md §3): E = 5e6, nu = 0.3, e = 0.5, mu = 0.6, rho = 2600; skin 2 mm; L x L box */
   snprintf(json, sizeof json,
            "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.6}],"
            "\"threads\":%d,\"dt\":%.17g,\"skin\":0.002,\"overlap_tolerance\":0.1,\"unsafe_dt\":true,"
@@ -115,7 +115,7 @@ int main(int argc, char **argv) {
   double t1 = omp_get_wtime(), c1 = cpu_now();
   struct rusage ru;
   getrusage(RUSAGE_SELF, &ru);
-  /* bed height: mean top of the highest 1 % ... use the simple measure of notes §3.3: zmax and mean z */
+  /* bed height: mean top of the highest 1 % ... use the simple measure of docs/dem-bench.md §4: zmax and mean z */
   double zsum = 0;
   for (int i = 0; i < s.n; i++) zsum += s.x[3 * i + 2];
   printf("run %ld steps: %.3f s wall %.3f s cpu  %.3g p-steps/s (wall)  rebuilds %lld\n", nrun, t1 - t0, c1 - c0,

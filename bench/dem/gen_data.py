@@ -1,4 +1,4 @@
-"""Settling-bed initial state (../shared/notes/dem.md §3.1), written once as a
+"""Settling-bed initial state (docs/dem-bench.md §3), written once as a
 LIGGGHTS `atom_style granular` data file that both codes read: radii uniform
 in [3.5, 7.8] mm, rho = 2600, a jittered 16 mm square lattice in an L x L box,
 layers from z = 10 mm up, velocities uniform in +-0.05 m/s.
@@ -21,7 +21,7 @@ y = (iy + 0.5) * pitch + rng.uniform(-1, 1, n) * jit
 z = 0.010 + layer * pitch + rng.uniform(-1, 1, n) * jit
 v = rng.uniform(-0.05, 0.05, (n, 3))
 with open(out, "w") as f:
-    f.write("settling bed, notes/dem.md 3.1\n\n%d atoms\n1 atom types\n\n" % n)
+    f.write("settling bed, docs/dem-bench.md 3\n\n%d atoms\n1 atom types\n\n" % n)
     f.write("0 %.17g xlo xhi\n0 %.17g ylo yhi\n0 %.17g zlo zhi\n\nAtoms\n\n" % (L, L, max(2.0, z.max() + 0.1)))
     for i in range(n):
         f.write("%d 1 %.17g 2600 %.17g %.17g %.17g\n" % (i + 1, 2 * r[i], x[i], y[i], z[i]))

@@ -1,6 +1,6 @@
 /* Hertz: a rigid paraboloid road z = −r²/(2R) pressed into the Love
  * half-space (quasi-static), against the analytic solution (Johnson 1985
- * §4.2; notes/contact.md §4):
+ * §4.2):
  *   F = 4/3 E* √R δ^{3/2},  a = √(Rδ),  p(r) = p0 √(1 − r²/a²),
  *   p0 = 2 E* √(δ/R) / π,  dF/dδ = 2 E* a.
  *  1. dense solver, stiff linear springs, 40 × 40: F within 2 % once the

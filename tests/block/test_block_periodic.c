@@ -1,6 +1,6 @@
 /* The periodic option (grid.periodic): a rigid road h0 cos(2πx/λ), uniform
  * in y, repeating over the block, pressed into the periodic half-space —
- * Westergaard's problem (Westergaard 1939; Johnson 1985 §13.2; notes §4):
+ * Westergaard's problem (Westergaard 1939; Johnson 1985 §13.2):
  *   p* = π E* h0 / λ,  p̄ = p* sin²(πa/λ),
  *   p(x) = 2 p̄ cos(πx/λ) / sin²(πa/λ) · √(sin²(πa/λ) − sin²(πx/λ)),  |x| < a.
  * From the computed mean pressure p̄ the analytic contact half-width a and

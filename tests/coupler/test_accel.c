@@ -1,15 +1,16 @@
 /* The implicit scheme's accelerators on affine fixed-point problems
- * x = H(x) = A x + b (notes/coupling-schemes.md §3): IQN-ILS is equivalent to
- * GMRES there, so from the first relaxation step it reaches the fixed point
- * within m + 1 further evaluations for m unknowns, and a next step with the
- * same A (reused columns) at once; with two fields of very different scale
- * (per-field weights) too. Constant relaxation and Aitken converge only when
- * H is a contraction; a diverging map stays diverging for them. */
+ * x = H(x) = A x + b (Degroote et al. 2009; Walker & Ni 2011): IQN-ILS is
+ * equivalent to GMRES there, so from the first relaxation step it reaches
+ * the fixed point within m + 1 further evaluations for m unknowns, and a
+ * next step with the same A (reused columns) at once; with two fields of
+ * very different scale (per-field weights) too. Constant relaxation and
+ * Aitken converge only when H is a contraction; a diverging map stays
+ * diverging for them. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "coupler/run.h"
+#include "coupler/runner.h"
 #include "cosim_test.h"
 
 #define M 6

@@ -1,4 +1,4 @@
-/* Hertz theory checks (seed 000 eq. 22–23, notes §1.1): a sphere hitting a
+/* Hertz theory checks (seed 000 eq. 22–23; Kloss et al. 2012): a sphere hitting a
  * plane and two spheres colliding head-on, without damping: contact duration,
  * peak force and peak overlap against the analytic Hertz impact; with damping
  * the restitution coefficient; a sphere resting on a plane reaches the static

@@ -30,7 +30,7 @@ static void expect_error(const char *name, const char *json, const char *want) {
 }
 
 /* The step is the state's: without a coupling step dt_fraction × T_R (T_R of
- * notes §2 computed here), with one the fewest equal sub-steps not longer than
+ * docs/dem-bench.md §2 computed here), with one the fewest equal sub-steps not longer than
  * that; a coupling step may change it; a step above the limit is refused,
  * naming the key, and leaves the state's step as it was. */
 static void check_step_rule(void) {

@@ -1,4 +1,4 @@
-"""Grains hitting a free elastic slab (notes/coupling-schemes.md, test T1):
+"""Grains hitting a free elastic slab (docs/coupling-schemes.md §4, test T1):
 real dem_server and fem_server, nothing fixed, no gravity, no damping, so
 the total momentum of grains + slab is conserved. The processes are named
 freely ("grains", "slab").
@@ -9,7 +9,7 @@ freely ("grains", "slab").
    sides and each scheme: after the contact, |P - P0| <= 1e-12 |P0| (the
    dem returns the step's impulse/dt, the fem applies it in every
    sub-step). Angular momentum: the coupling exchanges impulses at nodes
-   that move within a step (O(dt), notes §4); here the residual is
+   that move within a step (O(dt), docs/coupling-schemes.md §2); here the residual is
    dominated by the slab itself: a small-strain (linear) FEM does not
    conserve angular momentum once it deforms (sum of u x K u, second order
    in the deformation), so it drifts while the slab vibrates freely after

@@ -1,5 +1,5 @@
-"""A spring-mass system split across processes (notes/coupling-schemes.md,
-test T2): the road body of the force-driven indentation (mass m, pushed by
+"""A spring-mass system split across processes (docs/coupling-schemes.md
+§4, test T2): the road body of the force-driven indentation (mass m, pushed by
 F, in the coupler) against two block_stub springs k1, k2 (two processes of
 one role, freely named, whose forces add). Checked against the analytic
 solutions of the discrete schemes, u = d - F'/K, K = k1 + k2, h = w dt,

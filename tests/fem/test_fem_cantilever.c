@@ -1,4 +1,4 @@
-/* Cantilever under an end shear load (notes/fem.md 1.2): L = 10, b = h = 1,
+/* Cantilever under an end shear load (docs/fem-verification.md §2): L = 10, b = h = 1,
  * root clamped, tip traction P/(bh). Tip deflection against Timoshenko
  * delta_T = P L^3/(3EI) + P L/(k G A), k = 10(1+nu)/(12+11nu). TET4 converges
  * (observed order from three meshes), TET10 is within 1 % on a moderate mesh. */

@@ -1,5 +1,5 @@
 /* Thick-walled cylinder under internal pressure (Lame, plane strain,
- * notes/fem.md 1.3): quarter model a = 0.1, b = 0.2, p = 0.2 MPa, symmetry
+ * docs/fem-verification.md §3): quarter model a = 0.1, b = 0.2, p = 0.2 MPa, symmetry
  * planes and u_z = 0 on both faces. Radial displacement at r = a and r = b.
  * TET10 within 1 % at nu = 0.45; TET4 converges as h^2 and its error at
  * nu = 0.45 is larger than at nu = 0.3 (volumetric locking). */

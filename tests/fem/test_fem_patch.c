@@ -1,4 +1,4 @@
-/* Patch test (notes/fem.md 1.1): a linear displacement field u = a + H x is
+/* Patch test (docs/fem-verification.md §1): a linear displacement field u = a + H x is
  * reproduced exactly by TET4 and TET10 on an irregular mesh, both with all
  * boundary nodes prescribed (variant A) and with the consistent boundary
  * tractions sigma.n and only rigid-body DOFs fixed (variant B). Rigid-body

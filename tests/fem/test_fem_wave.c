@@ -1,5 +1,5 @@
 /* Dilatational wave in a laterally constrained column (1-D strain,
- * notes/fem.md 1.4): a step pressure at x = 0 sends a front at
+ * docs/fem-verification.md §4): a step pressure at x = 0 sends a front at
  * c_p = sqrt((lambda + 2 mu)/rho). The time the particle velocity at two
  * stations crosses half its plateau gives the speed; within 2 % of c_p. */
 #include "fem_test.h"

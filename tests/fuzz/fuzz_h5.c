@@ -24,7 +24,7 @@
 #include <math.h>
 
 #include "contact_block/blk.h"
-#include "coupler/run.h"
+#include "coupler/runner.h"
 #include "dem_server/dem.h"
 #include "fuzz.h"
 #include "green/green.h"

@@ -35,7 +35,8 @@ static void one_dimensional(void) {
   proto_err err;
   CHECK(grn_causal_response(nf, df, re, im, 1 / rate, Q, zoh, pt, &err) == 0, "%s", err.msg);
   /* step response S(t_{k+1}) = dt Σ zoh: undamped it is a triangle wave
-   * 0 -> 2h/M at T/2 -> 0 at T (notes §2.4 check 4) */
+   * 0 -> 2h/M at T/2 -> 0 at T (the 1-D column, q = 0: a P wave
+   * reflected between the free top and the rigid base, T = 2h/c_P) */
   double S = 0, worst = 0, smax = 0;
   int kmax = 0;
   for (int k = 0; k < 64; k++) {

@@ -1,5 +1,6 @@
 /* Love's coefficients: closed form vs Johnson's log form (round-off), vs the
- * published values (notes §2.1) and vs fine-grid numerical integration. */
+ * values of Love's closed form (Love 1929; Johnson 1985 eq. 3.25, as
+ * ContactMechanics computes them) and vs fine-grid numerical integration. */
 #include <math.h>
 #include <stdio.h>
 
@@ -62,7 +63,7 @@ static double numeric(double x, double y, double a, double b, double Es) {
 int main(void) {
   const double E = 6e6, nu = 0.5, Es = E / (1 - nu * nu), D = 1e-3;
   const double a = D / 2;
-  /* published values in units of 1/(E* Δ) (notes §2.1, checked) */
+  /* Love's values in units of 1/(E* Δ) (Johnson 1985 eq. 3.25, checked) */
   const double pos[4][2] = {{0, 0}, {1, 0}, {1, 1}, {5, 0}};
   const double ref[4] = {1.1222, 0.3304, 0.2307, 0.06377};
   for (int k = 0; k < 4; k++) {

@@ -120,6 +120,27 @@ int main(void) {
     CHECK(grn_spring_eval(&sp, 0, -0.5e-5, &att, &kk) == 0 && att == 0, "stays released");
     CHECK_REL("linear beyond the last knot",
               grn_spring_eval(&sp, 0, 3e-5, &att, &kk), 1.2 + sk[2] * 1e-5, 1e-12);
+    /* the signed law contact_block uses: scaled, mirrored only while held */
+    const grn_spring_table tab = {3, sd, sF, sk};
+    double Fs, ks, Fu, ku;
+    grn_spring_force(&tab, 2.0, 1e-5, 0, &Fs, &ks);
+    CHECK_REL("scaled compression", Fs, 0.8, 1e-12);
+    grn_spring_force(&tab, 2.0, -1e-5, 1, &Fs, &ks);
+    grn_spring_force(&tab, 2.0, -1e-5, 0, &Fu, &ku);
+    CHECK(Fs == -0.8 && ks > 0 && Fu == 0 && ku == 0, "mirrored only while held");
+    CHECK(grn_spring_released(-0.61, GRN_RELEASE_FORCE_DEFAULT) &&
+          !grn_spring_released(-0.59, GRN_RELEASE_FORCE_DEFAULT), "release at 0.6 N");
+  }
+  /* the knot search on uneven knots equals bisection (every interval) */
+  {
+    const double kx[5] = {-1.0, -0.5, 0.1, 2.0, 7.0};
+    int ok = 1;
+    for (int i = 0; i < 4; i++)
+      for (int j = 0; j < 4; j++) {
+        const double t = kx[i] + 0.25 * j * (kx[i + 1] - kx[i]);
+        ok &= grn_pchip_interval(5, kx, t) == i;
+      }
+    CHECK(ok, "grn_pchip_interval finds x[lo] <= t < x[lo+1]");
   }
   grn_punch_table_free(&t);
   free(z);

@@ -40,7 +40,7 @@ def read_record(path):
 def main():
     tool = sys.argv[1]
     d = tempfile.mkdtemp(prefix="test_ter_cli_")
-    # the notes' dry sand (regression values at r = 0.3 m, b = 0.15 m, W = 1 kN) and a softer twin
+    # docs/terramechanics.md §1's dry sand (regression values at r = 0.3 m, b = 0.15 m, W = 1 kN) and a softer twin
     sand = {"n": 1.1, "k_c": 990, "k_phi": 1528.4e3, "c": 1040, "phi_deg": 28, "K": 0.025, "c1": 0.43, "c2": 0.32}
     soft = dict(sand, k_phi=1.2e6, phi_deg=26)
     files = []
@@ -63,7 +63,7 @@ def main():
     meta, rows = read_record(ref)
     dp = [r["DP"] for r in rows]
     check(len(rows) == 5 and abs(dp[0] + 107.8) < 0.06 and abs(dp[4] - 67.2) < 0.06,
-          f"curve: DP {dp} (notes: -107.8 ... +67.2)")
+          f"curve: DP {dp} (reference: -107.8 ... +67.2)")
     check(all(abs(r["W"] - 1000) < 1e-6 for r in rows) and meta["load_N"] == "1000", "curve: load column / meta")
 
     rc, out = run(tool, "curve", "--params", params, "--radius", "0.272", "--width", "0.165", "--load", "500",

@@ -1,5 +1,5 @@
 /* The rigid-wheel model (terra/ter_wheel.c) against
- *  - the regression values of the notes (dry sand, r = 0.3 m, b = 0.15 m,
+ *  - the regression values of docs/terramechanics.md §1 (dry sand, r = 0.3 m, b = 0.15 m,
  *    W = 1 kN, K = 25 mm, c1 = 0.43, c2 = 0.32): z = 65.8 / 72.6 mm at
  *    s = 0 / 0.4, DP = -107.8, -21.0, +28.2, +67.2 N at s = 0, 0.1, 0.2, 0.4,
  *    F_t = 205 N and R = 313 N at s = 0, Bekker z0 = 52.1 mm, R_c = 362 N;
@@ -30,14 +30,14 @@ static void regression(void) {
   proto_err err;
   ter_soil p = dry_sand();
   ter_wheel w = {0.3, 0.15};
-  const double slip[4] = {0, 0.1, 0.2, 0.4}, dp_notes[4] = {-107.8, -21.0, 28.2, 67.2};
+  const double slip[4] = {0, 0.1, 0.2, 0.4}, dp_ref[4] = {-107.8, -21.0, 28.2, 67.2};
   ter_forces f[4];
   for (int i = 0; i < 4; i++) {
     OK(ter_solve(&w, &p, 1000, slip[i], &f[i], &err));
     printf("s = %.1f: z = %.2f mm, W = %.6g N, F_t = %.2f N, R = %.2f N, DP = %.2f N, T = %.2f N m, "
            "eff %.3f\n", slip[i], 1e3 * f[i].z, f[i].W, f[i].Ft, f[i].R, f[i].DP, f[i].T, f[i].eff);
     CHECK(fabs(f[i].W - 1000) < 1e-6, "load not met: %.9g", f[i].W);
-    CHECK(fabs(f[i].DP - dp_notes[i]) < 0.06, "DP(%.1f) = %.3f N, notes %.1f N", slip[i], f[i].DP, dp_notes[i]);
+    CHECK(fabs(f[i].DP - dp_ref[i]) < 0.06, "DP(%.1f) = %.3f N, reference %.1f N", slip[i], f[i].DP, dp_ref[i]);
     /* brute-force midpoint rule at the same sinkage */
     ter_forces m;
     ter_wheel_forces(&w, &p, f[i].z, slip[i], 800, &m);
@@ -47,7 +47,7 @@ static void regression(void) {
   CHECK(fabs(1e3 * f[0].z - 65.8) < 0.05 && fabs(1e3 * f[3].z - 72.6) < 0.05, "sinkage %.3f / %.3f mm",
         1e3 * f[0].z, 1e3 * f[3].z);
   CHECK(fabs(f[0].Ft - 205) < 0.5 && fabs(f[0].R - 313) < 0.5, "F_t %.2f, R %.2f at s = 0", f[0].Ft, f[0].R);
-  CHECK(f[0].Ft > 0, "the driven-wheel model gives thrust at zero slip (notes §8)");
+  CHECK(f[0].Ft > 0, "the driven-wheel model gives thrust at zero slip (docs/terramechanics.md §4)");
   double z0 = ter_bekker_z0(&w, &p, 1000), Rc = ter_compaction_resistance(&w, &p, f[0].z);
   printf("Bekker z0 = %.2f mm, R_c(z) = %.1f N\n", 1e3 * z0, Rc);
   CHECK(fabs(1e3 * z0 - 52.1) < 0.05 && fabs(Rc - 362) < 0.5, "z0 %.3f mm, R_c %.2f N", 1e3 * z0, Rc);

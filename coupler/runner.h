@@ -1,9 +1,11 @@
-/* run.h — the state of one coupled run, shared by run.c (setup, handshake,
- * teardown), schedule.c (the exchanges of a step, walked as data), loop.c
- * (the schemes), accel.c (implicit acceleration) and timing.c. Internal to
- * the coupler. */
-#ifndef COSIM_COUPLER_RUN_H
-#define COSIM_COUPLER_RUN_H
+/* runner.h — the state of one coupled run (cpl_runner) and the functions of
+ * the files that share it: run.c (setup, handshake, teardown), contract.c
+ * (the role table bound to the fields), schedule.c (the exchanges of a step,
+ * walked as data), scenario_step.c (the scenario's stage), loop.c (the
+ * schemes), accel.c (implicit acceleration), liveness.c, checkpoint.c and
+ * timing.c. Internal to the coupler. */
+#ifndef COSIM_COUPLER_RUNNER_H
+#define COSIM_COUPLER_RUNNER_H
 
 #include <stdio.h>
 
@@ -36,15 +38,30 @@ typedef struct cpl_field {
   int given;        /* outputs of this step: number of processes that gave it */
 } cpl_field;
 
-/* A role-table array bound to a field: requests read in[field]; replies are
- * summed (several processes of one role: forces add) or copied into out. */
+/* A role-table row bound to a field (contract.c): requests read in[field];
+ * replies are summed (several processes of one role: forces add) or copied
+ * into out. */
 typedef struct cpl_binding {
   proto_role role;
   proto_msg_kind msg; /* PROTO_MSG_STEP (request) or PROTO_MSG_DONE (reply) */
   const char *array;
   cpl_field_id field;
   int sum;
+  const proto_array_spec *spec; /* its row */
 } cpl_binding;
+
+/* Every step/done row of the role table, bound once before the run starts. */
+#define CPL_MAX_BINDINGS 32
+typedef struct cpl_contract {
+  int n;
+  cpl_binding b[CPL_MAX_BINDINGS];
+} cpl_contract;
+
+/* contract.c: binds the table's step/done rows t[0..n) to the fields; -1
+ * with a message naming the row (or the field no row binds). */
+int cpl_contract_build(cpl_contract *c, const proto_array_spec *t, int n, proto_err *err);
+const char *cpl_field_name(cpl_field_id id); /* "surface.x", ... */
+int cpl_field_parse(const char *name);       /* -1 if unknown */
 
 /* ------------------------------------------------------------ schedule
  * The step as data: exchanges in order. All requests of one stage are sent
@@ -93,11 +110,18 @@ typedef struct cpl_surface {
   int32_t *tri;  /* [m,3] */
 } cpl_surface;
 
-/* The road body of the force-driven indentation (seed 002 fig. 49). */
-typedef struct cpl_road {
-  double d, v, a;     /* displacement, velocity, acceleration at t_{k-1} */
-  double force_last;  /* contact force of the last step */
-} cpl_road;
+/* The plan of a run: what the handshake fixes and no step changes — the
+ * contract, who has which role, the coupled surface and the schedule. Built
+ * by run.c (contract before the processes start, the rest after their
+ * ready); read-only from the first step on. */
+typedef struct cpl_plan {
+  cpl_contract contract; /* the role table bound to the fields (contract.c) */
+  int n_of_role[PROTO_N_ROLES];
+  int fem;               /* the process giving the surface, or -1 */
+  cpl_surface surf;
+  int nex;               /* the step's exchanges in order (schedule.c) */
+  cpl_exchange ex[CPL_MAX_EXCHANGES];
+} cpl_plan;
 
 typedef struct cpl_timing cpl_timing;
 typedef struct cpl_accel cpl_accel;
@@ -116,14 +140,10 @@ typedef struct cpl_runner {
   cpl_peer peers[CPL_MAX_PROCS];
   cpl_child children[CPL_MAX_PROCS];
   int nchildren;
-  int n_of_role[PROTO_N_ROLES];
-  int fem;           /* the process giving the surface, or -1 */
-  /* fields and the step's exchanges */
-  cpl_surface surf;
+  cpl_plan plan;     /* fixed once the handshake is done */
+  /* the data of the step: fields, scenario state, implicit iterate, counters */
   cpl_field fields[CPL_N_FIELDS];
   const double *in[CPL_N_FIELDS]; /* what requests send (set by the scheme) */
-  int nex;
-  cpl_exchange ex[CPL_MAX_EXCHANGES];
   cpl_rim rim;
   cpl_road road;
   /* implicit scheme (loop.c) */
@@ -170,6 +190,13 @@ int cpl_send(cpl_runner *r, int peer, const proto_msg *m);
  * by at most a second at a time, so its own pauses (Ctrl-Z, SIGSTOP) do not
  * count as the participants' silence. */
 double cpl_watch(cpl_runner *r);
+/* The same with the wall clock given (s): what cpl_watch does with
+ * proto_now(); tests drive it with a fake clock. */
+double cpl_watch_at(cpl_runner *r, double now);
+/* -1 naming the first connected peer that announced heartbeats and has
+ * been silent for more than coupling.heartbeat_timeout on the watch clock
+ * (now); r->failed_peer set. */
+int cpl_check_silence(cpl_runner *r, double now);
 /* Copies s into out with anything a terminal would act on replaced. */
 void cpl_printable(char *out, size_t cap, const char *s);
 /* A hello: its role, pid and heartbeat interval. */
@@ -208,11 +235,17 @@ void cpl_schedule_print(const cpl_runner *r, FILE *f);
 int cpl_run_stages(cpl_runner *r, int first, int last, int64_t k, int iteration,
                    int output, int commit, int actions);
 int cpl_last_stage(const cpl_runner *r);
+/* The replies already in the peers' reply slots of a stage into the fields'
+ * out buffers (summed or copied in exchange order), swapped in if commit. */
+void cpl_stage_take(cpl_runner *r, int stage, int commit);
 /* Sets r->in to the fields' current values (serial, parallel). */
 void cpl_inputs_current(cpl_runner *r);
 void cpl_field_commit(cpl_runner *r, cpl_field_id id);
-/* Runs a coupler action for step k (scenario; road body); -1 with r->err. */
+
+/* scenario_step.c: the scenario's stage. Runs a coupler action for step k
+ * (rim frame; road profile or body) into the fields; -1 with r->err. */
 int cpl_do_action(cpl_runner *r, cpl_action a, int64_t k);
+/* The sum of the z components of the current surface force (N). */
 double cpl_vertical_load(const cpl_runner *r);
 
 /* loop.c: the scheme's set-up (implicit: its vectors and accelerator),

@@ -1,4 +1,4 @@
-/* blk_server.c — the contact_block process: the block model behind the
+/* blk_participant.c — the contact_block process: the block model behind the
  * participant loop (proto/PROTOCOL.md, role "block"). Each step request
  * carries d_road [1]; the reply carries force [1], a series row and, at
  * output steps, per-element snapshot arrays. */

@@ -1,0 +1,54 @@
+/* scenario_step.c — the scenario's stage of a coupled step: the coupler's
+ * actions of the schedule (runner.h cpl_action) that move the rim frame and the
+ * road to t_k and write them into the fields the requests read. The physics
+ * is in scenario.c (rim kinematics and rigs, road profiles and road body,
+ * traction); this file only moves values between it and the fields. */
+#include "runner.h"
+
+#include <string.h>
+
+double cpl_vertical_load(const cpl_runner *r) {
+  const cpl_field *f = &r->fields[CPL_F_SURF_FORCE];
+  double fz = 0;
+  for (int64_t i = 2; i < f->len; i += 3) fz += f->cur[i];
+  return fz;
+}
+
+static void rim_to_fields(cpl_runner *r) {
+  memcpy(r->fields[CPL_F_RIM_R].cur, r->rim.R, sizeof r->rim.R);
+  memcpy(r->fields[CPL_F_RIM_C].cur, r->rim.c, sizeof r->rim.c);
+  memcpy(r->fields[CPL_F_RIM_OMEGA].cur, r->rim.w, sizeof r->rim.w);
+  memcpy(r->fields[CPL_F_RIM_V].cur, r->rim.v, sizeof r->rim.v);
+}
+
+/* Road displacement at t_k: prescribed, or the road body moved by the
+ * external force against the last contact force (explicit central
+ * difference: the force at d_{k-1} moves it to d_k). The implicit scheme
+ * integrates the road body itself (loop.c). */
+static void road_action(cpl_runner *r, int64_t k) {
+  const cpl_scenario *s = &r->scene->scenario;
+  double *d = r->fields[CPL_F_ROAD_D].cur;
+  if (s->kind != CPL_SCN_INDENTATION) {
+    d[0] = 0;
+    return;
+  }
+  if (s->profile != CPL_PROFILE_FORCE) {
+    d[0] = cpl_road_displacement(s, (double)k * r->scene->dt);
+    return;
+  }
+  d[0] = cpl_road_explicit(&r->road, s, r->scene->dt);
+}
+
+/* (scenario, rim/road state, vertical load of the fields) -> (rim frame,
+ * road displacement fields of t_k) */
+int cpl_do_action(cpl_runner *r, cpl_action a, int64_t k) {
+  if (a == CPL_ACT_RIM && r->plan.fem >= 0) {
+    if (cpl_rim_advance(&r->rim, &r->scene->scenario, r->scene->dt, cpl_vertical_load(r),
+                        &r->err) < 0)
+      return -1;
+    rim_to_fields(r);
+  } else if (a == CPL_ACT_ROAD && r->plan.n_of_role[PROTO_ROLE_BLOCK]) {
+    road_action(r, k);
+  }
+  return 0;
+}
