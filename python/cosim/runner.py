@@ -144,6 +144,13 @@ def _dir_name(point):
     return re.sub(r"[^A-Za-z0-9_.,=+-]", "_", text)
 
 
+def grid_points(values):
+    """Every combination of ``values`` ({key.path: [v0, v1, ...]}) as a
+    {key.path: value} point, the first key varying slowest."""
+    keys = list(values)
+    return [dict(zip(keys, combo)) for combo in itertools.product(*(values[k] for k in keys))]
+
+
 def sweep(scene, values, out, set=None, jobs=1, keep_going=False, **run_args):
     """One run per combination of ``values`` ({key.path: [v0, v1, ...]},
     several keys: every combination), each into its own ``out/<key>=<value>``
@@ -156,8 +163,7 @@ def sweep(scene, values, out, set=None, jobs=1, keep_going=False, **run_args):
 
     This loops over :func:`run` (``cosim sweep`` of the full-scale tyre
     issue, with its summary.csv, does not exist yet)."""
-    keys = list(values)
-    points = [dict(zip(keys, combo)) for combo in itertools.product(*(values[k] for k in keys))]
+    points = grid_points(values)
 
     def one(point):
         sets = dict(set or {}, **point)

@@ -33,7 +33,6 @@ It is written into summary.csv as ``# window`` lines and per row.
 """
 import argparse
 import csv
-import itertools
 import json
 import math
 import os
@@ -48,7 +47,7 @@ from .results import Results
 from . import stats
 from .traction import QUANTITIES, summarise_run, travel_window  # noqa: F401 (report.py)
 from .roles import cosim_executable
-from .runner import _dir_name, sweep as run_sweep
+from .runner import _dir_name, grid_points, sweep as run_sweep
 
 STATS = ["mean", "ci95", "min", "max"]  # ci95: half-width of the mean's 95 % interval
 SUMMARY_FILE, PLOT_FILE, REFERENCE_FILE = "summary.csv", "summary.png", "reference.csv"
@@ -358,8 +357,7 @@ def main(argv):
                          keep_going=args.keep_going, quiet=True, cosim=args.cosim,
                          args=run_args)
     else:
-        points = [dict(zip(grid, c)) for c in itertools.product(*grid.values())]
-        done = [(p, os.path.join(args.out, _dir_name(p))) for p in points]
+        done = [(p, os.path.join(args.out, _dir_name(p))) for p in grid_points(grid)]
     rows, scene = [], None
     for point, res in done:
         d = os.path.join(args.out, _dir_name(point))
