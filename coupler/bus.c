@@ -7,11 +7,34 @@
  * make the run queue and send in bytes, not only in messages: at most
  * bus.hwm small messages and bus.snapshot_hwm snapshots (a monitor that
  * subscribes to everything on the monitor stream gets no snapshots at all:
- * those cost the run most, bench/results/reliability.md). */
+ * those cost the run most, bench/results/reliability.md).
+ *
+ * Off the loop's way: the bus has a ZeroMQ context of its own whose I/O
+ * thread (every write to every monitor, CURVE's cipher for them, reading
+ * the participants' publications) and the proxy thread run at low
+ * priority (nice BUS_NICE): when the run wants the CPU they get a tenth of
+ * a core, so however many monitors there are and whatever they do, the
+ * coupler's loop and the participants are not held up by them; when a core
+ * is idle the bus runs at full speed. The loop's side is one copy into an
+ * inproc PUB that never blocks (it drops at bus.hwm); when the machine is
+ * busy the bus falls behind and drops, not the run (issue 25). Not
+ * SCHED_IDLE nor nice 19: on a node whose every core runs the run the bus
+ * would get next to nothing and a live page would stand still.
+ * ZAP is per context: with CURVE the bus starts a ZAP handler of its own on
+ * its context with the run's keys (zap.c cpl_zap_serve).
+ *
+ * Data flow: publishers (the loop's inproc PUB, the participants' PUBs) ->
+ * xsub -> proxy thread: route() -> xpub (monitor stream) | xsnap (snapshot
+ * stream) -> the monitors; subscriptions: xpub, xsnap -> forward() -> xsub
+ * -> the publishers. */
 #include "internal.h"
 
 #include <errno.h>
 #include <pthread.h>
+#include <stdatomic.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 #include <stdlib.h>
 #include <string.h>
 #include <zmq.h>
@@ -19,18 +42,56 @@
 #define BUS_SMALL_MAX (64 << 10) /* bytes: larger messages go to the snapshot stream */
 #define BUS_MAX_PARTS (PROTO_MAX_ARRAYS + 2) /* topic, header, arrays */
 #define SNAPSHOT_SUFFIX ".snapshot"
+/* ms a monitor socket may go on sending at the end of the run: the last
+ * rows (the end of the run) reach a reading monitor; a stalled one costs the
+ * teardown at most this. At nice BUS_NICE the bus may be hundreds of rows
+ * behind when the loop ends on a loaded machine (a 2000-step stub run at
+ * load 9 on 2 cores: 517 rows still queued, lost with 200 ms), so the end
+ * gets 2 s: time after the loop, never inside it */
+#define BUS_LINGER_MS 2000
+/* nice of the bus's threads: CFS weight 110 against 1024 at nice 0, about
+ * a tenth of a contended core. Enough for a monitor's traffic (a reading
+ * monitor needs a few % of a core) when the run saturates the machine;
+ * nice 19 (weight 15) starved it there: a live page stood still, the bus's
+ * queue full of old rows (tests/python/test_watch_page.py, stub run on 2
+ * cores). What more the bus would want (many stalled monitors, the
+ * snapshot fan-out) it gets only from idle cores. */
+#define BUS_NICE 10
 
 struct cpl_bus {
+  void *ctx; /* the bus's own: its I/O threads at nice BUS_NICE */
   void *xsub, *xpub, *xsnap, *control_thread, *control_main, *pub;
+  cpl_zap_handler *zap; /* with CURVE: the ZAP handler of ctx */
+  /* topics subscribed on the snapshot stream (XPUB passes the first
+   * subscription of a topic and the last unsubscription): 0 = nobody wants
+   * snapshots, and the loop need not copy them (cpl_bus_snapshots_wanted) */
+  atomic_int snapshot_topics;
   pthread_t thread;
   int started;
 };
 
+/* nice BUS_NICE for the calling thread (Linux: nice is per thread, and a
+ * thread starts with its creator's); if refused the thread keeps its
+ * priority (the bus works, only not behind the run). */
+static void low_priority(void) {
+  setpriority(PRIO_PROCESS, (id_t)syscall(SYS_gettid), BUS_NICE);
+}
+
+/* ZeroMQ starts a context's I/O and reaper threads with its first socket,
+ * from the thread that makes it: made here, they inherit BUS_NICE. */
+static void *first_socket(void *arg) {
+  cpl_bus *b = arg;
+  low_priority();
+  b->xsub = zmq_socket(b->ctx, ZMQ_XSUB);
+  return NULL;
+}
+
 static const char *const TERMINATE = "TERMINATE";
 
-/* Forwards one whole message (all its parts) from `from` to `to`. */
-static void forward(void *from, void *to) {
-  int more = 1;
+/* Forwards one whole message (all its parts) from `from` to `to`; a
+ * subscription (first byte 1) or unsubscription (0) counted in *topics. */
+static void forward(void *from, void *to, atomic_int *topics) {
+  int more = 1, first = 1;
   while (more) {
     zmq_msg_t m;
     zmq_msg_init(&m);
@@ -39,6 +100,10 @@ static void forward(void *from, void *to) {
       return;
     }
     more = zmq_msg_more(&m);
+    const unsigned char *d = zmq_msg_data(&m);
+    if (topics && first && zmq_msg_size(&m) > 0 && (d[0] == 0 || d[0] == 1))
+      atomic_fetch_add(topics, d[0] == 1 ? 1 : -1);
+    first = 0;
     if (zmq_msg_send(&m, to, (more ? ZMQ_SNDMORE : 0) | ZMQ_DONTWAIT) < 0) zmq_msg_close(&m);
   }
 }
@@ -79,18 +144,28 @@ static void route(cpl_bus *b) {
   }
 }
 
+/* What was published before TERMINATE still goes out (the run's last rows). */
+static void drain(cpl_bus *b) {
+  zmq_pollitem_t in = {b->xsub, 0, ZMQ_POLLIN, 0};
+  while (zmq_poll(&in, 1, 0) > 0) route(b);
+}
+
 static void *proxy_thread(void *arg) {
   cpl_bus *b = arg;
+  low_priority();
   zmq_pollitem_t items[] = {{b->control_thread, 0, ZMQ_POLLIN, 0},
                             {b->xsub, 0, ZMQ_POLLIN, 0},
                             {b->xpub, 0, ZMQ_POLLIN, 0},
                             {b->xsnap, 0, ZMQ_POLLIN, 0}};
   while (zmq_poll(items, 4, -1) >= 0 || zmq_errno() == EINTR) {
-    if (items[0].revents & ZMQ_POLLIN) break; /* TERMINATE */
+    if (items[0].revents & ZMQ_POLLIN) { /* TERMINATE */
+      drain(b);
+      break;
+    }
     if (items[1].revents & ZMQ_POLLIN) route(b);
     /* subscriptions of either stream go upstream to the publishers */
-    if (items[2].revents & ZMQ_POLLIN) forward(b->xpub, b->xsub);
-    if (items[3].revents & ZMQ_POLLIN) forward(b->xsnap, b->xsub);
+    if (items[2].revents & ZMQ_POLLIN) forward(b->xpub, b->xsub, NULL);
+    if (items[3].revents & ZMQ_POLLIN) forward(b->xsnap, b->xsub, &b->snapshot_topics);
   }
   return NULL;
 }
@@ -107,12 +182,27 @@ static int secure(void *s, const char *secret, const char *domain, proto_err *er
   return secret ? proto_curve_server(s, secret, domain, err) : 0;
 }
 
-cpl_bus *cpl_bus_start(void *ctx, cpl_bus_eps *eps, int hwm, int snapshot_hwm,
-                       const char *curve_secret, proto_err *err) {
+cpl_bus *cpl_bus_start(void *run_ctx, cpl_bus_eps *eps, int hwm, int snapshot_hwm,
+                       const cpl_zap *zap, proto_err *err) {
+  (void)run_ctx; /* the bus's sockets live in its own context */
   cpl_bus *b = calloc(1, sizeof *b);
   if (!b) return NULL;
-  int linger = 0;
-  b->xsub = zmq_socket(ctx, ZMQ_XSUB);
+  b->ctx = zmq_ctx_new();
+  if (!b->ctx) {
+    free(b);
+    proto_fail(err, "bus: cannot make its ZeroMQ context: %s", zmq_strerror(errno));
+    return NULL;
+  }
+  pthread_t maker;
+  if (pthread_create(&maker, NULL, first_socket, b) == 0) pthread_join(maker, NULL);
+  const char *curve_secret = cpl_zap_secret(zap);
+  if (zap && !(b->zap = cpl_zap_serve(zap, b->ctx, err))) {
+    cpl_bus_stop(b);
+    return NULL;
+  }
+  void *ctx = b->ctx;
+  int linger = 0, out_linger = BUS_LINGER_MS;
+  if (!b->xsub) b->xsub = zmq_socket(ctx, ZMQ_XSUB);
   proto_socket_limits(b->xsub);
   b->xpub = zmq_socket(ctx, ZMQ_XPUB);
   b->xsnap = zmq_socket(ctx, ZMQ_XPUB);
@@ -120,7 +210,8 @@ cpl_bus *cpl_bus_start(void *ctx, cpl_bus_eps *eps, int hwm, int snapshot_hwm,
   b->control_main = zmq_socket(ctx, ZMQ_PAIR);
   b->pub = zmq_socket(ctx, ZMQ_PUB);
   void *all[] = {b->xsub, b->xpub, b->xsnap, b->control_thread, b->control_main, b->pub};
-  for (int i = 0; i < 6; i++) zmq_setsockopt(all[i], ZMQ_LINGER, &linger, sizeof linger);
+  for (int i = 0; i < 6; i++)
+    zmq_setsockopt(all[i], ZMQ_LINGER, i == 1 || i == 2 ? &out_linger : &linger, sizeof linger);
   zmq_setsockopt(b->xpub, ZMQ_SNDHWM, &hwm, sizeof hwm);
   zmq_setsockopt(b->xsnap, ZMQ_SNDHWM, &snapshot_hwm, sizeof snapshot_hwm);
   zmq_setsockopt(b->pub, ZMQ_SNDHWM, &hwm, sizeof hwm);
@@ -151,6 +242,10 @@ cpl_bus *cpl_bus_start(void *ctx, cpl_bus_eps *eps, int hwm, int snapshot_hwm,
 
 void *cpl_bus_pub(cpl_bus *b) { return b ? b->pub : NULL; }
 
+int cpl_bus_snapshots_wanted(cpl_bus *b) {
+  return b && atomic_load_explicit(&b->snapshot_topics, memory_order_relaxed) > 0;
+}
+
 void cpl_bus_stop(cpl_bus *b) {
   if (!b) return;
   if (b->started) {
@@ -163,5 +258,7 @@ void cpl_bus_stop(cpl_bus *b) {
   zmq_close(b->xsnap);
   zmq_close(b->xpub);
   zmq_close(b->xsub);
+  cpl_zap_handler_stop(b->zap);
+  if (b->ctx) zmq_ctx_term(b->ctx);
   free(b);
 }

@@ -93,6 +93,12 @@ static int coupler_state(cpl_runner *r, int64_t *step, double *wall, int64_t *un
   v[n++] = (cpl_stateval){"rim.stiffness", PROTO_F8, &r->rim.stiffness, 1};
   v[n++] = (cpl_stateval){"rim.mass", PROTO_F8, &r->rim.mass, 1};
   v[n++] = (cpl_stateval){"rim.damping", PROTO_F8, &r->rim.damping, 1};
+  v[n++] = (cpl_stateval){"rim.travel_time", PROTO_F8, &r->rim.travel_time, 1};
+  v[n++] = (cpl_stateval){"rim.resistive_force", PROTO_F8, &r->rim.resistive_force, 1};
+  v[n++] = (cpl_stateval){"rim.avg_bins", PROTO_F8, &r->rim.avg_bins[0][0],
+                          CPL_DBP_BINS * CPL_DBP_NAVG};
+  v[n++] = (cpl_stateval){"rim.avg_part", PROTO_F8, r->rim.avg_part, CPL_DBP_NAVG};
+  v[n++] = (cpl_stateval){"rim.avg_n", PROTO_I8, r->rim.avg_n, 4};
   v[n++] = (cpl_stateval){"road.d", PROTO_F8, &r->road.d, 1};
   v[n++] = (cpl_stateval){"road.v", PROTO_F8, &r->road.v, 1};
   v[n++] = (cpl_stateval){"road.a", PROTO_F8, &r->road.a, 1};

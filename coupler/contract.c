@@ -3,7 +3,9 @@
  * and whether replies are summed, bound once at start-up to the fields of
  * runner.h. A row that names no field, an unknown field, or a field of another
  * shape or dtype stops the run before any process starts, with a message
- * that names the row (PROTOCOL.md "Roles"). Pure: no sockets, no run. */
+ * that names the row (PROTOCOL.md "Roles"). An index row ("<name>_index",
+ * the sparse form of an [n, ...] row) goes with the row it indexes.
+ * Pure: no sockets, no run. */
 #include "runner.h"
 
 #include <stdio.h>
@@ -59,8 +61,31 @@ static int bind_row(const proto_array_spec *s, cpl_binding *b, proto_err *err) {
                       "(f8, %d dims)", what, s->field, field_shape[f].ndim);
   if (s->sum && s->msg != PROTO_MSG_DONE)
     return proto_fail(err, "%s: only replies (done) can be summed", what);
-  *b = (cpl_binding){s->role, s->msg, s->name, (cpl_field_id)f, s->sum, s};
+  *b = (cpl_binding){s->role, s->msg, s->name, (cpl_field_id)f, s->sum, s, NULL};
   return 0;
+}
+
+/* An index row (PROTO_WHEN_INDEX, "<name>_index"): i4 [k], bound to the
+ * same field as the [n, ...] row it indexes, of the same role and message,
+ * not summed; the binding of that row takes it (b->index). */
+static int bind_index(const proto_array_spec *s, cpl_contract *c, proto_err *err) {
+  char what[96], want[PROTO_NAME_LEN + 8];
+  row_name(s, what, sizeof what);
+  if (s->dtype != PROTO_I4 || s->ndim != 1 || s->dims[0] != PROTO_DIM_ROWS || s->sum)
+    return proto_fail(err, "%s: an index row is i4 [k] and not summed", what);
+  for (int b = 0; b < c->n; b++) {
+    cpl_binding *bd = &c->b[b];
+    snprintf(want, sizeof want, "%s%s", bd->array, PROTO_SUFFIX_INDEX);
+    if (bd->role != s->role || bd->msg != s->msg || strcmp(want, s->name) != 0) continue;
+    if (!s->field || strcmp(s->field, cpl_field_name(bd->field)) != 0 ||
+        bd->spec->dims[0] != PROTO_DIM_NODES)
+      return proto_fail(err, "%s: must name the field of its [n, ...] row '%s' ('%s')",
+                        what, bd->array, cpl_field_name(bd->field));
+    bd->index = s;
+    return 0;
+  }
+  return proto_fail(err, "%s: no earlier row of its role and message that it indexes",
+                    what);
 }
 
 /* (role table rows) -> (bindings row -> field) */
@@ -74,6 +99,10 @@ int cpl_contract_build(cpl_contract *c, const proto_array_spec *t, int n, proto_
       if (s->field || s->sum)
         return proto_fail(err, "%s: only step and done arrays bind a coupler field",
                           row_name(s, what, sizeof what));
+      continue;
+    }
+    if (s->when == PROTO_WHEN_INDEX) {
+      if (bind_index(s, c, err) < 0) return -1;
       continue;
     }
     if (c->n == CPL_MAX_BINDINGS)

@@ -45,8 +45,29 @@ typedef struct cpl_implicit {
 } cpl_implicit;
 
 typedef enum { CPL_SCN_NONE, CPL_SCN_TIRE_TRAVEL, CPL_SCN_INDENTATION } cpl_scenario_kind;
-/* scenario.rig: what holds the rim's height during travel */
-typedef enum { CPL_RIG_KINEMATIC, CPL_RIG_LOAD } cpl_rig;
+/* scenario.rig: what holds the rim during travel: its height frozen and its
+ * speed set (kinematic), the height a degree of freedom carrying the load
+ * (load), or that and the carriage free along the travel against a ramped
+ * resistive force, the wheel at a fixed omega (dbp: the drawbar-pull rig) */
+typedef enum { CPL_RIG_KINEMATIC, CPL_RIG_LOAD, CPL_RIG_DBP } cpl_rig;
+/* dbp rig: the running averages are kept as this many sub-sums of the
+ * window (no per-step history): the window averaged is the scene's to
+ * within 1/CPL_DBP_BINS of it. */
+#define CPL_DBP_BINS 32
+/* dbp rig defaults (Project Chrono's ChVehicleCosimDBPRig: 0.1 s filter
+ * window; its force ramp begins after 0.2 s + 0.5 s of the wheel's spin-up,
+ * here the wheel turns from the travel start, so the hold is the 0.2 s). */
+#define CPL_DBP_WINDOW 0.1
+#define CPL_DBP_HOLD 0.2
+/* The dbp rig's row (cpl_dbp_row) of /coupler/dbp: phase (0 sinkage, 1 hold, 2 ramp), the
+ * carriage's speed, the resistive force (mean over the step), the slip,
+ * and the running means over scenario.dbp_window of T_H, T_R, T_P, the
+ * vertical load, the resistive force and the slip (the traction row of the
+ * same step added to the rim's sums: call once per step). */
+enum { CPL_DBP_T, CPL_DBP_PHASE, CPL_DBP_SPEED, CPL_DBP_FORCE, CPL_DBP_SLIP,
+       CPL_DBP_TH_AVG, CPL_DBP_TR_AVG, CPL_DBP_TP_AVG, CPL_DBP_LOAD_AVG, CPL_DBP_FORCE_AVG,
+       CPL_DBP_SLIP_AVG, CPL_N_DBP };
+#define CPL_DBP_NAVG (CPL_N_DBP - CPL_DBP_TH_AVG)
 /* The load rig's default mass is sinkage_force / this (dead-weight tester). */
 #define CPL_STANDARD_GRAVITY 9.81
 /* Default clearance of the lowest tread node above the bed for "auto". */
@@ -78,6 +99,14 @@ typedef struct cpl_scenario {
   cpl_rig rig;
   double rig_mass;        /* kg (load rig) */
   double rig_damping;     /* N s/m (load rig), against the ground; default 0 */
+  /* dbp rig: carriage of carriage_mass along +x, m x'' = F_x - F_res(tau),
+   * tau the time since travel start: F_res = dbp_force_start while tau <
+   * dbp_hold, then dbp_force_start + dbp_force_rate (tau - dbp_hold) */
+  double carriage_mass;   /* kg; default rig_mass */
+  double dbp_hold;        /* s */
+  double dbp_force_start; /* N (negative: a push) */
+  double dbp_force_rate;  /* N/s */
+  double dbp_window;      /* s: running averages of the dbp series */
   /* indentation (block): d_road(t), positive = towards the block */
   cpl_profile profile;
   double depth;           /* m: final (linear/quadratic) or held depth */
@@ -111,6 +140,11 @@ typedef struct cpl_scene {
   int curve;                /* security.curve */
   char attach_endpoint[CPL_PATH_LEN]; /* port 0: any free port */
   cpl_scheme scheme;
+  /* coupling.transport: how arrays travel to same-host participants
+   * (PROTOCOL.md "Shared memory"): shared memory when it works, or always
+   * the socket */
+  enum { CPL_TRANSPORT_AUTO, CPL_TRANSPORT_SOCKET } transport;
+  int sparse;               /* coupling.sparse: only the surface near grains travels */
   cpl_implicit implicit;
   cpl_scenario scenario;
   int nprocs;
@@ -162,12 +196,27 @@ typedef struct cpl_rim {
   double fit[5];
   double stiffness; /* N/m measured (0: unknown) */
   double mass, damping; /* kg, N s/m in use during travel */
+  /* dbp rig */
+  double travel_time;     /* s since travel started (the ramp's clock tau) */
+  double resistive_force; /* N: F_res's mean over the last step (impulse / dt) */
+  /* running averages (cpl_dbp_row): sums of CPL_DBP_NAVG quantities in a
+   * ring of CPL_DBP_BINS bins of avg_n[0] steps each; avg_n[1] steps in
+   * the current bin, avg_n[2] bins complete, avg_n[3] the ring's head */
+  double avg_bins[CPL_DBP_BINS][CPL_DBP_NAVG];
+  double avg_part[CPL_DBP_NAVG];
+  int64_t avg_n[4];
 } cpl_rim;
 void cpl_rim_init(cpl_rim *rim, const cpl_scenario *s);
-/* Advances the rim by dt given the vertical load (N, +z on the tire).
+/* Advances the rim by dt given the grains' force on the tread (N, the sum
+ * over its nodes of the step's impulse / dt; force[2] the vertical load).
  * Fails (err names the key) when the load rig would not be stable. */
 int cpl_rim_advance(cpl_rim *rim, const cpl_scenario *s, double dt,
-                    double vertical_load, proto_err *err);
+                    const double force[3], proto_err *err);
+/* dbp rig: the mean of F_res (N) over the travel-clock interval [a, b] (s),
+ * the exact integral of the hold-then-ramp law over it / (b - a). */
+double cpl_dbp_resistance(const cpl_scenario *s, double a, double b);
+/* slip 1 - v_x / (omega R) of the rim (0 while it does not turn) */
+double cpl_rim_slip(const cpl_rim *rim, const cpl_scenario *s);
 /* Prescribed road displacement at t (m); NAN for force-driven mode. */
 double cpl_road_displacement(const cpl_scenario *s, double t);
 
@@ -196,6 +245,10 @@ enum { CPL_TR_T, CPL_TR_TH, CPL_TR_TR, CPL_TR_TP, CPL_TR_LOAD, CPL_TR_SINK, CPL_
        CPL_N_TRACTION };
 void cpl_traction(const double *F, const double *X, int64_t n, const cpl_rim *rim, double t,
                   double row[CPL_N_TRACTION]);
+/* Fills row (see CPL_DBP_*) and adds the step's values to the running sums. */
+extern const char *const cpl_dbp_columns[CPL_N_DBP];
+void cpl_dbp_row(cpl_rim *rim, const cpl_scenario *s, double dt,
+                 const double traction[CPL_N_TRACTION], double row[CPL_N_DBP]);
 
 /* `cosim` command line. */
 int cpl_main(int argc, char **argv);

@@ -33,17 +33,23 @@ void cpl_stop_all(cpl_child *cs, int n, double grace_s);
 
 /* ---- bus.c: the monitor bus, a proxy in a thread */
 typedef struct cpl_bus cpl_bus;
+struct cpl_zap; /* zap.c, below */
 typedef struct cpl_bus_eps {
   char inner[CPL_PATH_LEN];     /* where publishers connect (welcome.run.bus) */
   char monitor[CPL_PATH_LEN];   /* monitors: everything but snapshots */
   char snapshots[CPL_PATH_LEN]; /* monitors: the snapshot stream */
 } cpl_bus_eps;
 /* Binds the endpoints in eps (port 0: any free port; replaced by what was
- * bound). With a CURVE secret key every side is a CURVE server (ZAP domains
- * CPL_ZAP_BUS for the inner side, CPL_ZAP_MONITOR for the others). */
+ * bound) in the bus's own ZeroMQ context (ctx is not used for them: the
+ * bus's threads run at nice 10, behind the run's). With the run's CURVE keys (zap, or
+ * NULL) every side is a CURVE server (ZAP domains CPL_ZAP_BUS for the inner
+ * side, CPL_ZAP_MONITOR for the others), with a ZAP handler of its own. */
 cpl_bus *cpl_bus_start(void *ctx, cpl_bus_eps *eps, int hwm, int snapshot_hwm,
-                       const char *curve_secret, proto_err *err);
+                       const struct cpl_zap *zap, proto_err *err);
 void *cpl_bus_pub(cpl_bus *b); /* the coupler's own publisher */
+/* Does any monitor subscribe on the snapshot stream? If not, the loop need
+ * not copy its snapshots onto the bus (they would be dropped). */
+int cpl_bus_snapshots_wanted(cpl_bus *b);
 void cpl_bus_stop(cpl_bus *b);
 
 /* ---- output.c: results.h5 and XDMF */
@@ -123,6 +129,10 @@ const char *cpl_zap_public(const cpl_zap *z);
 const char *cpl_zap_key_file(const cpl_zap *z, int proc); /* process i's */
 const char *cpl_zap_monitor_file(const cpl_zap *z);
 void cpl_zap_stop(cpl_zap *z); /* also removes the key files */
+/* One more ZAP handler with z's keys, on another context (the bus's). */
+typedef struct cpl_zap_handler cpl_zap_handler;
+cpl_zap_handler *cpl_zap_serve(const cpl_zap *z, void *ctx, proto_err *err);
+void cpl_zap_handler_stop(cpl_zap_handler *h);
 int cpl_run(cpl_scene *s, const cpl_run_opts *opts);
 
 /* ---- monitor.c */

@@ -83,8 +83,11 @@ int cpl_check_silence(cpl_runner *r, double now) {
   return 0;
 }
 
+/* Large arrays through the peer's segment once it took the offer (run.c). */
 int cpl_send(cpl_runner *r, int peer, const proto_msg *m) {
-  if (proto_send_to(r->router, r->peers[peer].proc->name, m, &r->err) == 0)
+  const cpl_peer *p = &r->peers[peer];
+  if (proto_send_via(r->router, p->proc->name, m, 0, p->shm_on ? p->shm_out : NULL,
+                     &r->err) == 0)
     return 0;
   r->failed_peer = peer;
   /* its connection is gone: if it died, say how (waitpid may need a moment) */
@@ -152,6 +155,14 @@ int cpl_take_hello(cpl_runner *r, int from, const proto_msg *m) {
                   : 0;
     p->progress = -1;
     p->shown = -1;
+    /* same host: its hello names our host and boot id (and so can map) */
+    const cJSON *host = cJSON_GetObjectItemCaseSensitive(m->header, PROTO_H_HOST);
+    const cJSON *hn = cJSON_GetObjectItemCaseSensitive(host, "name");
+    const cJSON *hbid = cJSON_GetObjectItemCaseSensitive(host, "boot_id");
+    char name[256], boot[64];
+    p->same_host = cJSON_IsString(hn) && cJSON_IsString(hbid) &&
+                   proto_shm_host(name, sizeof name, boot, sizeof boot) == 0 &&
+                   strcmp(hn->valuestring, name) == 0 && strcmp(hbid->valuestring, boot) == 0;
     return 0;
   }
   r->failed_peer = from;
@@ -184,6 +195,13 @@ static int timed_out(cpl_runner *r, int expect, double timeout_s, const char *ke
                     expect >= 0 ? "'" : "", timeout_s, key);
 }
 
+/* The reader of a sender's segment (NULL: it has none, descriptors are refused). */
+static proto_shm *segment_of(void *ctx, const char *identity) {
+  cpl_runner *r = ctx;
+  int i = peer_of(r, identity);
+  return i >= 0 ? r->peers[i].shm_in : NULL;
+}
+
 /* (sockets, children, watch clock) -> (the next message, or the culprit named) */
 int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
                 proto_msg *m, int *from) {
@@ -202,7 +220,7 @@ int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
       continue;
     char identity[PROTO_NAME_LEN] = {0};
     proto_msg *dst = m ? m : &r->inbox;
-    int rc = proto_recv(r->router, dst, identity, &r->err);
+    int rc = proto_recv_via(r->router, dst, identity, segment_of, r, &r->err);
     int sender = peer_of(r, identity);
     if (sender < 0) {
       stranger(r, identity);

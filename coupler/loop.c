@@ -164,7 +164,8 @@ static int publish_reply(cpl_runner *r, int i, int output) {
   if (!pub) return 0;
   const proto_msg *d = &r->peers[i].reply;
   proto_msg m = {0};
-  for (int pass = 0; pass < 1 + output; pass++) {
+  /* snapshots only when a monitor subscribes to them (bus.c): else no copy */
+  for (int pass = 0; pass < 1 + (output && cpl_bus_snapshots_wanted(r->bus)); pass++) {
     const char *prefix = pass == 0 ? PROTO_A_SERIES : PROTO_P_SNAP;
     const char *what = pass == 0 ? "series" : "snapshot";
     char topic[PROTO_NAME_LEN];
@@ -247,6 +248,13 @@ static int record(cpl_runner *r, int64_t k, int output) {
                                &r->err) < 0)
       return -1;
     publish(r, "coupler.traction", "series", k, t, CPL_N_TRACTION, row, traction_cols);
+    if (r->scene->scenario.rig == CPL_RIG_DBP) { /* /coupler/dbp (scenario.c cpl_dbp_row) */
+      double drow[CPL_N_DBP];
+      cpl_dbp_row(&r->rim, &r->scene->scenario, r->scene->dt, row, drow);
+      if (cpl_output_coupler_row(r->out, "dbp", CPL_N_DBP, cpl_dbp_columns, drow, &r->err) < 0)
+        return -1;
+      publish(r, "coupler.dbp", "series", k, t, CPL_N_DBP, drow, cpl_dbp_columns);
+    }
   }
   /* at output steps everything so far goes to the disk: a run that fails
    * later keeps it */

@@ -14,7 +14,7 @@ static void usage(FILE *f) {
           "       cosim monitor ENDPOINT|OUTPUT_DIR [--topic PREFIX]... [--count N] [--timeout S]\n"
           "       cosim roles [--json]\n"
           "       cosim road|springs|green ARGS...   (forwarded to cosim_green)\n"
-          "       cosim terra plate|shear|fit|combine|curve ARGS...   (forwarded to cosim_terra)\n"
+          "       cosim terra plate|shear|bed|fit|combine|curve ARGS... (forwarded to cosim_terra)\n"
           "       cosim sweep SCENE --values KEY.PATH=V1,V2,... --out DIR [--set K=V]...\n"
           "                   [--jobs N] [--repeat N] [--terra-params P.json|--reference REF.csv]\n"
           "                   (forwarded to python3 -m cosim; --help for the rest)\n"
@@ -143,12 +143,13 @@ static int cmd_roles(int argc, char **argv) {
                                   (long long)v);
         else
           len += (size_t)snprintf(shape + len, sizeof shape - len, "%s%s", d ? "," : "",
-                                  v == PROTO_DIM_NODES ? "n" : "m");
+                                  v == PROTO_DIM_NODES ? "n" : v == PROTO_DIM_TRIS ? "m" : "k");
       }
       snprintf(shape + len, sizeof shape - len, "]");
       printf("  %-8s %-12s %s %-6s %-6s%s%s%s%s\n    %s\n", proto_msg_type(t[i].msg),
              t[i].name, proto_dtype_name(t[i].dtype), shape, t[i].units,
-             t[i].when == PROTO_WHEN_SURFACE ? " (with a surface)" : "",
+             t[i].when == PROTO_WHEN_SURFACE ? " (with a surface)"
+             : t[i].when == PROTO_WHEN_INDEX ? " (optional: sparse form)" : "",
              t[i].field ? " field " : "", t[i].field ? t[i].field : "",
              t[i].sum ? " (summed)" : "", t[i].meaning);
     }

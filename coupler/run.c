@@ -76,7 +76,7 @@ static int setup_sockets(cpl_runner *r) {
     snprintf(eps->monitor, sizeof eps->monitor, "%s", s->bus_monitor);
     snprintf(eps->snapshots, sizeof eps->snapshots, "%s", s->bus_snapshots);
     r->bus = cpl_bus_start(r->ctx, eps, (int)s->bus_hwm, (int)s->bus_snapshot_hwm,
-                           cpl_zap_secret(r->zap), &r->err);
+                           r->zap, &r->err);
     if (!r->bus) return -1;
   } else {
     eps->inner[0] = 0;
@@ -259,11 +259,56 @@ static void init_fields(cpl_runner *r) {
   memcpy(r->fields[CPL_F_RIM_V].cur, r->rim.v, sizeof r->rim.v);
 }
 
+/* The transport (PROTOCOL.md "Shared memory"): a participant on this host
+ * (its hello's host and boot id) is offered our segment in its welcome,
+ * unless coupling.transport is "socket"; we make a reader for the segment
+ * its ready announces. Anything that fails keeps the socket, and says why. */
+static void shm_offer(cpl_runner *r, cpl_peer *p, proto_msg *w) {
+  if (r->scene->transport == CPL_TRANSPORT_SOCKET) {
+    snprintf(p->shm_why, sizeof p->shm_why, "coupling.transport is \"socket\"");
+    return;
+  }
+  if (!p->same_host) {
+    snprintf(p->shm_why, sizeof p->shm_why, "another host, or a participant that "
+             "cannot map segments (its hello has no matching host)");
+    return;
+  }
+  proto_err why = {{0}};
+  p->shm_out = proto_shm_writer(PROTO_SHM_INITIAL_BYTES, &why);
+  p->shm_in = p->shm_out ? proto_shm_reader() : NULL;
+  if (!p->shm_in || proto_shm_announce(p->shm_out, proto_msg_header(w)) < 0) {
+    snprintf(p->shm_why, sizeof p->shm_why, "%s", why.msg[0] ? why.msg : "out of memory");
+    proto_shm_free(p->shm_out);
+    proto_shm_free(p->shm_in);
+    p->shm_out = p->shm_in = NULL;
+  }
+}
+
+/* The ready's answer to the offer: shm when it took it and its segment is
+ * mapped (cpl_receive mapped the one the ready announced), else the socket. */
+static void shm_settle(cpl_peer *p) {
+  const cJSON *t = cJSON_GetObjectItemCaseSensitive(p->reply.header, PROTO_H_TRANSPORT);
+  const cJSON *e = cJSON_GetObjectItemCaseSensitive(p->reply.header, PROTO_H_SHM_ERROR);
+  p->shm_on = p->shm_out && proto_shm_attached(p->shm_in) && cJSON_IsString(t) &&
+              strcmp(t->valuestring, "shm") == 0;
+  if (p->shm_on) return;
+  if (p->shm_out) {
+    char text[sizeof p->shm_why];
+    cpl_printable(text, sizeof text, cJSON_IsString(e) ? e->valuestring
+                                     : "it did not take the offer");
+    snprintf(p->shm_why, sizeof p->shm_why, "%s", text);
+  }
+  proto_shm_free(p->shm_out);
+  proto_shm_free(p->shm_in);
+  p->shm_out = p->shm_in = NULL;
+}
+
 static int welcome_one(cpl_runner *r, int i) {
   cpl_peer *p = &r->peers[i];
   proto_msg w = {0};
   proto_msg_reset(&w, p->proc->name, proto_msg_type(PROTO_MSG_WELCOME), 0, 0);
   fill_run_header(r, &w, p->proc);
+  shm_offer(r, p, &w);
   if (p->role == PROTO_ROLE_DEM && r->plan.surf.n_nodes > 0) {
     proto_msg_add_f8(&w, PROTO_A_SURFACE_X0, r->plan.surf.n_nodes, 3,
                      r->fields[CPL_F_SURF_X].cur);
@@ -288,6 +333,7 @@ static int welcome_one(cpl_runner *r, int i) {
     rc = proto_wrap(&r->err, "participant '%s'", p->proc->name);
   p->rollback = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(p->reply.header,
                                                               PROTO_H_ROLLBACK));
+  if (rc == 0) shm_settle(p);
   if (rc == 0 && i == r->plan.fem) rc = take_surface(r, &p->reply);
   if (rc < 0 && r->failed_peer < 0) r->failed_peer = i;
   return rc;
@@ -439,6 +485,11 @@ static void teardown(cpl_runner *r, int ok) {
   cpl_stop_all(r->children, r->nchildren, ok ? 3.0 : 0.5);
   for (int i = 0; i < r->n; i++) proto_msg_free(&r->peers[i].reply);
   proto_msg_free(&r->inbox);
+  for (int i = 0; i < r->n; i++) { /* after every message that may point into them */
+    proto_shm_free(r->peers[i].shm_out);
+    proto_shm_free(r->peers[i].shm_in);
+    r->peers[i].shm_out = r->peers[i].shm_in = NULL;
+  }
   cpl_bus_stop(r->bus);
   if (r->router) zmq_close(r->router);
   cpl_zap_stop(r->zap); /* removes the key files */
@@ -571,6 +622,7 @@ int cpl_run(cpl_scene *s, const cpl_run_opts *opts) {
            s->name, (long long)s->n_steps, (double)s->n_steps * s->dt,
            proto_now() - r->wall_start);
     if (!opts->quiet) cpl_timing_print(r, stdout);
+    if (!opts->quiet) cpl_sparse_print(r, stdout);
     printf("results: %s/%s (logs in %s/logs)\n%s", s->output_dir, CPL_RESULTS_FILE,
            s->output_dir, summary);
   } else if (had_output) {

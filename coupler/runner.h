@@ -48,6 +48,7 @@ typedef struct cpl_binding {
   cpl_field_id field;
   int sum;
   const proto_array_spec *spec; /* its row */
+  const proto_array_spec *index; /* its sparse form's "<array>_index" row, or NULL */
 } cpl_binding;
 
 /* Every step/done row of the role table, bound once before the run starts. */
@@ -81,6 +82,23 @@ typedef struct cpl_exchange {
 
 #define CPL_MAX_EXCHANGES (CPL_MAX_PROCS + 4)
 
+/* Sparse exchange with one process (schedule.c, PROTOCOL.md "Sparse
+ * exchange"): what its last done said and the buffers its requests are
+ * gathered into (allocated with the fields, none in the loop). */
+typedef struct cpl_sparse {
+  int takes_force;      /* fem: its ready said sparse (nodal_force may come sparse) */
+  int has_reach;        /* dem: its last done gave a reach box */
+  int use_reach;        /* the box this step's requests choose x_index by */
+  double reach[6], reach_use[6]; /* [lo xyz, hi xyz], m */
+  double reach_speed, speed_use; /* s: grow reach by this times the largest node speed (0: not) */
+  int32_t *index;       /* [n] the nodes sent */
+  double *rows[2];      /* [n*3] their rows (x and v, or the force) */
+  double *dense;        /* [n*3] a sparse reply, expanded */
+  uint8_t *mark;        /* [n] node chosen */
+  /* bytes of the [n, ...] arrays to it and from it, and what dense would be */
+  double out_bytes, out_dense, in_bytes, in_dense;
+} cpl_sparse;
+
 typedef struct cpl_peer {
   cpl_process *proc;
   proto_role role;   /* from its hello */
@@ -100,6 +118,14 @@ typedef struct cpl_peer {
   char what[64];     /* what it said it was doing (printable) */
   int shown;         /* progress shown so far (tenths), -1: nothing yet */
   int initialized;   /* its ready arrived */
+  cpl_sparse sp;     /* sparse exchange (schedule.c) */
+  /* transport (run.c, PROTOCOL.md "Shared memory"): same host (its hello's
+   * host and boot id are ours), our segment for it and its for us; shm_on
+   * once its ready took the offer */
+  int same_host;
+  proto_shm *shm_out, *shm_in;
+  int shm_on;
+  char shm_why[160]; /* why it keeps the socket, for the schedule printout */
 } cpl_peer;
 
 /* The shared surface of the tread: node positions in the rim frame at rest
@@ -228,6 +254,9 @@ void cpl_fields_free(cpl_runner *r);
 void cpl_schedule_build(cpl_runner *r);
 /* Prints the schedule ("who gives what to whom"), one line per stage. */
 void cpl_schedule_print(const cpl_runner *r, FILE *f);
+/* The end-of-run lines of the sparse exchange: per process, the bytes of its
+ * surface arrays each way as a share of the dense exchange's. */
+void cpl_sparse_print(const cpl_runner *r, FILE *f);
 /* Runs the stages of the schedule from `first` to `last`: its actions (if
  * actions), all requests of a stage, then all its replies; outputs are
  * summed/copied into the fields' out buffers in exchange order

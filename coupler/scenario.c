@@ -3,7 +3,11 @@
  * the vertical load reaches the target, then rotates with omega about +y and
  * travels along +x with v = omega R (1 - s). Its height during travel:
  * frozen (rig "kinematic", the paper's) or a degree of freedom carrying the
- * load (rig "load", a single-wheel tester: coupler/README.md).
+ * load (rig "load", a single-wheel tester: coupler/README.md). Rig "dbp"
+ * (Project Chrono's angular-velocity drawbar-pull rig): the height as in
+ * "load", and the carriage free along +x, (grains' x force, travel clock) ->
+ * carriage speed against a hold-then-ramp resistive force; the slip follows
+ * (cpl_rim_slip) and cpl_dbp_row keeps its running averages.
  * indentation (seed 002 app. C.3, fig. 40, fig. 49): road displacement
  * histories towards the tread block. */
 #include "coupler.h"
@@ -59,8 +63,15 @@ static int rig_start(cpl_rim *rim, const cpl_scenario *s, double dt, proto_err *
   rim->stiffness = rig_stiffness(rim, s);
   rim->mass = s->rig_mass;
   rim->damping = s->rig_damping;
-  if (s->rig != CPL_RIG_LOAD) return 0;
+  rim->travel_time = 0;
+  rim->resistive_force = 0;
+  if (s->rig == CPL_RIG_KINEMATIC) return 0;
   const double omega_dt = sqrt(rim->stiffness / rim->mass) * dt;
+  if (s->rig == CPL_RIG_DBP)
+    fprintf(stderr, "cosim: dbp rig: carriage %.10g kg, resistive force %.10g N held for "
+            "%.10g s, then rising at %.10g N/s; running averages over %.10g s\n",
+            s->carriage_mass, s->dbp_force_start, s->dbp_hold, s->dbp_force_rate,
+            s->dbp_window);
   fprintf(stderr, "cosim: load rig: soil stiffness k = %.10g N/m (from the sinkage phase), "
           "mass %.10g kg, damping %.10g N s/m (%.3g of critical), omega dt = %.3g\n",
           rim->stiffness, rim->mass, rim->damping,
@@ -79,20 +90,54 @@ static int rig_start(cpl_rim *rim, const cpl_scenario *s, double dt, proto_err *
   return 0;
 }
 
-int cpl_rim_advance(cpl_rim *rim, const cpl_scenario *s, double dt, double vertical_load,
+/* The integral of F_res from 0 to tau (N s): dbp_force_start tau, plus the
+ * ramp's dbp_force_rate (tau - dbp_hold)^2 / 2 once tau passes the hold. */
+static double resistance_integral(const cpl_scenario *s, double tau) {
+  const double ramp = fmax(tau - s->dbp_hold, 0);
+  return s->dbp_force_start * tau + 0.5 * s->dbp_force_rate * ramp * ramp;
+}
+
+double cpl_dbp_resistance(const cpl_scenario *s, double a, double b) {
+  if (!(b > a)) return s->dbp_force_start + s->dbp_force_rate * fmax(a - s->dbp_hold, 0);
+  /* for a step inside the hold or the ramp the mean is the midpoint value
+   * (exact for a linear law); the difference of integrals also covers the
+   * step across the kink */
+  return (resistance_integral(s, b) - resistance_integral(s, a)) / (b - a);
+}
+
+double cpl_rim_slip(const cpl_rim *rim, const cpl_scenario *s) {
+  const double rolling = rim->w[1] * s->radius; /* omega R, m/s */
+  return rolling != 0 ? 1 - rim->v[0] / rolling : 0;
+}
+
+/* The dbp carriage over one step (the travel clock from tau to tau + dt):
+ * m (v_k - v_{k-1}) = dt F_x - int F_res dt, the soil's impulse of the
+ * step (F_x: impulse / dt of the exchange) and the resistance's exact one,
+ * so the carriage's momentum balances the impulses to round-off whatever
+ * dt; x then moves with v_k (semi-implicit Euler, as the load rig). */
+static void carriage_advance(cpl_rim *rim, const cpl_scenario *s, double dt, double fx) {
+  const double a = rim->travel_time, b = a + dt;
+  rim->resistive_force = cpl_dbp_resistance(s, a, b);
+  rim->v[0] += dt * (fx - rim->resistive_force) / s->carriage_mass;
+  rim->travel_time = b;
+}
+
+int cpl_rim_advance(cpl_rim *rim, const cpl_scenario *s, double dt, const double force[3],
                     proto_err *err) {
   if (s->kind != CPL_SCN_TIRE_TRAVEL) return 0;
+  const double vertical_load = force[2];
   if (!rim->travelling) rig_observe(rim, s, vertical_load);
   if (!rim->travelling && vertical_load >= s->sinkage_force) {
     rim->travelling = 1;
-    rim->v[2] = 0; /* kinematic: frozen; load rig: released at rest */
-    rim->v[0] = s->omega * s->radius * (1 - s->slip);
+    rim->v[2] = 0; /* kinematic: frozen; load and dbp rigs: released at rest */
+    rim->v[0] = s->omega * s->radius * (1 - s->slip); /* dbp: the carriage's start */
     rim->w[1] = s->omega;
     if (rig_start(rim, s, dt, err) < 0) return -1;
-  } else if (rim->travelling && s->rig == CPL_RIG_LOAD) {
+  } else if (rim->travelling && s->rig != CPL_RIG_KINEMATIC) {
     /* m z'' = F - W - c z': semi-implicit Euler, damping implicit */
     const double m = rim->mass, c = rim->damping;
     rim->v[2] = (rim->v[2] + dt * (vertical_load - s->sinkage_force) / m) / (1 + dt * c / m);
+    if (s->rig == CPL_RIG_DBP) carriage_advance(rim, s, dt, force[0]);
   }
   for (int i = 0; i < 3; i++) rim->c[i] += rim->v[i] * dt;
   rim->angle += rim->w[1] * dt;
@@ -154,4 +199,55 @@ void cpl_traction(const double *F, const double *X, int64_t n, const cpl_rim *ri
   double sinkage = rim->c0[2] - rim->c[2];
   double vals[CPL_N_TRACTION] = {t, th, tr, th - fabs(tr), fz, sinkage, torque};
   memcpy(row, vals, sizeof vals);
+}
+
+/* ------------------------------------------------------- the dbp series */
+
+const char *const cpl_dbp_columns[CPL_N_DBP] = {
+    "t", "phase", "carriage_speed", "resistive_force", "slip", "T_H_avg", "T_R_avg",
+    "T_P_avg", "vertical_load_avg", "resistive_force_avg", "slip_avg"};
+
+/* The step's values into the current bin; a full bin (avg_n[0] steps)
+ * goes into the ring. The mean is over the current bin and the newest
+ * complete bins, CPL_DBP_BINS bins' worth at most: from (B - 1) m + 1 to
+ * B m steps once the ring is full, all steps since the travel start before. */
+static void running_means(cpl_rim *rim, const double val[CPL_DBP_NAVG], double mean[CPL_DBP_NAVG]) {
+  int64_t *n = rim->avg_n; /* steps per bin, steps in the current bin, bins, head */
+  for (int q = 0; q < CPL_DBP_NAVG; q++) rim->avg_part[q] += val[q];
+  if (++n[1] == n[0]) {
+    memcpy(rim->avg_bins[n[3]], rim->avg_part, sizeof rim->avg_part);
+    memset(rim->avg_part, 0, sizeof rim->avg_part);
+    n[1] = 0;
+    n[3] = (n[3] + 1) % CPL_DBP_BINS;
+    if (n[2] < CPL_DBP_BINS) n[2]++;
+  }
+  const int64_t nb = n[2] < CPL_DBP_BINS - (n[1] > 0) ? n[2] : CPL_DBP_BINS - (n[1] > 0);
+  double sum[CPL_DBP_NAVG];
+  memcpy(sum, rim->avg_part, sizeof sum);
+  for (int64_t j = 1; j <= nb; j++) {
+    const double *bin = rim->avg_bins[(n[3] - j + CPL_DBP_BINS) % CPL_DBP_BINS];
+    for (int q = 0; q < CPL_DBP_NAVG; q++) sum[q] += bin[q];
+  }
+  const double steps = (double)(nb * n[0] + n[1]);
+  for (int q = 0; q < CPL_DBP_NAVG; q++) mean[q] = sum[q] / steps;
+}
+
+/* (rim after the step, the step's traction row) -> (dbp row; running sums) */
+void cpl_dbp_row(cpl_rim *rim, const cpl_scenario *s, double dt,
+                 const double traction[CPL_N_TRACTION], double row[CPL_N_DBP]) {
+  memset(row, 0, sizeof(double) * CPL_N_DBP);
+  row[CPL_DBP_T] = traction[CPL_TR_T];
+  row[CPL_DBP_SPEED] = rim->v[0];
+  if (!rim->travelling) return;
+  row[CPL_DBP_PHASE] = rim->travel_time > s->dbp_hold ? 2 : 1;
+  row[CPL_DBP_FORCE] = rim->resistive_force;
+  row[CPL_DBP_SLIP] = cpl_rim_slip(rim, s);
+  if (rim->avg_n[0] == 0) { /* steps per bin: the window in CPL_DBP_BINS bins */
+    const double m = round(s->dbp_window / (dt * CPL_DBP_BINS));
+    rim->avg_n[0] = m >= 1 ? (int64_t)m : 1;
+  }
+  const double val[CPL_DBP_NAVG] = {traction[CPL_TR_TH], traction[CPL_TR_TR],
+                                    traction[CPL_TR_TP], traction[CPL_TR_LOAD],
+                                    row[CPL_DBP_FORCE], row[CPL_DBP_SLIP]};
+  running_means(rim, val, row + CPL_DBP_TH_AVG);
 }

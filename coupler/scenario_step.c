@@ -14,6 +14,18 @@ double cpl_vertical_load(const cpl_runner *r) {
   return fz;
 }
 
+/* The grains' force on the tread, the sum over its nodes (N): x drives
+ * the dbp rig's carriage, z is the vertical load. */
+static void tread_force(const cpl_runner *r, double force[3]) {
+  const cpl_field *f = &r->fields[CPL_F_SURF_FORCE];
+  force[0] = force[1] = 0;
+  for (int64_t i = 0; i + 2 < f->len; i += 3) {
+    force[0] += f->cur[i];
+    force[1] += f->cur[i + 1];
+  }
+  force[2] = cpl_vertical_load(r);
+}
+
 static void rim_to_fields(cpl_runner *r) {
   memcpy(r->fields[CPL_F_RIM_R].cur, r->rim.R, sizeof r->rim.R);
   memcpy(r->fields[CPL_F_RIM_C].cur, r->rim.c, sizeof r->rim.c);
@@ -39,12 +51,13 @@ static void road_action(cpl_runner *r, int64_t k) {
   d[0] = cpl_road_explicit(&r->road, s, r->scene->dt);
 }
 
-/* (scenario, rim/road state, vertical load of the fields) -> (rim frame,
+/* (scenario, rim/road state, the grains' force of the fields) -> (rim frame,
  * road displacement fields of t_k) */
 int cpl_do_action(cpl_runner *r, cpl_action a, int64_t k) {
   if (a == CPL_ACT_RIM && r->plan.fem >= 0) {
-    if (cpl_rim_advance(&r->rim, &r->scene->scenario, r->scene->dt, cpl_vertical_load(r),
-                        &r->err) < 0)
+    double force[3];
+    tread_force(r, force);
+    if (cpl_rim_advance(&r->rim, &r->scene->scenario, r->scene->dt, force, &r->err) < 0)
       return -1;
     rim_to_fields(r);
   } else if (a == CPL_ACT_ROAD && r->plan.n_of_role[PROTO_ROLE_BLOCK]) {

@@ -165,11 +165,15 @@ static int read_coupling(proto_cfg *root, cpl_scene *s) {
   s->heartbeat_timeout = 10;
   s->handshake_timeout = 60;
   s->step_timeout = 60;
+  s->sparse = 1;
   snprintf(s->attach_endpoint, sizeof s->attach_endpoint, "tcp://127.0.0.1:0");
   int rc = proto_cfg_child(root, "coupling", PROTO_OPTIONAL, &c);
   if (rc < 0) return -1;
   if (rc > 0) return read_implicit(NULL, s);
+  static const char *const transport_names[] = {"auto", "socket", NULL};
+  int transport = CPL_TRANSPORT_AUTO;
   if (proto_cfg_enum(&c, "scheme", PROTO_OPTIONAL, scheme_names, &scheme) < 0 ||
+      proto_cfg_enum(&c, "transport", PROTO_OPTIONAL, transport_names, &transport) < 0 ||
       proto_cfg_num(&c, "hello_timeout", PROTO_OPTIONAL, 0.1, 86400,
                     &s->hello_timeout) < 0 ||
       proto_cfg_num(&c, "heartbeat_timeout", PROTO_OPTIONAL, 2 * PROTO_HEARTBEAT_S, 86400,
@@ -178,11 +182,13 @@ static int read_coupling(proto_cfg *root, cpl_scene *s) {
                     &s->handshake_timeout) < 0 ||
       proto_cfg_num(&c, "step_timeout", PROTO_OPTIONAL, 0.1, 86400,
                     &s->step_timeout) < 0 ||
+      proto_cfg_bool(&c, "sparse", PROTO_OPTIONAL, &s->sparse) < 0 ||
       proto_cfg_str(&c, "attach_endpoint", PROTO_OPTIONAL, s->attach_endpoint,
                     sizeof s->attach_endpoint) < 0 ||
       read_implicit(&c, s) < 0)
     return -1;
   s->scheme = (cpl_scheme)scheme;
+  s->transport = transport == CPL_TRANSPORT_SOCKET ? CPL_TRANSPORT_SOCKET : CPL_TRANSPORT_AUTO;
   const char *ep = s->attach_endpoint;
   if (strncmp(ep, "tcp://", 6) != 0 || !strrchr(ep + 6, ':'))
     return proto_fail(c.err, "coupling.attach_endpoint: expected tcp://HOST:PORT "
@@ -221,8 +227,36 @@ static int read_rim_center(proto_cfg *c, cpl_scenario *sc) {
   return rc;
 }
 
-static int read_tire_travel(proto_cfg *c, cpl_scenario *sc) {
-  static const char *const rigs[] = {"kinematic", "load", NULL};
+/* The dbp rig's keys (read in every rig, as the load rig's): the carriage,
+ * the resistive force's hold and ramp, the running averages' window. */
+static int read_dbp(proto_cfg *c, cpl_scenario *sc, double dt) {
+  const int dbp = sc->rig == CPL_RIG_DBP;
+  sc->carriage_mass = -1;
+  sc->dbp_hold = CPL_DBP_HOLD;
+  sc->dbp_window = CPL_DBP_WINDOW;
+  if (proto_cfg_num(c, "carriage_mass", PROTO_OPTIONAL, 1e-9, 1e9, &sc->carriage_mass) < 0 ||
+      proto_cfg_num(c, "dbp_hold", PROTO_OPTIONAL, 0, 1e6, &sc->dbp_hold) < 0 ||
+      proto_cfg_num(c, "dbp_force_start", PROTO_OPTIONAL, -1e9, 1e9,
+                    &sc->dbp_force_start) < 0 ||
+      proto_cfg_num(c, "dbp_force_rate", dbp ? PROTO_REQUIRED : PROTO_OPTIONAL, -1e9, 1e9,
+                    &sc->dbp_force_rate) < 0 ||
+      proto_cfg_num(c, "dbp_window", PROTO_OPTIONAL, 1e-12, 1e6, &sc->dbp_window) < 0)
+    return -1;
+  if (sc->carriage_mass < 0) sc->carriage_mass = sc->rig_mass;
+  if (!dbp) return 0;
+  if (sc->omega == 0)
+    return proto_fail(c->err, "%s.omega: the dbp rig turns the wheel at a fixed omega and "
+                      "measures the slip 1 - v / (omega radius): omega must not be 0",
+                      c->path);
+  if (dt > 0 && sc->dbp_window < dt)
+    return proto_fail(c->err, "%s.dbp_window: %g s is shorter than the step time.dt = %g s "
+                      "(the running averages need at least one step)", c->path,
+                      sc->dbp_window, dt);
+  return 0;
+}
+
+static int read_tire_travel(proto_cfg *c, cpl_scenario *sc, double dt) {
+  static const char *const rigs[] = {"kinematic", "load", "dbp", NULL};
   sc->radius = 0.272; /* 165/65 R13 outer radius (seed 000) */
   sc->slip = 0.05;
   sc->auto_gap = CPL_AUTO_GAP;
@@ -244,13 +278,13 @@ static int read_tire_travel(proto_cfg *c, cpl_scenario *sc) {
   sc->rig = (cpl_rig)rig;
   /* the rig keys are read in either mode (a scene switches with one --set) */
   if (sc->rig_mass < 0) {
-    if (sc->rig == CPL_RIG_LOAD && !(sc->sinkage_force > 0))
+    if (sc->rig != CPL_RIG_KINEMATIC && !(sc->sinkage_force > 0))
       return proto_fail(c->err, "%s.rig_mass: the default, sinkage_force / %g, needs "
                         "sinkage_force > 0 (got %g); give rig_mass (kg)", c->path,
                         CPL_STANDARD_GRAVITY, sc->sinkage_force);
     sc->rig_mass = sc->sinkage_force / CPL_STANDARD_GRAVITY;
   }
-  return 0;
+  return read_dbp(c, sc, dt);
 }
 
 static int read_indentation(proto_cfg *c, cpl_scenario *sc) {
@@ -295,7 +329,7 @@ static int read_scenario(proto_cfg *root, cpl_scene *s) {
   int kind = 0;
   if (proto_cfg_enum(&c, "kind", PROTO_REQUIRED, kinds, &kind) < 0) return -1;
   sc->kind = (cpl_scenario_kind)kind;
-  if (kind == CPL_SCN_TIRE_TRAVEL && read_tire_travel(&c, sc) < 0) return -1;
+  if (kind == CPL_SCN_TIRE_TRAVEL && read_tire_travel(&c, sc, s->dt) < 0) return -1;
   if (kind == CPL_SCN_INDENTATION && read_indentation(&c, sc) < 0) return -1;
   return proto_cfg_end(&c);
 }

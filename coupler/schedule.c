@@ -1,7 +1,12 @@
 /* schedule.c — a coupling step as data: the coupler-side fields, the
  * role table's rows bound to them (contract.c), and the list of exchanges a scheme
  * walks (PROTOCOL.md "Schedule"). A stage sends all its requests, then
- * collects all its replies: its processes compute at the same time. */
+ * collects all its replies: its processes compute at the same time.
+ * Sparse exchange (PROTOCOL.md "Sparse exchange", coupling.sparse): a dem
+ * that gave a reach box gets x, v only for the nodes of the triangles that
+ * can meet it; a fem that takes it gets the nodal force only of the nodes
+ * that carry one; a sparse reply is expanded to the dense field before it is
+ * copied or summed, so every field holds the bits the dense exchange gives. */
 #include "runner.h"
 
 #include <math.h>
@@ -14,7 +19,32 @@ static int due(const cpl_peer *p, const proto_array_spec *s) {
   return s->when != PROTO_WHEN_SURFACE || p->dims.surface;
 }
 
+/* A request goes sparse only when it carries at most this fraction of the
+ * surface's nodes: beyond it the gather (coupler) and scatter (participant)
+ * cost about what the smaller message saves (PROTOCOL.md "Sparse exchange"). */
+#define CPL_SPARSE_MAX_FRACTION (1.0 / 3.0)
+/* The peers' sparse buffers for a surface of n nodes; fem: does it take a
+ * sparse nodal_force (its ready, in its reply slot now)? */
+static int sparse_init(cpl_runner *r, int64_t n, proto_err *err) {
+  const size_t nn = (size_t)(n > 0 ? n : 1);
+  for (int i = 0; i < r->n; i++) {
+    cpl_sparse *sp = &r->peers[i].sp;
+    sp->index = malloc(sizeof(int32_t) * nn);
+    sp->rows[0] = malloc(sizeof(double) * 3 * nn);
+    sp->rows[1] = malloc(sizeof(double) * 3 * nn);
+    sp->dense = malloc(sizeof(double) * 3 * nn);
+    sp->mark = malloc(nn);
+    if (!sp->index || !sp->rows[0] || !sp->rows[1] || !sp->dense || !sp->mark)
+      return proto_fail(err, "out of memory for the sparse exchange");
+  }
+  if (r->plan.fem >= 0)
+    r->peers[r->plan.fem].sp.takes_force = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(
+        r->peers[r->plan.fem].reply.header, PROTO_H_SPARSE));
+  return 0;
+}
+
 int cpl_fields_init(cpl_runner *r, int64_t n, proto_err *err) {
+  if (sparse_init(r, n, err) < 0) return -1;
   const int64_t len[CPL_N_FIELDS] = {3 * n, 3 * n, 3 * n, 9, 3, 3, 3, 1, 1};
   for (int f = 0; f < CPL_N_FIELDS; f++) {
     cpl_field *fd = &r->fields[f];
@@ -30,6 +60,11 @@ int cpl_fields_init(cpl_runner *r, int64_t n, proto_err *err) {
 }
 
 void cpl_fields_free(cpl_runner *r) {
+  for (int i = 0; i < r->n; i++) {
+    cpl_sparse *sp = &r->peers[i].sp;
+    free(sp->index); free(sp->rows[0]); free(sp->rows[1]); free(sp->dense); free(sp->mark);
+    sp->index = NULL, sp->rows[0] = sp->rows[1] = sp->dense = NULL, sp->mark = NULL;
+  }
   for (int f = 0; f < CPL_N_FIELDS; f++) {
     free(r->fields[f].cur);
     free(r->fields[f].out);
@@ -80,6 +115,19 @@ void cpl_schedule_build(cpl_runner *r) {
   for (int role = 0; role < PROTO_N_ROLES; role++) add_role(r, 0, (proto_role)role);
 }
 
+void cpl_sparse_print(const cpl_runner *r, FILE *f) {
+  if (!r->scene->sparse || !r->plan.surf.n_nodes) return;
+  fprintf(f, "sparse exchange (coupling.sparse; surface arrays, bytes as a share of dense):\n");
+  for (int i = 0; i < r->n; i++) {
+    const cpl_sparse *sp = &r->peers[i].sp;
+    if (sp->out_dense <= 0 && sp->in_dense <= 0) continue;
+    fprintf(f, "  %-12s to it %5.1f %% (%.4g MB), from it %5.1f %% (%.4g MB)\n",
+            r->peers[i].proc->name, sp->out_dense > 0 ? 100 * sp->out_bytes / sp->out_dense : 0,
+            sp->out_bytes / 1e6, sp->in_dense > 0 ? 100 * sp->in_bytes / sp->in_dense : 0,
+            sp->in_bytes / 1e6);
+  }
+}
+
 int cpl_last_stage(const cpl_runner *r) {
   return r->plan.nex ? r->plan.ex[r->plan.nex - 1].stage : 0;
 }
@@ -101,8 +149,8 @@ void cpl_schedule_print(const cpl_runner *r, FILE *f) {
         continue;
       }
       const cpl_peer *p = &r->peers[x->peer];
-      fprintf(f, "  %d.%s %s (%s):", s + 1, any++ ? " +" : "", p->proc->name,
-              proto_role_name(p->role));
+      fprintf(f, "  %d.%s %s (%s) [%s]:", s + 1, any++ ? " +" : "", p->proc->name,
+              proto_role_name(p->role), p->shm_on ? "shm" : "tcp/ipc");
       for (int pass = 0; pass < 2; pass++) {
         fprintf(f, "%s", pass ? " ->" : "");
         for (int b = 0; b < r->plan.contract.n; b++) {
@@ -116,9 +164,69 @@ void cpl_schedule_print(const cpl_runner *r, FILE *f) {
       fprintf(f, "\n");
     }
   }
+  /* the transport of each process (PROTOCOL.md "Shared memory") and why not shm */
+  for (int i = 0; i < r->n; i++)
+    if (!r->peers[i].shm_on)
+      fprintf(f, "  %s: arrays by tcp/ipc (%s)\n", r->peers[i].proc->name,
+              r->peers[i].shm_why[0] ? r->peers[i].shm_why : "no shared memory");
 }
 
 /* ------------------------------------------------------------- exchanges */
+
+/* ------------------------------------------------------ sparse exchange */
+
+/* The nodes a dem gets this step (proto_reach_nodes: the contract of
+ * x_index): those of every triangle that can meet the reach box the dem
+ * gave, over the step. With reach_speed (a dem with sleep: its active
+ * region's margin grows with the surface's speed) the box grows by that
+ * times the largest node speed |v| of the step, and that node goes too (the
+ * dem takes the speed from the nodes it gets: the same as dense). */
+static int64_t reach_nodes(const cpl_runner *r, cpl_sparse *sp) {
+  const double *v = r->in[CPL_F_SURF_V];
+  const int64_t n = r->plan.surf.n_nodes;
+  double box[6], v2 = 0;
+  int64_t fast = -1;
+  memcpy(box, sp->reach_use, sizeof box);
+  for (int64_t a = 0; sp->speed_use > 0 && a < n; a++) {
+    const double *u = &v[3 * a], q = u[0] * u[0] + u[1] * u[1] + u[2] * u[2]; /* as dem_dot */
+    if (q > v2) v2 = q, fast = a;
+  }
+  const double grow = sp->speed_use * sqrt(v2);
+  for (int d = 0; d < 3; d++) box[d] -= grow, box[3 + d] += grow;
+  int64_t k = proto_reach_nodes(r->in[CPL_F_SURF_X], v, r->scene->dt, r->plan.surf.tri,
+                                r->plan.surf.n_tris, n, box, sp->mark, sp->index);
+  if (fast >= 0 && !sp->mark[fast]) { /* into its place: the index ascends */
+    int64_t j = k++;
+    for (; j > 0 && sp->index[j - 1] > fast; j--) sp->index[j] = sp->index[j - 1];
+    sp->index[j] = (int32_t)fast;
+    sp->mark[fast] = 1;
+  }
+  return k;
+}
+
+
+static void gather(const double *f, const int32_t *idx, int64_t k, double *rows) {
+  for (int64_t j = 0; j < k; j++) memcpy(&rows[3 * j], &f[3 * (size_t)idx[j]], 3 * sizeof(double));
+}
+
+/* Rows of the sparse form of this request (k of n), or -1: dense. Sets
+ * sp->rows for x/v (dem) or the force (fem). */
+static int64_t sparse_rows(cpl_runner *r, cpl_peer *p) {
+  const int64_t n = r->plan.surf.n_nodes;
+  cpl_sparse *sp = &p->sp;
+  int64_t k = -1;
+  if (!r->scene->sparse || n == 0) return -1;
+  if (p->role == PROTO_ROLE_DEM && sp->use_reach && p->dims.surface) {
+    k = reach_nodes(r, sp);
+    if ((double)k <= CPL_SPARSE_MAX_FRACTION * (double)n) {
+      gather(r->in[CPL_F_SURF_X], sp->index, k, sp->rows[0]);
+      gather(r->in[CPL_F_SURF_V], sp->index, k, sp->rows[1]);
+    }
+  } else if (p->role == PROTO_ROLE_FEM && sp->takes_force) {
+    k = proto_sparse_rows(r->in[CPL_F_SURF_FORCE], n, sp->index, sp->rows[0]);
+  }
+  return (double)k <= CPL_SPARSE_MAX_FRACTION * (double)n ? k : -1;
+}
 
 static int send_request(cpl_runner *r, int i, int64_t k, int iteration, int output) {
   cpl_peer *p = &r->peers[i];
@@ -129,6 +237,17 @@ static int send_request(cpl_runner *r, int i, int64_t k, int iteration, int outp
   cJSON_AddNumberToObject(h, PROTO_H_DT, r->scene->dt);
   cJSON_AddBoolToObject(h, PROTO_H_OUTPUT, output);
   if (iteration > 0) cJSON_AddNumberToObject(h, PROTO_H_ITERATION, iteration);
+  /* the dem's grains at the start of step k are those of its last done of
+   * step k-1; the repeats of step k start there again */
+  if (iteration == 0) {
+    p->sp.use_reach = p->sp.has_reach;
+    memcpy(p->sp.reach_use, p->sp.reach, sizeof p->sp.reach);
+    p->sp.speed_use = p->sp.reach_speed;
+  }
+  const int64_t rows = sparse_rows(r, p);
+  if (p->role == PROTO_ROLE_DEM && r->scene->sparse) cJSON_AddBoolToObject(h, PROTO_H_SPARSE, 1);
+  if (p->role == PROTO_ROLE_DEM && rows >= 0)
+    cJSON_AddItemToObject(h, PROTO_H_REACH, cJSON_CreateDoubleArray(p->sp.reach_use, 6));
   for (int b = 0; b < r->plan.contract.n; b++) {
     const cpl_binding *bd = &r->plan.contract.b[b];
     const proto_array_spec *s = bd->spec;
@@ -137,12 +256,49 @@ static int send_request(cpl_runner *r, int i, int64_t k, int iteration, int outp
     for (int d = 0; d < s->ndim; d++)
       shape[d] = s->dims[d] > 0 ? s->dims[d]
                  : s->dims[d] == PROTO_DIM_NODES ? p->dims.nodes : p->dims.tris;
-    proto_msg_add(&req, bd->array, s->dtype, s->ndim, shape, r->in[bd->field]);
+    const void *data = r->in[bd->field];
+    if (s->dims[0] == PROTO_DIM_NODES) {
+      p->sp.out_dense += 24.0 * (double)p->dims.nodes;
+      p->sp.out_bytes += bd->index && rows >= 0 ? 28.0 * (double)rows : 24.0 * (double)p->dims.nodes;
+    }
+    if (bd->index && rows >= 0) { /* its sparse form: k rows and their nodes */
+      shape[0] = rows;
+      data = p->sp.rows[bd->field == CPL_F_SURF_V ? 1 : 0];
+      proto_msg_add(&req, bd->index->name, PROTO_I4, 1, &rows, p->sp.index);
+    }
+    proto_msg_add(&req, bd->array, s->dtype, s->ndim, shape, data);
   }
   p->t_sent = proto_now();
   int rc = cpl_send(r, i, &req);
   proto_msg_free(&req);
   return rc;
+}
+
+/* A dem's done header "reach": the box its grains can reach in its next
+ * step, [lo x, y, z, hi x, y, z], finite, lo <= hi; absent: send it dense. */
+static int take_reach(cpl_runner *r, cpl_peer *p) {
+  const cJSON *b = cJSON_GetObjectItemCaseSensitive(p->reply.header, PROTO_H_REACH);
+  p->sp.has_reach = 0;
+  p->sp.reach_speed = 0;
+  if (!b || p->role != PROTO_ROLE_DEM || !r->scene->sparse) return 0;
+  const cJSON *sv = cJSON_GetObjectItemCaseSensitive(p->reply.header, PROTO_H_REACH_SPEED);
+  if (sv && !(cJSON_IsNumber(sv) && isfinite(sv->valuedouble) && sv->valuedouble >= 0))
+    return proto_fail(&r->err, "participant '%s': done header '%s': expected a finite number "
+                      ">= 0 (s)", p->proc->name, PROTO_H_REACH_SPEED);
+  if (sv) p->sp.reach_speed = sv->valuedouble;
+  int ok = cJSON_IsArray(b) && cJSON_GetArraySize(b) == 6;
+  for (int d = 0; ok && d < 6; d++) {
+    const cJSON *e = cJSON_GetArrayItem(b, d);
+    ok = cJSON_IsNumber(e) && isfinite(e->valuedouble);
+    if (ok) p->sp.reach[d] = e->valuedouble;
+  }
+  for (int d = 0; ok && d < 3; d++) ok = p->sp.reach[d] <= p->sp.reach[3 + d];
+  if (!ok)
+    return proto_fail(&r->err, "participant '%s': done header '%s': expected [lo x, y, z, "
+                      "hi x, y, z] of finite numbers with lo <= hi", p->proc->name,
+                      PROTO_H_REACH);
+  p->sp.has_reach = 1;
+  return 0;
 }
 
 /* The reply of peer i: the right message, checked against the role table,
@@ -165,12 +321,14 @@ static int check_reply(cpl_runner *r, int i, int64_t k, int iteration) {
   for (int b = 0; b < r->plan.contract.n; b++) {
     const cpl_binding *bd = &r->plan.contract.b[b];
     if (bd->role != p->role || bd->msg != PROTO_MSG_DONE || !due(p, bd->spec)) continue;
-    const double *a = proto_msg_data(m, bd->array);
-    for (int64_t j = 0; j < r->fields[bd->field].len; j++)
+    const proto_array *arr = proto_msg_find(m, bd->array);
+    const double *a = arr->data;
+    for (int64_t j = 0; j < (int64_t)(arr->nbytes / sizeof(double)); j++)
       if (!isfinite(a[j]))
         return proto_fail(&r->err, "participant '%s': %s[%lld] is not finite",
                           p->proc->name, bd->array, (long long)j);
   }
+  if (take_reach(r, p) < 0) return -1;
   r->failed_peer = -1;
   return 0;
 }
@@ -182,7 +340,15 @@ static void take_outputs(cpl_runner *r, int i) {
     const cpl_binding *bd = &r->plan.contract.b[b];
     if (bd->role != p->role || bd->msg != PROTO_MSG_DONE || !due(p, bd->spec)) continue;
     cpl_field *f = &r->fields[bd->field];
-    const double *a = proto_msg_data(&p->reply, bd->array);
+    const int32_t *idx;
+    const int64_t rows = bd->index ? proto_msg_sparse(&p->reply, bd->array, &idx) : -1;
+    if (bd->spec->dims[0] == PROTO_DIM_NODES) {
+      p->sp.in_dense += 8.0 * (double)f->len;
+      p->sp.in_bytes += rows >= 0 ? 28.0 * (double)rows : 8.0 * (double)f->len;
+    }
+    /* a sparse reply expanded: rows not listed are +0.0, as the dense reply's */
+    const double *a = bd->index ? proto_msg_dense(&p->reply, bd->array, f->len / 3, 3, p->sp.dense)
+                                : proto_msg_data(&p->reply, bd->array);
     if (!f->given++ || !bd->sum) memcpy(f->out, a, sizeof(double) * (size_t)f->len);
     else
       for (int64_t j = 0; j < f->len; j++) f->out[j] += a[j];

@@ -6,7 +6,10 @@
  * needs. The handler lets in exactly those keys: the processes' on the
  * control socket and the bus's publishing side, theirs and the monitors' on
  * the monitor streams. A client without an allowed key never completes its
- * handshake: it gets nothing and can send nothing. */
+ * handshake: it gets nothing and can send nothing. ZAP is per ZeroMQ
+ * context: the bus runs its own context (bus.c: its threads at nice 10,
+ * behind the run's), so cpl_zap_serve starts one more handler there, with a copy of
+ * the same keys. */
 #include "internal.h"
 
 #include <errno.h>
@@ -24,20 +27,29 @@
 #define FRAME_CAP 256
 #define REFUSALS_SHOWN 5 /* refused clients named on stderr; then only counted */
 
-struct cpl_zap {
-  char secret[PROTO_KEY_LEN], public_key[PROTO_KEY_LEN];
+/* One ZAP handler: a REP on ZAP_ENDPOINT of one context, in its own
+ * thread, with its own copy of the allowed keys (a context of the bus's
+ * has its own: ZAP is per context). */
+struct cpl_zap_handler {
   int nkeys;                              /* processes, then the monitor key */
   uint8_t allowed[CPL_MAX_PROCS + 1][RAW_KEY];
-  char files[CPL_MAX_PROCS + 1][CPL_PATH_LEN];
   void *rep, *control_thread, *control_main;
   pthread_t thread;
   int started;
   int refused;
 };
 
+struct cpl_zap {
+  char secret[PROTO_KEY_LEN], public_key[PROTO_KEY_LEN];
+  int nkeys;                              /* processes, then the monitor key */
+  uint8_t allowed[CPL_MAX_PROCS + 1][RAW_KEY];
+  char files[CPL_MAX_PROCS + 1][CPL_PATH_LEN];
+  cpl_zap_handler *handler;               /* the one of the coupler's context */
+};
+
 /* Is this a client key the domain lets in? Monitors (the last key) only on
  * the monitor streams. */
-static int allowed(const cpl_zap *z, const char *domain, const uint8_t *key) {
+static int allowed(const cpl_zap_handler *z, const char *domain, const uint8_t *key) {
   int monitor_ok = strcmp(domain, CPL_ZAP_MONITOR) == 0;
   for (int i = 0; i < z->nkeys; i++) {
     if (i == z->nkeys - 1 && !monitor_ok) break;
@@ -52,7 +64,7 @@ static void printable(char *s) {
     if (*s < 0x20 || *s > 0x7e) *s = '?';
 }
 
-static void answer(cpl_zap *z) {
+static void answer(cpl_zap_handler *z) {
   char f[ZAP_FRAMES][FRAME_CAP];
   size_t len[ZAP_FRAMES];
   int n = 0, more = 1;
@@ -92,7 +104,7 @@ static void answer(cpl_zap *z) {
 }
 
 static void *zap_thread(void *arg) {
-  cpl_zap *z = arg;
+  cpl_zap_handler *z = arg;
   zmq_pollitem_t items[] = {{z->control_thread, 0, ZMQ_POLLIN, 0}, {z->rep, 0, ZMQ_POLLIN, 0}};
   while (zmq_poll(items, 2, -1) >= 0 || zmq_errno() == EINTR) {
     if (items[0].revents & ZMQ_POLLIN) break;
@@ -113,6 +125,51 @@ static int client(cpl_zap *z, const char *path, proto_err *err) {
   return 0;
 }
 
+cpl_zap_handler *cpl_zap_serve(const cpl_zap *keys, void *ctx, proto_err *err) {
+  cpl_zap_handler *z = calloc(1, sizeof *z);
+  if (!z) {
+    proto_fail(err, "security.curve: out of memory");
+    return NULL;
+  }
+  z->nkeys = keys->nkeys;
+  memcpy(z->allowed, keys->allowed, sizeof z->allowed);
+  char ctl[64];
+  snprintf(ctl, sizeof ctl, "inproc://cosim-zap-control-%p", (void *)z);
+  z->rep = zmq_socket(ctx, ZMQ_REP);
+  z->control_thread = zmq_socket(ctx, ZMQ_PAIR);
+  z->control_main = zmq_socket(ctx, ZMQ_PAIR);
+  int linger = 0, rc = 0;
+  void *all[] = {z->rep, z->control_thread, z->control_main};
+  for (int i = 0; i < 3; i++) zmq_setsockopt(all[i], ZMQ_LINGER, &linger, sizeof linger);
+  if (zmq_bind(z->rep, ZAP_ENDPOINT) != 0 || zmq_bind(z->control_thread, ctl) != 0 ||
+      zmq_connect(z->control_main, ctl) != 0)
+    rc = proto_fail(err, "security.curve: cannot start the ZAP handler: %s",
+                    zmq_strerror(zmq_errno()));
+  if (rc == 0 && pthread_create(&z->thread, NULL, zap_thread, z) != 0)
+    rc = proto_fail(err, "security.curve: cannot start the ZAP thread");
+  z->started = rc == 0;
+  if (rc < 0) {
+    cpl_zap_handler_stop(z);
+    return NULL;
+  }
+  return z;
+}
+
+void cpl_zap_handler_stop(cpl_zap_handler *z) {
+  if (!z) return;
+  if (z->started) {
+    zmq_send(z->control_main, "", 0, 0);
+    pthread_join(z->thread, NULL);
+  }
+  zmq_close(z->control_main);
+  zmq_close(z->control_thread);
+  zmq_close(z->rep);
+  if (z->refused > REFUSALS_SHOWN)
+    fprintf(stderr, "cosim: refused %d connections without an allowed CURVE key\n",
+            z->refused);
+  free(z);
+}
+
 cpl_zap *cpl_zap_start(void *ctx, const char *dir, const cpl_scene *s, proto_err *err) {
   cpl_zap *z = calloc(1, sizeof *z);
   if (!z) return NULL;
@@ -124,21 +181,7 @@ cpl_zap *cpl_zap_start(void *ctx, const char *dir, const cpl_scene *s, proto_err
   }
   snprintf(path, sizeof path, "%s/monitor.key", dir);
   if (rc == 0) rc = client(z, path, err);
-  char ctl[64];
-  snprintf(ctl, sizeof ctl, "inproc://cosim-zap-control-%p", (void *)z);
-  z->rep = zmq_socket(ctx, ZMQ_REP);
-  z->control_thread = zmq_socket(ctx, ZMQ_PAIR);
-  z->control_main = zmq_socket(ctx, ZMQ_PAIR);
-  int linger = 0;
-  void *all[] = {z->rep, z->control_thread, z->control_main};
-  for (int i = 0; i < 3; i++) zmq_setsockopt(all[i], ZMQ_LINGER, &linger, sizeof linger);
-  if (rc == 0 && (zmq_bind(z->rep, ZAP_ENDPOINT) != 0 || zmq_bind(z->control_thread, ctl) != 0 ||
-                  zmq_connect(z->control_main, ctl) != 0))
-    rc = proto_fail(err, "security.curve: cannot start the ZAP handler: %s",
-                    zmq_strerror(zmq_errno()));
-  if (rc == 0 && pthread_create(&z->thread, NULL, zap_thread, z) != 0)
-    rc = proto_fail(err, "security.curve: cannot start the ZAP thread");
-  z->started = rc == 0;
+  if (rc == 0 && !(z->handler = cpl_zap_serve(z, ctx, err))) rc = -1;
   if (rc < 0) {
     cpl_zap_stop(z);
     return NULL;
@@ -157,16 +200,7 @@ const char *cpl_zap_monitor_file(const cpl_zap *z) {
 
 void cpl_zap_stop(cpl_zap *z) {
   if (!z) return;
-  if (z->started) {
-    zmq_send(z->control_main, "", 0, 0);
-    pthread_join(z->thread, NULL);
-  }
-  zmq_close(z->control_main);
-  zmq_close(z->control_thread);
-  zmq_close(z->rep);
+  cpl_zap_handler_stop(z->handler);
   for (int i = 0; i < z->nkeys; i++) unlink(z->files[i]);
-  if (z->refused > REFUSALS_SHOWN)
-    fprintf(stderr, "cosim: refused %d connections without an allowed CURVE key\n",
-            z->refused);
   free(z);
 }

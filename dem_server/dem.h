@@ -24,14 +24,15 @@
 #define DEM_MAX_PLANES 64
 #define DEM_MAX_MESHES 8
 #define DEM_MESH_SLOTS 6 /* mesh contacts kept per grain */
-/* "sleep" defaults: at rest below 2 mm/s for 20 ms, 5 cm from moving meshes;
+/* "sleep" defaults: at rest below 2 mm/s for 20 ms, outside the region around
+ * the moving meshes (its margin: dem_sleep.c; `distance` only widens it);
  * woken when pressed beyond 0.02 of the smaller radius: a settled bed's
  * grains rest at overlaps of ~0.004 (20 MPa) to 0.01 (5 MPa) of their radius
  * at the bottom of 0.13 m of grains, so 0.02 means the load on the contact
  * has grown 3-10x (Hertz: F ~ overlap^1.5) since the grain fell asleep */
 #define DEM_SLEEP_VELOCITY 2e-3
 #define DEM_SLEEP_TIME 0.02
-#define DEM_SLEEP_DISTANCE 0.05
+#define DEM_SLEEP_DISTANCE 0.0
 #define DEM_SLEEP_OVERLAP 0.02
 
 typedef struct dem_material {
@@ -80,15 +81,30 @@ typedef struct dem_mesh {
 } dem_mesh;
 
 /* "sleep" (dem_sleep.c): a grain slower than `velocity` (also |ω| r) for
- * `time` and farther than `distance` from every moving mesh's box stops
- * (not integrated; its contacts with other sleeping grains frozen); it wakes
- * when a grain faster than `velocity` or a mesh (box within `distance`)
- * comes to it, or an awake grain presses into it beyond `overlap` of the
- * smaller radius. */
+ * `time`, resting on something and outside the region around the moving
+ * meshes (their box grown by a margin of at least `distance`) stops: not
+ * integrated, not in the list rebuild, its contacts with other sleeping
+ * grains frozen; it wakes when an awake grain listed with it moves faster
+ * than `velocity` or presses into it beyond `overlap` of the smaller radius,
+ * or the region reaches it. */
 typedef struct dem_sleep_config {
   int on;
   double velocity, time, distance, overlap;
 } dem_sleep_config;
+
+/* Preparation of a packing ("particles.prepare" of a generated bed; terra's
+ * --prep-friction): while the bed settles, every contact law's sliding
+ * friction is `friction` and its rolling friction `rolling` (every material
+ * and pair, walls and meshes included), then the scene's laws come back
+ * before t = 0. Low friction while settling packs the grains denser
+ * (bench/results/sand_calibration.md). on = 0: the scene's laws throughout. */
+typedef struct dem_prep {
+  int on;
+  double friction, rolling;
+} dem_prep;
+/* Largest preparation friction accepted: beyond it a value is a typo (a
+ * Coulomb limit of 10 |F_n| never lets a contact slide). */
+#define DEM_PREP_FRICTION_MAX 10.0
 
 /* Config values kept as given (the derived ones live in dem_model). */
 typedef struct dem_model_config {
@@ -98,6 +114,9 @@ typedef struct dem_model_config {
   double settle_ke;    /* generated beds: settle until KE per grain below this (J) */
   double settle_steps; /* ... or this many steps (0 = no settling) */
   char save_bed[512];  /* generated beds: HDF5 file written after settling ("" = none) */
+  char bed_file[512];  /* "particles.file": the bed read ("" = none) */
+  int bed_positions;   /* "particles.state": "positions": ignore the bed's saved state */
+  dem_prep prep;       /* generated beds: "particles.prepare" (the laws while settling) */
 } dem_model_config;
 
 typedef struct dem_model {
@@ -148,6 +167,10 @@ typedef struct dem_state {
   uint8_t *fix_rotation;
   /* meshes: current node positions/velocities and the force grains exert on nodes */
   double *mesh_x[DEM_MAX_MESHES], *mesh_v[DEM_MAX_MESHES], *mesh_force[DEM_MAX_MESHES];
+  /* sparse exchange (dem_nodeset.c): per triangle, 1 if its nodes' positions
+   * are this step's; a triangle marked 0 touches no grain. NULL: all are.
+   * Set from each step request, not part of the exported state. */
+  const uint8_t *mesh_live[DEM_MAX_MESHES];
   /* per-step summary */
   double kinetic_energy;   /* translational + rotational, J */
   double elastic_energy;   /* normal Hertz energy stored in contacts, J */
@@ -206,6 +229,27 @@ int dem_advance(const dem_model *m, dem_state *s, double duration, proto_err *er
 /* Sets coupled mesh nodes: positions at the current time and velocities. */
 void dem_mesh_set_nodes(const dem_model *m, dem_state *s, int mesh,
                         const double *x, const double *v);
+/* Sparse exchange (dem_nodeset.c, PROTOCOL.md "Sparse exchange"). */
+/* Sets the k nodes idx[0..k) of a coupled mesh from rows x, v [k*3]; the
+ * others keep their positions and stand still (v = 0), and every triangle
+ * with such a node is marked not live in live[n_tri] (node_seen: [n_nodes]
+ * scratch), which s->mesh_live[mesh] then points to. */
+void dem_mesh_set_nodes_sparse(const dem_model *m, dem_state *s, int mesh, int64_t k,
+                               const int32_t *idx, const double *x, const double *v,
+                               uint8_t *node_seen, uint8_t *live);
+/* The box the grains can reach in the next coupling step of length dt:
+ * every grain's sphere box grown by the margin of dem_nodeset.c, [lo, hi]. */
+void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box[6]);
+/* The slot of a grain whose sphere box is not inside box, or -1. */
+int dem_reach_escaped(const dem_state *s, const double box[6]);
+/* With "sleep" (dem_sleep.c): box (from dem_reach_box) grown to what the
+ * active region looks at, and *per_speed (s): the coupler grows it further by
+ * that times the surface's largest node speed of the step; 0 without sleep. */
+void dem_sleep_reach(const dem_model *m, const dem_state *s, double box[6], double *per_speed);
+/* With "sleep": before the next dem_mesh_set_nodes(_sparse), only the nodes
+ * of the triangles whose path over dt meets box count for the region's guard
+ * (the same nodes in a dense and a sparse exchange). */
+void dem_sleep_jump_box(dem_state *s, const double box[6], double dt);
 /* Copies per-grain data back into model order (out[id]). cols = 3 or 1. */
 void dem_gather(const dem_state *s, const double *slot_data, int cols, double *out);
 /* Mean coordination number (contacts per grain, grain–grain only). */
@@ -277,6 +321,36 @@ typedef void (*dem_progress_fn)(void *ctx, double fraction, const char *what);
  * max_steps, reporting progress now and then (the fraction of max_steps). */
 int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain,
                int64_t max_steps, dem_progress_fn progress, void *ctx, proto_err *err);
+/* Simulated time a bed placed at rest on the lattice settles before the
+ * kinetic-energy test may end it: its grains start with no kinetic energy,
+ * and with a 6-9 us step (E = 100-200 MPa) the test alone ended a bed after
+ * 101 steps, still in free fall; by 0.1 s the top layer has fallen its ~30
+ * gaps of 0.5 mm (55 ms) and rearranges (terra/README.md "Settling"). */
+#define DEM_SETTLE_MIN_TIME 0.1 /* s */
+/* dem_settle of a placed bed: at least DEM_SETTLE_MIN_TIME (capped by
+ * max_steps) before the kinetic-energy test, at most max_steps in all
+ * (dem_bed_settle's phases, terra's tests). */
+int dem_settle_placed(const dem_model *m, dem_state *s, double ke_per_grain, int64_t max_steps,
+                      dem_progress_fn progress, void *ctx, proto_err *err);
+/* The preparation checked against the model: values in [0,
+ * DEM_PREP_FRICTION_MAX], and a rolling friction > 0 only in a model that
+ * has some (the state keeps rolling state only then); messages name
+ * key.friction / key.rolling_friction. p->on = 0 passes. */
+int dem_prep_check(const dem_model *m, const dem_prep *p, const char *key, proto_err *err);
+/* The override itself: every law's mu and mu_roll become the preparation's
+ * (nothing else of the law changes). The caller keeps the scene's laws
+ * (m->law) to put them back; dem_bed_settle works on a copy instead. */
+void dem_prep_laws(dem_model *m, const dem_prep *p);
+/* A generated bed's settling, as its config says (dem_server's init): with
+ * m->cfg.prep on, dem_settle on a copy of the model with the preparation's
+ * laws (dem_prep_laws), then with the scene's (m): the tangential springs
+ * stay as they are at the switch and the scene's Coulomb rule limits them
+ * at the next step, the rolling torques (no history) start with it; each
+ * phase dem_settle_placed up to settle_max_steps to settle_ke_per_grain.
+ * Without: one such phase with the scene's laws. Then the clock is reset (t = 0, step
+ * 0); *steps (may be NULL) gets the steps settled. */
+int dem_bed_settle(const dem_model *m, dem_state *s, dem_progress_fn progress, void *ctx, int64_t *steps,
+                   proto_err *err);
 /* Most grains a model may have (generated or read). */
 #define DEM_MAX_GRAINS ((int64_t)100000000)
 /* HDF5 beds: datasets x [n,3], v [n,3], omega [n,3], r [n], material [n] (i4),
@@ -287,6 +361,22 @@ int dem_settle(const dem_model *m, dem_state *s, double ke_per_grain,
  * allocates; values must be finite, radii > 0 (materials: the caller). */
 int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto_err *err);
 int dem_bed_load(dem_model *m, const char *path, proto_err *err);
+/* A saved bed also holds the whole state (group /state: dem_state_export's
+ * arrays) and /settled_with [dt, gx, gy, gz] (dem_bed_save writes under a
+ * temporary name, then renames: a bed file is always whole). After
+ * dem_state_init of a model read from m->cfg.bed_file, dem_bed_continue
+ * imports that state (dem_state_import): the run then continues the one
+ * that saved the bed, bit for bit. A state of another model is refused,
+ * naming the parts that differ (the positions-only load is
+ * "particles.state": "positions"). A file without /state (an old bed, or one
+ * made elsewhere) leaves s as dem_state_init made it (positions only). *info
+ * says which, and the dt and gravity of the saving run (for the log). */
+typedef struct dem_bed_info {
+  int continued;          /* 1: the saved state was imported; 0: positions only */
+  int has_state;          /* the file has one */
+  double dt, gravity[3];  /* of the run that saved it (NAN if not recorded) */
+} dem_bed_info;
+int dem_bed_continue(const dem_model *m, dem_state *s, dem_bed_info *info, proto_err *err);
 
 /* The bed's top: the `percentile` (in (0, 100]) of the grain tops z + r over
  * the grains whose centre lies in the x-y rectangle [lo, hi] (nearest rank);

@@ -1,14 +1,24 @@
 /* dem_bed.c — the soil bed of seed 000 (table 2): three layers of grains,
- * placed without overlap on jittered lattices, settled under gravity by the
- * caller (dem_settle); beds saved to and loaded from HDF5. */
+ * placed without overlap on jittered lattices, settled under gravity
+ * (dem_bed_settle: with the preparation's laws first if the config has one,
+ * dem_model.c's dem_prep_laws, then the scene's; dem_settle_placed); beds
+ * saved to and loaded from HDF5: the grains in model order (x, v, omega, r,
+ * material: what dem_bed_load puts into the model) and the whole state
+ * (/state: dem_state_export's arrays, which dem_bed_continue imports into a
+ * fresh state, so a run from the file continues the one that saved it).
+ * Through proto's HDF5 writer and reader. */
 #include "dem_server/dem_internal.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define DEM_BED_MAX_OVERLAP "max_overlap" /* dataset: largest overlap when saved */
+#define DEM_BED_STATE "/state"             /* group: the state.<x> arrays */
+#define DEM_BED_SETTLED "settled_with"     /* dataset: dt, gravity x y z of the saving run */
+#define DEM_BED_TMP ".tmp"                 /* written under path.tmp, then renamed */
 
 void dem_bed_paper(dem_bed_spec *b, double scale) {
   memset(b, 0, sizeof *b);
@@ -72,6 +82,42 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err) {
   return 0;
 }
 
+/* ------------------------------------------------------------ settling */
+
+int dem_settle_placed(const dem_model *m, dem_state *s, double ke_per_grain, int64_t max_steps,
+                      dem_progress_fn progress, void *ctx, proto_err *err) {
+  int64_t n_min = (int64_t)ceil(DEM_SETTLE_MIN_TIME / s->dt);
+  if (n_min > max_steps) n_min = max_steps;
+  if (n_min > 0 && dem_settle(m, s, 0.0, n_min, progress, ctx, err)) return -1;
+  return max_steps > n_min ? dem_settle(m, s, ke_per_grain, max_steps - n_min, progress, ctx, err) : 0;
+}
+
+int dem_bed_settle(const dem_model *m, dem_state *s, dem_progress_fn progress, void *ctx, int64_t *steps,
+                   proto_err *err) {
+  const dem_model_config *c = &m->cfg;
+  const int64_t k0 = s->step, max_steps = (int64_t)c->settle_steps;
+  int rc = 0;
+  if (c->prep.on) {
+    /* the preparation's laws on a copy: the scene's model is never changed,
+     * so nothing after this (the save, the run) can see the preparation's.
+     * The copy shares the model's arrays (read only, not freed here). */
+    dem_model *prepared = malloc(sizeof *prepared);
+    if (!prepared) return proto_fail(err, "%s.particles.prepare: out of memory", m->key_path);
+    *prepared = *m;
+    dem_prep_laws(prepared, &c->prep);
+    rc = dem_settle_placed(prepared, s, c->settle_ke, max_steps, progress, ctx, err);
+    free(prepared);
+    if (rc) return proto_wrap(err, "%s.particles.prepare (friction %g, rolling friction %g)", m->key_path,
+                              c->prep.friction, c->prep.rolling);
+  }
+  /* the scene's laws: its tangential springs and rolling torques build up */
+  if (dem_settle_placed(m, s, c->settle_ke, max_steps, progress, ctx, err)) return -1;
+  if (steps) *steps = s->step - k0;
+  s->t = 0;
+  s->step = 0;
+  return 0;
+}
+
 /* ------------------------------------------------------------------ HDF5 */
 
 /* Dataset "/<name>": n rows of cols columns ([n] when rank is 1). */
@@ -83,16 +129,10 @@ static int write_ds(proto_h5 *f, const char *name, proto_dtype dtype, int rank, 
   return proto_h5_write_array(f, "/", &a, err);
 }
 
-int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto_err *err) {
+/* The grains in model order, the largest overlap, the run's dt and gravity. */
+static int save_grains(const dem_model *m, const dem_state *s, proto_h5 *f, double *buf, int32_t *mat,
+                       proto_err *err) {
   const int64_t n = s->n;
-  double *buf = malloc(sizeof(double) * 9 * (size_t)n + 1);
-  int32_t *mat = malloc(sizeof(int32_t) * (size_t)n + 1);
-  proto_h5 *f = buf && mat ? proto_h5_create(path, err) : NULL;
-  if (!f) {
-    free(buf);
-    free(mat);
-    return buf && mat ? -1 : proto_fail(err, "%s: out of memory", path);
-  }
   dem_gather(s, s->x, 3, buf);
   dem_gather(s, s->v, 3, buf + 3 * n);
   dem_gather(s, s->omega, 3, buf + 6 * n);
@@ -105,10 +145,46 @@ int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto
   if (!rc) rc = write_ds(f, "material", PROTO_I4, 1, n, 1, mat, err);
   const double worst = dem_worst_overlap(m, s);
   if (!rc) rc = write_ds(f, DEM_BED_MAX_OVERLAP, PROTO_F8, 1, 1, 1, &worst, err);
+  const double with[4] = {s->dt, m->gravity[0], m->gravity[1], m->gravity[2]};
+  if (!rc) rc = write_ds(f, DEM_BED_SETTLED, PROTO_F8, 1, 4, 1, with, err);
+  return rc;
+}
+
+/* The state.<x> arrays of dem_state_export under /state. */
+static int save_state(const dem_model *m, const dem_state *s, proto_h5 *f, proto_err *err) {
+  proto_msg msg = {0};
+  proto_msg_reset(&msg, "bed", "state", s->step, s->t);
+  int rc = dem_state_export(m, s, &msg, err);
+  for (int a = 0; a < msg.narrays && !rc; a++) rc = proto_h5_write_array(f, DEM_BED_STATE, &msg.arrays[a], err);
+  proto_msg_free(&msg);
+  return rc;
+}
+
+int dem_bed_save(const dem_model *m, const dem_state *s, const char *path, proto_err *err) {
+  const int64_t n = s->n;
+  char tmp[sizeof m->cfg.save_bed + sizeof DEM_BED_TMP];
+  if (snprintf(tmp, sizeof tmp, "%s%s", path, DEM_BED_TMP) >= (int)sizeof tmp)
+    return proto_fail(err, "%s: path too long for a bed file", path);
+  double *buf = malloc(sizeof(double) * 9 * (size_t)n + 1);
+  int32_t *mat = malloc(sizeof(int32_t) * (size_t)n + 1);
+  proto_h5 *f = buf && mat ? proto_h5_create(tmp, err) : NULL;
+  if (!f) {
+    free(buf);
+    free(mat);
+    return buf && mat ? proto_wrap(err, "%s: cannot write the bed", path) : proto_fail(err, "%s: out of memory", path);
+  }
+  int rc = save_grains(m, s, f, buf, mat, err);
+  if (!rc) rc = save_state(m, s, f, err);
   if (proto_h5_close(f, rc ? NULL : err) < 0) rc = -1;
   free(buf);
   free(mat);
-  return rc ? proto_wrap(err, "%s: cannot write the bed", path) : 0;
+  if (!rc && rename(tmp, path) != 0)
+    rc = proto_fail(err, "cannot rename %s to %s: %s", tmp, path, strerror(errno));
+  if (rc) {
+    remove(tmp);
+    return proto_wrap(err, "%s: cannot write the bed", path);
+  }
+  return 0;
 }
 
 /* A per-grain dataset of n rows and cols columns ([n] or [n, 1] when cols
@@ -161,6 +237,89 @@ int dem_bed_load(dem_model *m, const char *path, proto_err *err) {
   }
   free(r);
   proto_h5in_close(f);
+  return rc;
+}
+
+/* ------------------------------------------------------------ continue */
+
+typedef struct state_read {
+  proto_h5in *f;
+  proto_msg *msg;
+  void **bufs;
+  proto_err *err;
+} state_read;
+
+/* One /state/<name> as stored, into the message (as a checkpoint's). */
+static int read_state_array(const char *name, void *ctx) {
+  state_read *x = ctx;
+  proto_msg *m = x->msg;
+  if (m->narrays == PROTO_MAX_ARRAYS)
+    return proto_fail(x->err, "%s:%s: more than %d arrays", proto_h5in_path(x->f), DEM_BED_STATE,
+                      PROTO_MAX_ARRAYS);
+  if (strncmp(name, PROTO_P_STATE, strlen(PROTO_P_STATE)) != 0 ||
+      proto_name_check(name, PROTO_NAME_DOTTED, "array name", x->err) < 0)
+    return proto_fail(x->err, "%s:%s: its arrays are named %s<x>", proto_h5in_path(x->f), DEM_BED_STATE,
+                      PROTO_P_STATE);
+  char obj[PROTO_NAME_LEN + sizeof DEM_BED_STATE + 1];
+  snprintf(obj, sizeof obj, "%s/%s", DEM_BED_STATE, name);
+  if (proto_h5in_read_array(x->f, obj, PROTO_MAX_FRAME_BYTES, &m->arrays[m->narrays], &x->bufs[m->narrays],
+                            x->err) < 0)
+    return -1;
+  m->narrays++;
+  return 0;
+}
+
+/* The file's grains (model order, /x) are the state's (slot order, by id):
+ * a file whose two halves disagree was edited or assembled by hand. */
+static int same_positions(const dem_model *m, const dem_state *s, const char *path, proto_err *err) {
+  for (int i = 0; i < s->n; i++) {
+    const int g = s->id[i];
+    if (memcmp(&s->x[3 * (size_t)i], &m->x0[3 * (size_t)g], 3 * sizeof(double)) != 0)
+      return proto_fail(err, "%s: grain %d: dataset 'x' and %sstate.x differ (the file was edited?)", path,
+                        g, DEM_BED_STATE "/");
+  }
+  return 0;
+}
+
+int dem_bed_continue(const dem_model *m, dem_state *s, dem_bed_info *info, proto_err *err) {
+  const char *path = m->cfg.bed_file;
+  *info = (dem_bed_info){0, 0, NAN, {NAN, NAN, NAN}};
+  proto_h5in *f = proto_h5in_open(path, err);
+  if (!f) return -1;
+  info->has_state = proto_h5in_exists(f, DEM_BED_STATE);
+  double *with = NULL;
+  int64_t dims[1] = {4};
+  int rc = 0;
+  if (proto_h5in_exists(f, DEM_BED_SETTLED)) {
+    rc = proto_h5in_read_f8(f, DEM_BED_SETTLED, 1, dims, 4, &with, err);
+    if (!rc) {
+      info->dt = with[0];
+      memcpy(info->gravity, with + 1, sizeof info->gravity);
+    }
+    free(with);
+  }
+  if (rc || !info->has_state || m->cfg.bed_positions) {
+    proto_h5in_close(f);
+    return rc;
+  }
+  proto_msg msg = {0};
+  void *bufs[PROTO_MAX_ARRAYS] = {0};
+  proto_msg_reset(&msg, "bed", "state", 0, 0);
+  state_read x = {f, &msg, bufs, err};
+  rc = proto_h5in_list(f, DEM_BED_STATE, read_state_array, &x, err);
+  proto_h5in_close(f);
+  if (!rc && dem_state_import(m, s, &msg, err)) {
+    char why[sizeof err->msg];
+    snprintf(why, sizeof why, "%s", err->msg);
+    rc = proto_fail(err, "%s: the saved state does not fit this scene: %s (set particles.state = "
+                    "\"positions\" to start from the grains' positions only)", path, why);
+  }
+  if (!rc) rc = same_positions(m, s, path, err);
+  const int n = msg.narrays;
+  msg.narrays = 0; /* the arrays are ours */
+  proto_msg_free(&msg);
+  for (int a = 0; a < n; a++) free(bufs[a]);
+  info->continued = rc == 0;
   return rc;
 }
 

@@ -120,6 +120,26 @@ static int read_particle(dem_model *m, proto_cfg *c, int i, void *ctx) {
   return proto_cfg_end(c);
 }
 
+/* "prepare": {"friction": MU, "rolling_friction": MUR (default 0)}: the laws
+ * while the bed settles (dem.h dem_prep; dem_bed_settle). */
+static int read_prepare(dem_model *m, proto_cfg *c, dem_prep *p) {
+  const cJSON *j = proto_cfg_raw(c, "prepare", PROTO_OPTIONAL);
+  *p = (dem_prep){0, 0, 0};
+  if (!j) return 0;
+  char path[320];
+  proto_cfg_subpath(c, "prepare", -1, path, sizeof path);
+  if (!cJSON_IsObject(j))
+    return proto_fail(c->err, "%s: expected an object {\"friction\": MU, \"rolling_friction\": MUR}", path);
+  proto_cfg pc;
+  p->on = 1;
+  if (proto_cfg_open(&pc, j, path, c->err) ||
+      proto_cfg_num(&pc, "friction", PROTO_REQUIRED, 0.0, DEM_PREP_FRICTION_MAX, &p->friction) ||
+      proto_cfg_num(&pc, "rolling_friction", PROTO_OPTIONAL, 0.0, DEM_PREP_FRICTION_MAX, &p->rolling) ||
+      proto_cfg_end(&pc))
+    return -1;
+  return dem_prep_check(m, p, path, c->err);
+}
+
 static int read_bed(dem_model *m, proto_cfg *c, dem_model_config *ex) {
   dem_bed_spec b;
   double scale = 1.0, seed = 1;
@@ -132,8 +152,12 @@ static int read_bed(dem_model *m, proto_cfg *c, dem_model_config *ex) {
       proto_cfg_num(c, "seed", PROTO_OPTIONAL, 0, 4e9, &seed) ||
       proto_cfg_num(c, "settle_ke_per_grain", PROTO_OPTIONAL, 0.0, 1e9, &ex->settle_ke) ||
       proto_cfg_num(c, "settle_max_steps", PROTO_OPTIONAL, 0.0, 1e9, &ex->settle_steps) ||
-      proto_cfg_str(c, "save", PROTO_OPTIONAL, ex->save_bed, sizeof ex->save_bed))
+      proto_cfg_str(c, "save", PROTO_OPTIONAL, ex->save_bed, sizeof ex->save_bed) ||
+      read_prepare(m, c, &ex->prep))
     return -1;
+  if (ex->prep.on && !(ex->settle_steps > 0))
+    return proto_fail(c->err, "%s.prepare: needs settle_max_steps > 0 (the preparation's laws act while the "
+                      "bed settles)", c->path);
   b.material = mat;
   b.seed = (uint64_t)seed;
   char gen[16];
@@ -158,8 +182,15 @@ static int read_particles(dem_model *m, proto_cfg *top, dem_model_config *ex, pr
   proto_cfg c;
   if (proto_cfg_open(&c, p, path, err)) return -1;
   if (cJSON_GetObjectItemCaseSensitive(p, "file")) {
-    char file[512];
-    if (proto_cfg_str(&c, "file", PROTO_REQUIRED, file, sizeof file) || proto_cfg_end(&c)) return -1;
+    /* "state": "continue" (default: the bed's saved state, if it has one,
+     * continues the run that saved it; dem_bed_continue) or "positions" */
+    static const char *const modes[] = {"continue", "positions", NULL};
+    int mode = 0;
+    char *file = ex->bed_file;
+    if (proto_cfg_str(&c, "file", PROTO_REQUIRED, file, sizeof ex->bed_file) ||
+        proto_cfg_enum(&c, "state", PROTO_OPTIONAL, modes, &mode) || proto_cfg_end(&c))
+      return -1;
+    ex->bed_positions = mode == 1;
     if (dem_bed_load(m, file, err)) return proto_wrap(err, "%s.file", path);
     for (int i = 0; i < m->n_grains; i++)
       if (m->material[i] < 0 || m->material[i] >= m->n_materials)

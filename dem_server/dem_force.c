@@ -75,42 +75,36 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
   b->n = q;
 }
 
-/* screen_block with sleeping grains ("sleep" on): pairs of two sleeping
- * grains are frozen (neither evaluated nor reset); a sleeping grain touched
- * by an awake one moving faster than the sleep velocity, or pressed by it
- * beyond sleep.overlap of the smaller radius, is woken (a sleeping grain is a
- * fixed one: under a slowly growing load its overlap would grow without
- * bound instead of the load spreading into the bed). */
-static int screen_block_sleep(const dem_model *m, const dem_state *s, struct dem_work *w, int i, int k0,
-                              int k1, pair_batch *restrict b) {
+/* screen_block for the asleep partners of awake grain i (the end of its
+ * row: slots >= n_active): such a contact is evaluated as with a fixed grain
+ * (its share is not added to the asleep one), and the asleep grain is woken
+ * when i moves faster than DEM_WAKE_FACTOR × the sleep velocity (listed: within r_i + r_j +
+ * skin at the last rebuild, so before they touch) or presses into it beyond
+ * sleep.overlap of the smaller radius (a sleeping grain is a fixed one: under
+ * a slowly growing load its overlap would grow without bound instead of the
+ * load spreading into the bed). */
+static void screen_block_asleep(const dem_model *m, const dem_state *s, struct dem_work *w, int i, int k0, int k1,
+                                pair_batch *restrict b) {
   const double *restrict x = s->x, *restrict rad = s->radius;
-  const uint8_t *restrict sl = w->asleep;
-  const double vs2 = m->sleep.velocity * m->sleep.velocity, wake_ov = m->sleep.overlap;
+  const double vw = DEM_WAKE_FACTOR * m->sleep.velocity, vs2 = vw * vw, wake_ov = m->sleep.overlap;
   const double xi0 = x[3 * i], xi1 = x[3 * i + 1], xi2 = x[3 * i + 2], ri = rad[i];
-  const int si = sl[i];
-  int q = b->n, live = 0;
+  const int fast = dem_dot(&s->v[3 * i], &s->v[3 * i]) > vs2;
+  int q = b->n;
   for (int k = k0; k < k1; k++) {
     const int j = w->nl_j[k];
-    if (si & sl[j]) continue;
-    live++;
     const double d0 = xi0 - x[3 * j], d1 = xi1 - x[3 * j + 1], d2 = xi2 - x[3 * j + 2];
     const double rj = rad[j], rsum = ri + rj, dd = d0 * d0 + d1 * d1 + d2 * d2;
     const int touch = dd < rsum * rsum;
     if ((touch ^ 1) & w->pair_touch[k]) memset(&w->nl_shear[3 * k], 0, 3 * sizeof(double));
     w->pair_touch[k] = (uint8_t)touch;
-    if (touch && (si | sl[j])) {
-      const int mover = si ? j : i;
-      const double rmin = ri < rj ? ri : rj, reach = rsum - wake_ov * rmin; /* overlap > wake_ov rmin */
-      if (dem_dot(&s->v[3 * mover], &s->v[3 * mover]) > vs2 || (reach > 0 && dd < reach * reach))
-        dem_wake(w, si ? i : j);
-    }
+    const double rmin = ri < rj ? ri : rj, reach = rsum - wake_ov * rmin; /* overlap > wake_ov rmin */
+    if (fast || (touch && reach > 0 && dd < reach * reach)) dem_wake(w, j);
     b->j[q] = j; b->k[q] = k;
     b->d[0][q] = d0; b->d[1][q] = d1; b->d[2][q] = d2;
     b->rj[q] = rj;
     q += touch;
   }
   b->n = q;
-  return live; /* pairs not frozen */
 }
 
 /* The rest of the inputs of entries q0.. (all of row i). */
@@ -257,32 +251,28 @@ static void pair_rows(const dem_model *m, dem_state *s, int lo, int hi, dem_chun
   b.n = 0;
   if (one_law)
     for (int q = 0; q < DEM_BATCH; q++) law_set(&b, q, &m->law[0][0]);
-  const int c = lo / DEM_CHUNK;
-  uint8_t *frozen = w->row_frozen; /* NULL unless "sleep" is on */
-  if (frozen && w->chunk_frozen[c]) return; /* all asleep, and so are all partners: nothing changes */
-  int live_rows = 0;
+  const int na = w->n_active; /* rows of awake grains only; their asleep partners end each row */
+  if (hi > na) hi = na;
   for (int i = hi - 1; i >= lo; i--) {
-    if (frozen && frozen[i]) continue; /* i and its partners asleep (until one wakes: dem_sleep.c) */
     const int kbeg = w->nl_start[i], kend = w->nl_start[i + 1];
-    int found = 0, live = 0;
-    for (int k0 = kbeg; k0 < kend; k0 += DEM_ROW_BLOCK) {
-      const int k1 = kend - k0 > DEM_ROW_BLOCK ? k0 + DEM_ROW_BLOCK : kend;
+    int kas = kend; /* first asleep partner (rows ascend in j) */
+    while (kas > kbeg && w->nl_j[kas - 1] >= na) kas--;
+    int found = 0;
+    for (int k0 = kbeg; k0 < kend;) {
+      const int lim = k0 < kas ? kas : kend;
+      const int k1 = lim - k0 > DEM_ROW_BLOCK ? k0 + DEM_ROW_BLOCK : lim;
       if (b.n + (k1 - k0) > DEM_BATCH) batch_flush(m, s, &b, &r, hi, sum);
       const int q0 = b.n;
-      if (frozen) live += screen_block_sleep(m, s, w, i, k0, k1, &b);
-      else screen_block(s, w, i, k0, k1, &b);
+      if (k0 < kas) screen_block(s, w, i, k0, k1, &b);
+      else screen_block_asleep(m, s, w, i, k0, k1, &b);
       batch_fill(m, s, &b, i, q0, one_law);
       found += b.n - q0;
+      k0 = k1;
     }
     if (!found) row_empty(s, i); /* no share into i is pending */
-    if (frozen) {
-      frozen[i] = w->asleep[i] && live == 0;
-      live_rows += !frozen[i];
-    }
   }
   batch_flush(m, s, &b, &r, hi, sum);
   if (r.i >= 0) row_finish(s, &r, sum);
-  if (frozen) w->chunk_frozen[c] = live_rows == 0 && w->chunk_awake[c] == 0;
 }
 
 /* Plane contacts (wall: R* = r_i, m* = m_i, no wall motion), batched like the
@@ -390,9 +380,7 @@ static double kick_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
   if (m->orientation) /* over the step with the mid-step ω (still ω^{n+1/2} here) */
     for (int i = lo; i < hi; i++)
       if (s->inv_inertia[i] > 0) dem_rotate_quaternion(&s->q[4 * i], &s->omega[3 * i], dt);
-  const uint8_t *asleep = w->asleep;
   for (int i = lo; i < hi; i++) {
-    if (asleep && asleep[i]) continue;
     double *v = &s->v[3 * i], *o = &s->omega[3 * i];
     const double *f = &s->force[3 * i], *t = &s->torque[3 * i];
     const double im = s->inv_mass[i], ii = s->inv_inertia[i];
@@ -417,9 +405,9 @@ static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
   b.n = 0;
   if (m->n_materials == 1) /* one law for every contact */
     for (int q = 0; q < DEM_BATCH; q++) wall_law_set(&b, q, &m->law[0][0]);
-  const uint8_t *asleep = w->asleep;
+  if (hi > w->n_active) hi = w->n_active; /* asleep grains: no forces needed */
+  const int meshes = m->n_meshes > 0 && w->chunk_mesh[lo / DEM_CHUNK]; /* else no candidates, no contacts */
   for (int i = lo; i < hi; i++) {
-    if (asleep && asleep[i]) continue; /* frozen: no forces needed */
     /* shares of pairs (i', i) from earlier chunks, descending i' (reverse
      * index order); open pairs add nothing and are skipped */
     const int q0 = w->rev_start[i], q1 = w->rev_start[i + 1];
@@ -440,29 +428,27 @@ static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
       s->force[3 * i] = fx; s->force[3 * i + 1] = fy; s->force[3 * i + 2] = fz;
       s->torque[3 * i] = tx; s->torque[3 * i + 1] = ty; s->torque[3 * i + 2] = tz;
     }
-    if (m->n_meshes > 0) sum->mesh_contacts += dem_mesh_grain(m, s, i, &sum->u);
+    if (meshes) sum->mesh_contacts += dem_mesh_grain(m, s, i, &sum->u);
     plane_screen(m, s, i, &b, part, sum);
   }
   wall_flush(m, s, &b, part, sum);
-  /* a sleeping grain's row counts when it was evaluated (an awake partner):
-   * its pairs with awake grains are live contacts */
-  for (int i = lo; i < hi; i++)
-    if (!(asleep && asleep[i] && w->row_frozen[i])) sum->ratio = w->ratio[i] > sum->ratio ? w->ratio[i] : sum->ratio;
-  if (m->n_meshes > 0) /* gravity is added as an acceleration in the kick */
+  for (int i = lo; i < hi; i++) sum->ratio = w->ratio[i] > sum->ratio ? w->ratio[i] : sum->ratio;
+  if (meshes) /* gravity is added as an acceleration in the kick */
     for (int i = lo; i < hi; i++)
-      for (int a = 0; a < 3 && !(asleep && asleep[i]); a++) {
+      for (int a = 0; a < 3; a++) {
         s->force[3 * i + a] += w->mesh_f[3 * i + a];
         s->torque[3 * i + a] += w->mesh_t[3 * i + a];
       }
   if (kick) sum->ke = kick_chunk(m, s, lo, hi);
-  if (asleep && kick) dem_sleep_chunk(m, s, (lo / DEM_CHUNK), lo, hi);
+  if (w->asleep && kick) dem_sleep_chunk(m, s, lo, hi);
 }
 
 void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {
   struct dem_work *w = s->work;
-  const int n = s->n, np3 = 3 * m->n_planes, nchunk = (n + DEM_CHUNK - 1) / DEM_CHUNK;
+  /* chunks of awake grains only (dem_sleep.c: the asleep ones come last) */
+  const int n = w->n_active, np3 = 3 * m->n_planes, nchunk = (n + DEM_CHUNK - 1) / DEM_CHUNK;
   dem_chunk_sum *cs = w->chunk;
-  memset(cs, 0, sizeof(dem_chunk_sum) * (size_t)nchunk);
+  memset(cs, 0, sizeof(dem_chunk_sum) * (size_t)w->nchunk);
 #pragma omp parallel num_threads(w->nthreads)
   {
 #pragma omp for schedule(dynamic, 1)
@@ -490,11 +476,7 @@ void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {
     ratio = cs[c].ratio > ratio ? cs[c].ratio : ratio;
   }
   if (m->n_meshes > 0) dem_mesh_reactions(m, s);
-  if (w->asleep) {
-    int64_t awake = 0;
-    for (int c = 0; c < nchunk; c++) awake += w->chunk_awake[c];
-    s->sleeping = n - awake;
-  }
+  if (w->asleep) s->sleeping = s->n - n;
   s->contacts = contacts;
   w->pair_contacts = pairs;
   s->max_overlap_ratio = ratio;

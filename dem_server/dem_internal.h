@@ -103,21 +103,43 @@ struct dem_work {
   double *mesh_xref[DEM_MAX_MESHES]; /* node positions when the lists were built */
   int lists_dirty;                /* a mesh started moving: rebuild the lists (and "near") */
   double *ratio; /* [n] max overlap ratio of i's contacts (i's own pairs, walls, meshes) */
-  /* sleeping grains (dem_sleep.c) */
-  uint8_t *asleep, *wake; /* [n] asleep; woken by a moving partner this step */
+  /* sleeping grains, the active block (dem_sleep.c): between steps slots
+   * [0, n_active) hold the awake grains and [n_active, n) the asleep ones, so
+   * the per-step loops and the list rebuild run over the awake block only */
+  uint8_t *asleep, *wake; /* [n] asleep; woken (asleep grain to wake at the end of the step) */
   int32_t *rest;          /* [n] steps at rest */
-  int *chunk_awake;       /* [nchunk] awake grains per chunk */
-  uint8_t *near;          /* [n] within `distance` of a moving mesh (at the last list build) */
-  uint8_t *chunk_frozen;  /* [nchunk] every row frozen */
-  uint8_t *row_frozen;    /* [n] asleep and so are all partners of its row */
-  int *prow_start, *prow, prow_cap; /* rows in which a slot is a partner */
-  int *ng_start, *ng_of, ng_cap, ng_ncap, ng_xcap; /* moving meshes' points binned by cell */
-  double *ng_x, ng_lo[3], ng_size;
-  int ng_dim[3];
+  uint8_t *near;          /* [n] inside the region (at its last update): may not sleep */
+  int n_active;           /* awake grains = first asleep slot */
+  int *wake_list, n_wake; /* asleep grains woken this step (any order: only flags are set from it) */
+  int compact;            /* the asleep set changes (DEM_COMPACT_*): list rebuild at the end of the step */
+  int64_t full_rebuilds, wake_rebuilds; /* of s->rebuilds (the rest: partial) */
+  int *frz_start;         /* [cell_cap] by Morton rank: the slot ranges of the asleep grains in the
+                           * cells of the last full rebuild (partial rebuilds reuse them) */
+  int grid_ok;            /* the grid (cell_lo, cell_size, cell_dim) and frz_start are valid */
+  double region_lo[3], region_hi[3]; /* the region (box): awake grains in it do not sleep, asleep ones wake */
+  int region_on;          /* a region is set (some mesh moved since the first update) */
+  int64_t region_step;    /* step of the last region update */
+  double region_rmax;     /* the largest grain radius */
+  double region_moved;    /* bound on any mesh node's move since the last region update (dem_sleep_guard) */
+  double region_budget;   /* the margin's mesh term at that update: the region holds while moved <= it */
+  int region_movers;      /* bit mi: mesh mi was moving at that update */
+  int64_t guard_updates;  /* region updates the guard made between the regular ones */
+  double jump_box[6], jump_dt; /* dem_sleep_jump_box: the filter of the next mesh set's jump */
+  int jump_on;
+  int32_t *jump_pos;           /* [largest mesh's nodes] scratch: a node's row in a sparse set */
+  double io_active[20];   /* dem_state_io.c: the active block's state (region, grid, guard) */
+  /* meshes: far from every grain (dem_mesh.c) */
+  uint8_t *chunk_mesh;    /* [nchunk] a grain of the chunk has mesh candidates or contacts */
+  uint8_t mesh_far[DEM_MAX_MESHES]; /* no candidates: skip the node scan while still far */
+  double mesh_gap[DEM_MAX_MESHES];  /* its box's distance to the grains' box at the list build, minus reach */
+  double mesh_moved[DEM_MAX_MESHES];/* bound on any node's move since the list build */
+  double mesh_vmax[DEM_MAX_MESHES]; /* largest node speed */
+  double grains_lo[3], grains_hi[3], grains_rmax; /* centres' box at the last list rebuild */
   uint8_t mesh_moving[DEM_MAX_MESHES]; /* some node velocity is not zero */
   uint8_t mesh_set[DEM_MAX_MESHES];    /* nodes set since the last list build */
   /* dem_state_export/import scratch (dem_state_io.c) */
   int64_t io_counters[8];
+  int64_t io_model[8]; /* the model's fingerprint by part ("state.model") */
   double io_scalars[8];
   double *io_mesh; /* [3][all mesh nodes][3]: x, v, force */
 };
@@ -219,20 +241,50 @@ void dem_threads_end(dem_state *s);
 /* dem_sleep.c */
 int dem_sleep_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_sleep_free(struct dem_work *w);
-/* After the kick of grains lo..hi−1 (chunk c): wake the woken and those a
- * moving mesh approaches, put to sleep those at rest long enough; counts. */
-void dem_sleep_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi);
+/* After the kick of awake grains lo..hi−1: their steps at rest. */
+void dem_sleep_chunk(const dem_model *m, dem_state *s, int lo, int hi);
+/* s->sleeping from the active block (state import: after dem_neigh_reverse,
+ * which finds n_active). */
 void dem_sleep_count(const dem_model *m, dem_state *s);
-/* The rows in which each slot is a partner (after each list rebuild/import). */
+/* State import: checks that the awake grains come first and restores the
+ * region and the grid of the last full rebuild from io_active. */
 int dem_sleep_partners(const dem_model *m, dem_state *s, proto_err *err);
-/* Which grains are near a moving mesh (called with each mesh list build). */
-int dem_sleep_near(const dem_model *m, dem_state *s, proto_err *err);
-/* A sleeping grain touched by a grain moving faster than the threshold. */
-static inline void dem_wake(struct dem_work *w, int i) { __atomic_store_n(&w->wake[i], 1, __ATOMIC_RELAXED); }
+/* State export: the region and the grid into io_active. */
+void dem_sleep_export(const dem_model *m, dem_state *s);
+#define DEM_IO_ACTIVE 20 /* doubles of "state.active" */
+/* A mesh's nodes about to be set to x (k rows, node idx[j] or j if idx is
+ * NULL): the largest jump from where they are adds to region_moved. */
+void dem_sleep_mesh_jump(const dem_model *m, dem_state *s, int mesh, int64_t k, const int32_t *idx,
+                         const double *x, const double *v, const uint8_t *seen);
+/* Before the forces of a step: when a mesh moved farther than the region's
+ * margin allows since its last update (or started moving), the region
+ * follows at once and wakes what it reaches (a wake rebuild). */
+int dem_sleep_guard(const dem_model *m, dem_state *s, proto_err *err);
+/* End of a step: wake the woken, every DEM_REGION_STEPS steps update the
+ * region (wake what it holds) and put to sleep the grains at rest outside
+ * it; then a full list rebuild if the asleep set changed. */
+int dem_sleep_update(const dem_model *m, dem_state *s, proto_err *err);
+/* An asleep grain listed with an awake one moving faster than the threshold. */
+static inline void dem_wake(struct dem_work *w, int i) {
+  if (!__atomic_exchange_n(&w->wake[i], 1, __ATOMIC_RELAXED))
+    w->wake_list[__atomic_fetch_add(&w->n_wake, 1, __ATOMIC_RELAXED)] = i;
+}
+/* Region update interval (steps): the region's margin covers what moves in it. */
+#define DEM_REGION_STEPS 5
+/* w->compact: grains woke (the asleep block keeps its order), or fell asleep (full rebuild) */
+/* An awake grain wakes its listed asleep neighbours when faster than this
+ * many times the sleep velocity: a hysteresis, so that grains at the edge of
+ * the asleep block, moving about the sleep velocity, do not wake and fall
+ * asleep again every few steps (each costs a list rebuild). */
+#define DEM_WAKE_FACTOR 4.0
+#define DEM_COMPACT_WAKE 1
+#define DEM_COMPACT_SLEEP 2
 /* dem_neigh.c */
 int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_neigh_free(struct dem_work *w);
 int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err);
+/* frz_start from the asleep block in the grid cell_lo/size/dim (state import). */
+int dem_neigh_asleep_cells(const dem_model *m, dem_state *s, proto_err *err);
 /* Room for npairs pairs in the list (keeps its contents). */
 int dem_neigh_reserve(const dem_model *m, dem_state *s, int npairs, proto_err *err);
 /* The reverse pair index (rev_start, rev_k) of the current list. */
@@ -247,6 +299,7 @@ int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_mesh_free(const dem_model *m, dem_state *s);
 void dem_mesh_move(const dem_model *m, dem_state *s, double dt);
 void dem_mesh_velocities_changed(const dem_model *m, dem_state *s, int mesh);
+void dem_mesh_nodes_set(const dem_model *m, dem_state *s, int mesh);
 /* Candidate lists: build; rebuild if a node moved more than skin/2 since. */
 int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err);
 /* Only the lists, keeping the rebuild schedule (state import). */

@@ -212,9 +212,10 @@ int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->mc_force = calloc(3 * nk, sizeof(double));
   w->mc_couple = calloc(3 * nk, sizeof(double));
   w->mesh_f = calloc(3 * (size_t)s->n, sizeof(double));
+  w->chunk_mesh = calloc((size_t)w->nchunk + 1, 1);
   w->mesh_t = calloc(3 * (size_t)s->n, sizeof(double));
   if (!w->mc_key || !w->mc_tri || !w->mc_mesh || !w->mc_shear || !w->mc_normal || !w->mc_zeta ||
-      !w->mc_force || !w->mc_couple || !w->mesh_f || !w->mesh_t || !w->ml_start || !w->ml_cbuf || !w->ml_cbuf_cap)
+      !w->mc_force || !w->mc_couple || !w->mesh_f || !w->mesh_t || !w->chunk_mesh || !w->ml_start || !w->ml_cbuf || !w->ml_cbuf_cap)
     return proto_fail(err, "out of memory for mesh contacts");
   return 0;
 }
@@ -232,30 +233,54 @@ void dem_mesh_free(const dem_model *m, dem_state *s) {
   free(w->ml_cbuf); free(w->ml_cbuf_cap); free(w->ml_start); free(w->ml_key);
   (void)m;
   free(w->mc_key); free(w->mc_tri); free(w->mc_mesh); free(w->mc_shear); free(w->mc_normal);
-  free(w->mc_zeta); free(w->mc_force); free(w->mc_couple); free(w->mesh_f); free(w->mesh_t);
+  free(w->mc_zeta); free(w->mc_force); free(w->mc_couple); free(w->mesh_f); free(w->mesh_t); free(w->chunk_mesh);
 }
 
 /* Meshes move with their node velocities (constant for rigid meshes, the
  * FEM's velocities between two coupling steps). The BVH is refitted only
  * when the candidate lists are rebuilt (dem_mesh_lists). */
 void dem_mesh_move(const dem_model *m, dem_state *s, double dt) {
+  double vmax = 0; /* of all meshes: the active region's guard (dem_sleep_guard) */
   for (int mi = 0; mi < m->n_meshes; mi++) {
     const dem_mesh *me = &m->meshes[mi];
     double *x = s->mesh_x[mi];
     const double *v = s->mesh_v[mi];
     if (!s->work->mesh_moving[mi]) continue; /* all velocities zero */
     for (int a = 0; a < 3 * me->n_nodes; a++) x[a] += v[a] * dt;
+    s->work->mesh_moved[mi] += s->work->mesh_vmax[mi] * dt; /* a bound on any node's move */
+    vmax = s->work->mesh_vmax[mi] > vmax ? s->work->mesh_vmax[mi] : vmax;
   }
+  s->work->region_moved += vmax * dt;
 }
 
 /* A mesh moves if any node velocity is not zero; one that starts moving
  * needs its lists (and the sleep "near" flags) redone. */
 void dem_mesh_velocities_changed(const dem_model *m, dem_state *s, int mi) {
   const double *v = s->mesh_v[mi];
-  int moving = 0;
-  for (int a = 0; a < 3 * m->meshes[mi].n_nodes && !moving; a++) moving = v[a] != 0;
+  double v2 = 0;
+  for (int a = 0; a < m->meshes[mi].n_nodes; a++) {
+    const double q = dem_dot(&v[3 * a], &v[3 * a]);
+    v2 = q > v2 ? q : v2;
+  }
+  const int moving = v2 > 0;
   if (moving && !s->work->mesh_moving[mi]) s->work->lists_dirty = 1;
   s->work->mesh_moving[mi] = (uint8_t)moving;
+  s->work->mesh_vmax[mi] = sqrt(v2);
+}
+
+/* New node positions of a far mesh (dem_mesh_set_nodes): how far they are
+ * from where the lists were built (its far test, dem_mesh_lists_check). */
+void dem_mesh_nodes_set(const dem_model *m, dem_state *s, int mi) {
+  struct dem_work *w = s->work;
+  if (!w->mesh_far[mi] || !w->mesh_xref[mi]) return;
+  const double *x = s->mesh_x[mi], *x0 = w->mesh_xref[mi];
+  double worst = 0;
+  for (int a = 0; a < m->meshes[mi].n_nodes; a++) {
+    const double d0 = x[3 * a] - x0[3 * a], d1 = x[3 * a + 1] - x0[3 * a + 1], d2 = x[3 * a + 2] - x0[3 * a + 2];
+    const double dd = d0 * d0 + d1 * d1 + d2 * d2;
+    worst = dd > worst ? dd : worst;
+  }
+  w->mesh_moved[mi] = isfinite(worst) ? sqrt(worst) : INFINITY;
 }
 
 void dem_bvh_update(dem_bvh *b, const double *x, const int32_t *tri, int n_tri) {
@@ -321,6 +346,7 @@ static int collect(const dem_model *m, const dem_state *s, int i, cand *out) {
   const double r = s->radius[i];
   for (int k = w->ml_start[i]; k < w->ml_start[i + 1]; k++) {
     const int mi = w->ml_key[k] >> DEM_TRI_BITS, t = w->ml_key[k] & ((1 << DEM_TRI_BITS) - 1);
+    if (s->mesh_live[mi] && !s->mesh_live[mi][t]) continue; /* stale nodes (dem_nodeset.c) */
     const double *x = s->mesh_x[mi];
     const int32_t *tn = &m->meshes[mi].tri[3 * t];
     cand c = {.mesh = mi, .tri = t};
@@ -378,6 +404,10 @@ static int lists_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi) 
   for (int i = lo; i < hi; i++) {
     const double *p = &s->x[3 * i], reach = s->radius[i] + m->skin;
     int got = 0;
+    if (i >= w->n_active) { /* asleep: outside the region, no mesh comes near (dem_sleep.c) */
+      w->ml_start[i + 1] = 0;
+      continue;
+    }
     for (int mi = 0; mi < m->n_meshes; mi++) {
       const dem_bvh *b = &w->bvh[mi];
       if (b->n_nodes == 0 || !sphere_box(p, reach, b->lo, b->hi)) continue; /* most grains */
@@ -396,6 +426,40 @@ static int lists_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi) 
     used += got;
   }
   return 0;
+}
+
+/* Which meshes are far from every awake grain: the distance between the
+ * mesh's node box and the box of the awake grains' centres, minus r_max +
+ * skin (the list reach), is the gap; such a mesh has no candidates, and the
+ * lists stay valid while no node moved more than gap + skin/2 (the grains move
+ * less than skin/2 before the next rebuild, which builds these lists again):
+ * a surface far from every grain costs one comparison per step
+ * (dem_mesh_lists_check), not a scan of its nodes. */
+static void far_meshes(const dem_model *m, dem_state *s) {
+  struct dem_work *w = s->work;
+  const int na = w->n_active;
+  double glo[3] = {INFINITY, INFINITY, INFINITY}, ghi[3] = {-INFINITY, -INFINITY, -INFINITY}, rmax = 0;
+  for (int i = 0; i < na; i++) {
+    for (int k = 0; k < 3; k++) {
+      glo[k] = fmin(glo[k], s->x[3 * i + k]);
+      ghi[k] = fmax(ghi[k], s->x[3 * i + k]);
+    }
+    rmax = fmax(rmax, s->radius[i]);
+  }
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    const dem_bvh *b = &w->bvh[mi]; /* refitted: its root is the node box */
+    w->mesh_far[mi] = 0;
+    w->mesh_moved[mi] = 0;
+    if (b->n_nodes == 0 || na == 0) continue;
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) {
+      const double e = fmax(0.0, fmax(b->lo[k] - ghi[k], glo[k] - b->hi[k]));
+      d2 += e * e;
+    }
+    const double gap = sqrt(d2) - rmax - m->skin;
+    w->mesh_gap[mi] = gap;
+    w->mesh_far[mi] = gap > 0;
+  }
 }
 
 /* The lists of every grain from the current positions (refits the BVHs). */
@@ -425,12 +489,17 @@ int dem_mesh_lists_build(const dem_model *m, dem_state *s, proto_err *err) {
     const int lo = c * DEM_CHUNK, hi = (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n;
     const int len = w->ml_start[hi] - w->ml_start[lo];
     if (len > 0) memcpy(&w->ml_key[w->ml_start[lo]], w->ml_cbuf[c], sizeof(int32_t) * (size_t)len);
+    /* a chunk without candidates and contacts skips the mesh sweep until the next build
+     * (keys appear only through candidates) */
+    int live = len > 0;
+    for (size_t k = (size_t)lo * DEM_MESH_SLOTS; !live && k < (size_t)hi * DEM_MESH_SLOTS; k++) live = w->mc_key[k] != 0;
+    w->chunk_mesh[c] = (uint8_t)live;
   }
+  far_meshes(m, s);
   return 0;
 }
 
-/* Rebuild: the lists, the node positions they are valid around, and which
- * grains are near a moving mesh (dem_sleep.c). */
+/* Rebuild: the lists and the node positions they are valid around. */
 int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
   if (dem_mesh_lists_build(m, s, err)) return -1;
@@ -439,7 +508,7 @@ int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err) {
     w->mesh_set[mi] = 0;
   }
   w->lists_dirty = 0;
-  return dem_sleep_near(m, s, err);
+  return 0;
 }
 
 int dem_mesh_lists_check(const dem_model *m, dem_state *s, proto_err *err) {
@@ -447,6 +516,10 @@ int dem_mesh_lists_check(const dem_model *m, dem_state *s, proto_err *err) {
   if (s->work->lists_dirty) return dem_mesh_lists(m, s, err);
   for (int mi = 0; mi < m->n_meshes; mi++) {
     if (!s->work->mesh_moving[mi] && !s->work->mesh_set[mi]) continue; /* not moved since the build */
+    if (s->work->mesh_far[mi]) { /* far from every grain: one comparison */
+      if (s->work->mesh_moved[mi] < s->work->mesh_gap[mi] + 0.5 * m->skin) continue;
+      return dem_mesh_lists(m, s, err);
+    }
     const double *x = s->mesh_x[mi], *x0 = s->work->mesh_xref[mi];
     double worst = 0;
     for (int a = 0; a < m->meshes[mi].n_nodes; a++) {

@@ -1,6 +1,8 @@
 /* dem_model.c — the DEM scene's physics that the config reader (dem_config.c),
  * the bed builder (dem_bed.c) and the state (dem_state.c) call down to: grain
- * arrays, pair laws, the Rayleigh time and the step. Calls nothing above it. */
+ * arrays, pair laws and the preparation's override of their friction
+ * (dem_prep_laws: dem_bed.c's settling, terra's tests), the Rayleigh time and
+ * the step. Calls nothing above it. */
 #include "dem_server/dem_internal.h"
 
 #include <float.h>
@@ -38,6 +40,29 @@ void dem_pair_law_set(const dem_material *a, const dem_material *b, double e, do
   l->damp_t = -2.0 * sqrt(5.0 / 6.0) * l->beta * sqrt(8.0 * l->Gstar);
   l->mu_roll = mu_roll;
   l->clamp = clamp;
+}
+
+int dem_prep_check(const dem_model *m, const dem_prep *p, const char *key, proto_err *err) {
+  if (!p->on) return 0;
+  if (!(p->friction >= 0 && p->friction <= DEM_PREP_FRICTION_MAX))
+    return proto_fail(err, "%s.friction: %g must lie in [0, %g]", key, p->friction, DEM_PREP_FRICTION_MAX);
+  if (!(p->rolling >= 0 && p->rolling <= DEM_PREP_FRICTION_MAX))
+    return proto_fail(err, "%s.rolling_friction: %g must lie in [0, %g]", key, p->rolling, DEM_PREP_FRICTION_MAX);
+  if (p->rolling > 0 && !m->has_rolling)
+    return proto_fail(err, "%s.rolling_friction: %g needs a scene with rolling_friction > 0 on some material "
+                      "or pair (the DEM keeps rolling state only then)", key, p->rolling);
+  return 0;
+}
+
+/* Every entry, also those of materials the model does not have: no law a
+ * contact can reach keeps the scene's friction. */
+void dem_prep_laws(dem_model *m, const dem_prep *p) {
+  if (!p->on) return;
+  for (int a = 0; a < DEM_MAX_MATERIALS; a++)
+    for (int b = 0; b < DEM_MAX_MATERIALS; b++) {
+      m->law[a][b].mu = p->friction;
+      m->law[a][b].mu_roll = p->rolling;
+    }
 }
 
 int dem_model_alloc_grains(dem_model *m, int n, proto_err *err) {

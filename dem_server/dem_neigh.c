@@ -12,7 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define PERM_MAX_TASKS (20 + DEM_MAX_PLANES)
+#define PERM_MAX_TASKS (24 + DEM_MAX_PLANES)
 #define PERM_MAX_REC (3 * DEM_MESH_SLOTS * sizeof(double))
 
 /* realloc that keeps the old block on failure */
@@ -129,6 +129,11 @@ static int perm_tasks(const dem_model *m, dem_state *s, perm_task *t) {
   if (m->sleep.on) {
     t[c++] = (perm_task){w->asleep, 1};
     t[c++] = (perm_task){w->rest, sizeof(int32_t)};
+    t[c++] = (perm_task){w->near, 1};
+  }
+  if (w->compact) { /* at the end of a step (dem_sleep_update): the next half kick takes these */
+    t[c++] = (perm_task){s->force, 3 * d};
+    t[c++] = (perm_task){s->torque, 3 * d};
   }
   for (int p = 0; p < m->n_planes; p++) t[c++] = (perm_task){dem_wall_shear(w, s->n, 0, p), 3 * d};
   if (m->n_meshes > 0) {
@@ -141,15 +146,23 @@ static int perm_tasks(const dem_model *m, dem_state *s, perm_task *t) {
 }
 
 
-static int permute_grains(const dem_model *m, dem_state *s, proto_err *err) {
+/* Slots from..from+cnt−1 (all of them, the awake block of a partial rebuild,
+ * or what follows the awake block at a wake rebuild); old_of within them. */
+static int permute_grains(const dem_model *m, dem_state *s, int from, int cnt, proto_err *err) {
   struct dem_work *w = s->work;
   perm_task t[PERM_MAX_TASKS];
   const int nt = perm_tasks(m, s, t);
+  const int *order = w->old_of;
+  if (from > 0) { /* relative to from (rev_start: scratch during a rebuild) */
+    for (int i = 0; i < cnt; i++) w->rev_start[i] = w->old_of[from + i] - from;
+    order = w->rev_start;
+    for (int k = 0; k < nt; k++) t[k].a = (char *)t[k].a + (size_t)from * t[k].rec;
+  }
   for (int k = 0; k < w->nthreads; k++)
     if (!w->perm_tmp[k] && !(w->perm_tmp[k] = malloc(PERM_MAX_REC * (size_t)s->n + 1)))
       return proto_fail(err, "out of memory for re-sorting %d grains", s->n);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads)
-  for (int k = 0; k < nt; k++) perm_run(&t[k], w->old_of, s->n, w->perm_tmp[omp_get_thread_num()]);
+  for (int k = 0; k < nt; k++) perm_run(&t[k], order, cnt, w->perm_tmp[omp_get_thread_num()]);
   return 0;
 }
 
@@ -192,7 +205,8 @@ static int setup_cells(const dem_model *m, dem_state *s, proto_err *err) {
   memcpy(w->cell_lo, lo, sizeof lo);
   if (total + 1 > w->cell_cap) {
     if (grow((void **)&w->cell_start, sizeof(int) * (size_t)(total + 1)) ||
-        grow((void **)&w->cell_rank, sizeof(int) * (size_t)(total + 1)))
+        grow((void **)&w->cell_rank, sizeof(int) * (size_t)(total + 1)) ||
+        (m->sleep.on && grow((void **)&w->frz_start, sizeof(int) * (size_t)(total + 1))))
       return proto_fail(err, "out of memory for cells");
     w->cell_cap = (int)total + 1;
     w->rank_dim[0] = -1; /* ranks to redo */
@@ -229,23 +243,96 @@ static void morton_ranks(struct dem_work *w) {
   memcpy(w->rank_dim, w->cell_dim, sizeof w->rank_dim);
 }
 
-/* Counting sort of grains by the Morton rank of their cell:
- * old_of[new slot] = old slot; cell_start indexed by rank. */
-static void sort_by_cell(dem_state *s, int ncell) {
+/* Counting sort of grains by the Morton rank of their cell, the awake grains
+ * first (slots 0..na−1), then the asleep ones: old_of[new slot] = old slot;
+ * cell_start (awake) and frz_start (asleep) indexed by rank. A partial
+ * rebuild (cnt = na) sorts the awake block only and keeps frz_start. */
+static void sort_by_cell(const dem_model *m, dem_state *s, int ncell, int cnt) {
   struct dem_work *w = s->work;
   const int n = s->n;
+  const uint8_t *asleep = m->sleep.on && cnt == n ? w->asleep : NULL;
   morton_ranks(w);
 #pragma omp parallel for schedule(static) num_threads(w->nthreads)
-  for (int i = 0; i < n; i++) {
+  for (int i = 0; i < cnt; i++) {
     const double *x = &s->x[3 * i];
     w->cell_of[i] = w->cell_rank[cell_index(w, cell_coord(w, x[0], 0), cell_coord(w, x[1], 1), cell_coord(w, x[2], 2))];
   }
-  memset(w->cell_start, 0, sizeof(int) * (size_t)(ncell + 1));
-  for (int i = 0; i < n; i++) w->cell_start[w->cell_of[i] + 1]++;
-  for (int c = 0; c < ncell; c++) w->cell_start[c + 1] += w->cell_start[c];
-  for (int i = 0; i < n; i++) w->old_of[w->cell_start[w->cell_of[i]]++] = i;
-  for (int c = ncell; c > 0; c--) w->cell_start[c] = w->cell_start[c - 1];
-  w->cell_start[0] = 0;
+  int na = 0;
+  for (int i = 0; i < cnt; i++) na += !(asleep && asleep[i]);
+  for (int pass = 0; pass < (asleep ? 2 : 1); pass++) {
+    int *start = pass ? w->frz_start : w->cell_start;
+    memset(start, 0, sizeof(int) * (size_t)(ncell + 1));
+    for (int i = 0; i < cnt; i++)
+      if (!asleep || asleep[i] == pass) start[w->cell_of[i] + 1]++;
+    start[0] = pass ? na : 0;
+    for (int c = 0; c < ncell; c++) start[c + 1] += start[c];
+    for (int i = 0; i < cnt; i++)
+      if (!asleep || asleep[i] == pass) w->old_of[start[w->cell_of[i]]++] = i;
+    for (int c = ncell; c > 0; c--) start[c] = start[c - 1];
+    start[0] = pass ? na : 0;
+  }
+  if (m->sleep.on && cnt == n) w->n_active = na;
+  for (int i = cnt; i < n; i++) w->old_of[i] = i; /* partial: the asleep block stays */
+}
+
+/* Wake rebuild (only grains woke since the last rebuild): the awake block
+ * stays as it is, the woken grains follow it sorted by cell (cell_start: their
+ * ranges), the rest of the asleep block after them in its order (still sorted
+ * by cell: frz_start counted again). */
+static void sort_wake(dem_state *s, int ncell) {
+  struct dem_work *w = s->work;
+  const int n = s->n, na_old = w->n_active;
+  morton_ranks(w);
+  for (int i = 0; i < na_old; i++) w->old_of[i] = i;
+#pragma omp parallel for schedule(static) num_threads(w->nthreads)
+  for (int i = na_old; i < n; i++) {
+    const double *x = &s->x[3 * i];
+    w->cell_of[i] = w->cell_rank[cell_index(w, cell_coord(w, x[0], 0), cell_coord(w, x[1], 1), cell_coord(w, x[2], 2))];
+  }
+  int na = na_old;
+  for (int i = na_old; i < n; i++) na += !w->asleep[i];
+  for (int pass = 0; pass < 2; pass++) {
+    int *start = pass ? w->frz_start : w->cell_start;
+    const int first = pass ? na : na_old;
+    memset(start, 0, sizeof(int) * (size_t)(ncell + 1));
+    for (int i = na_old; i < n; i++)
+      if (w->asleep[i] == pass) start[w->cell_of[i] + 1]++;
+    start[0] = first;
+    for (int c = 0; c < ncell; c++) start[c + 1] += start[c];
+    for (int i = na_old; i < n; i++)
+      if (w->asleep[i] == pass) w->old_of[start[w->cell_of[i]]++] = i;
+    for (int c = ncell; c > 0; c--) start[c] = start[c - 1];
+    start[0] = first;
+  }
+  w->n_active = na;
+}
+
+/* Wake rebuild: an awake row keeps its pairs, renumbered; its woken partners
+ * (now awake) move before the asleep ones, in increasing slot. */
+static void awake_row_renumber(struct dem_work *w, int i, const int *new_of, int na_old) {
+  const int k0 = w->nl_start[i], k1 = w->nl_start[i + 1];
+  memcpy(&w->nl_j[k0], &w->old_j[k0], sizeof(int) * (size_t)(k1 - k0));
+  memcpy(&w->nl_shear[3 * k0], &w->old_shear[3 * k0], 3 * sizeof(double) * (size_t)(k1 - k0));
+  int kt = k1; /* the tail: partners that were asleep */
+  while (kt > k0 && w->nl_j[kt - 1] >= na_old) kt--;
+  const int na = w->n_active;
+  int q = kt;
+  for (int pass = 0; pass < 2; pass++) /* woken first (sorted below), then asleep, each in order */
+    for (int k = kt; k < k1; k++) {
+      const int j = new_of[w->old_j[k]];
+      if ((j >= na) != pass) continue;
+      int p = q++;
+      for (; pass == 0 && p > kt && w->nl_j[p - 1] > j; p--) { /* few: insertion */
+        w->nl_j[p] = w->nl_j[p - 1];
+        memcpy(&w->nl_shear[3 * p], &w->nl_shear[3 * (p - 1)], 3 * sizeof(double));
+      }
+      w->nl_j[p] = j;
+      memcpy(&w->nl_shear[3 * p], &w->old_shear[3 * k], 3 * sizeof(double));
+    }
+  for (int k = k0; k < k1; k++) {
+    const double *sh = &w->nl_shear[3 * k];
+    if (k >= kt) w->pair_touch[k] = sh[0] != 0 || sh[1] != 0 || sh[2] != 0;
+  }
 }
 
 /* Candidates of one cell: the slots of its neighbour cells that come at or
@@ -271,18 +358,34 @@ static void cand_bind(cand_set *c, void *mem, int n) {
   c->hit = (uint8_t *)(c->j + n);
 }
 
-static void cell_candidates(const struct dem_work *w, const dem_state *s, int rank, const int *cc, cand_set *c) {
-  int lo[27], hi[27], nr = 0;
+/* Slot ranges [lo, hi) of the cells around cc in one class (start by rank),
+ * those with rank >= min_rank, inserted by start (disjoint) after nr. */
+static int cell_ranges(const struct dem_work *w, const int *start, int rank_min, const int *cc, int *lo, int *hi,
+                       int nr) {
+  const int first = nr;
   for (int z = cc[2] > 0 ? cc[2] - 1 : 0; z <= cc[2] + 1 && z < w->cell_dim[2]; z++)
     for (int y = cc[1] > 0 ? cc[1] - 1 : 0; y <= cc[1] + 1 && y < w->cell_dim[1]; y++)
       for (int x = cc[0] > 0 ? cc[0] - 1 : 0; x <= cc[0] + 1 && x < w->cell_dim[0]; x++) {
         const int r = w->cell_rank[cell_index(w, x, y, z)];
-        if (r < rank || w->cell_start[r] == w->cell_start[r + 1]) continue;
-        int q = nr++; /* ranges in increasing start (insertion; disjoint) */
-        for (; q > 0 && lo[q - 1] > w->cell_start[r]; q--) { lo[q] = lo[q - 1]; hi[q] = hi[q - 1]; }
-        lo[q] = w->cell_start[r];
-        hi[q] = w->cell_start[r + 1];
+        if (r < rank_min || start[r] == start[r + 1]) continue;
+        int q = nr++;
+        for (; q > first && lo[q - 1] > start[r]; q--) { lo[q] = lo[q - 1]; hi[q] = hi[q - 1]; }
+        lo[q] = start[r];
+        hi[q] = start[r + 1];
       }
+  return nr;
+}
+
+/* Candidates of a cell in increasing slot order: an awake row's are the
+ * awake grains of the cells around at or after its cell in Morton order
+ * (earlier cells hold only smaller slots) and the asleep grains of all cells
+ * around (slots after every awake one); an asleep row's (full rebuilds) the
+ * asleep grains of the cells around at or after its cell. */
+static void cell_candidates(const dem_model *m, const struct dem_work *w, const dem_state *s, int rank, int awake,
+                            const int *cc, cand_set *c) {
+  int lo[54], hi[54], nr = 0;
+  if (awake) nr = cell_ranges(w, w->cell_start, rank, cc, lo, hi, 0);
+  if (m->sleep.on) nr = cell_ranges(w, w->frz_start, awake ? 0 : rank, cc, lo, hi, nr);
   c->n = 0;
   for (int q = 0; q < nr; q++)
     for (int j = lo[q]; j < hi[q]; j++) {
@@ -322,13 +425,14 @@ static int list_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi, v
   struct dem_work *w = s->work;
   cand_set cs;
   cand_bind(&cs, scratch, s->n);
-  int used = 0, rank = w->cell_of[w->old_of[lo]]; /* cell_of: rank by old slot */
+  int used = 0, rank = -1, na = w->n_active;
   for (int i = lo; i < hi; i++) {
-    if (i == lo || i >= w->cell_start[rank + 1]) { /* a new cell: its candidates */
-      while (i >= w->cell_start[rank + 1]) rank++;
+    const int ri = w->cell_of[w->old_of[i]]; /* cell_of: rank by old slot */
+    if (i == lo || ri != rank || i == na) { /* a new cell (or class): its candidates */
+      rank = ri;
       int cc[3];
       for (int k = 0; k < 3; k++) cc[k] = cell_coord(w, s->x[3 * i + k], k);
-      cell_candidates(w, s, rank, cc, &cs);
+      cell_candidates(m, w, s, rank, i < na, cc, &cs);
     }
     for (;;) {
       int *row = w->cbuf[c] ? w->cbuf[c] + used : NULL; /* no buffer yet: room 0 */
@@ -369,48 +473,243 @@ static void carry_history(const struct dem_work *w, int i, int j, double *shear)
  * j in descending i' (the order dem_force.c adds their shares in). */
 void dem_neigh_reverse(dem_state *s) {
   struct dem_work *w = s->work;
-  const int n = s->n;
+  int n = s->n;
+  if (w->asleep) { /* the awake grains come first (found again after a state import) */
+    int na = 0;
+    while (na < n && !w->asleep[na]) na++;
+    w->n_active = n = na; /* asleep grains gather nothing */
+  }
   memset(w->rev_start, 0, sizeof(int) * (size_t)(n + 1));
   for (int i = 0; i < n; i++) {
     const int end = (i / DEM_CHUNK + 1) * DEM_CHUNK;
     for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++)
-      if (w->nl_j[k] >= end) w->rev_start[w->nl_j[k] + 1]++;
+      if (w->nl_j[k] >= end && w->nl_j[k] < n) w->rev_start[w->nl_j[k] + 1]++;
   }
   for (int i = 0; i < n; i++) w->rev_start[i + 1] += w->rev_start[i];
   memcpy(w->rev_fill, w->rev_start, sizeof(int) * (size_t)n);
   for (int i = n - 1; i >= 0; i--) {
     const int end = (i / DEM_CHUNK + 1) * DEM_CHUNK;
     for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++)
-      if (w->nl_j[k] >= end) w->rev_k[w->rev_fill[w->nl_j[k]]++] = k;
+      if (w->nl_j[k] >= end && w->nl_j[k] < n) w->rev_k[w->rev_fill[w->nl_j[k]]++] = k;
   }
+}
+
+int dem_neigh_asleep_cells(const dem_model *m, dem_state *s, proto_err *err) {
+  struct dem_work *w = s->work;
+  const int n = s->n, na = w->n_active, ncell = w->cell_dim[0] * w->cell_dim[1] * w->cell_dim[2];
+  (void)m;
+  morton_ranks(w);
+  memset(w->frz_start, 0, sizeof(int) * (size_t)(ncell + 1));
+  int prev = 0;
+  for (int i = na; i < n; i++) {
+    const double *x = &s->x[3 * i];
+    const int r = w->cell_rank[cell_index(w, cell_coord(w, x[0], 0), cell_coord(w, x[1], 1), cell_coord(w, x[2], 2))];
+    if (r < prev)
+      return proto_fail(err, "state import: asleep grains not in the order of their cells (slot %d)", i);
+    prev = r;
+    w->frz_start[r + 1]++;
+  }
+  w->frz_start[0] = na;
+  for (int c = 0; c < ncell; c++) w->frz_start[c + 1] += w->frz_start[c];
+  w->grid_ok = 1;
+  return 0;
+}
+
+/* Wake rebuild: the rows of the asleep block, copied from the old list with
+ * the new slot numbers, without the pairs with a woken grain (the woken
+ * grain's own row lists them again); new_of: old slot → new (scratch).
+ * Lengths into nl_start[i + 1] (fill 0), then the entries (fill 1). */
+static void asleep_rows(dem_state *s, const int *new_of, int fill) {
+  struct dem_work *w = s->work;
+  const int n = s->n, na = w->n_active;
+  for (int i = na; i < n; i++) {
+    const int oi = w->old_of[i];
+    int k = fill ? w->nl_start[i] : 0;
+    for (int q = w->old_start[oi]; q < w->old_start[oi + 1]; q++) {
+      const int j = new_of[w->old_j[q]];
+      if (j < na) continue; /* woke */
+      if (fill) {
+        w->nl_j[k] = j;
+        memcpy(&w->nl_shear[3 * k], &w->old_shear[3 * q], 3 * sizeof(double));
+        const double *sh = &w->nl_shear[3 * k];
+        w->pair_touch[k] = sh[0] != 0 || sh[1] != 0 || sh[2] != 0;
+      }
+      k++;
+    }
+    if (!fill) w->nl_start[i + 1] = k;
+  }
+}
+
+/* Slot i listed again: planes it can touch before the next rebuild (it
+ * moves < skin/2; the springs of the others cleared), its quaternion
+ * renormalised (the hot loop does not: |dq| = 1 + O(h⁶)), its reference. */
+static void grain_refresh(const dem_model *m, dem_state *s, int i) {
+  struct dem_work *w = s->work;
+  const int n = s->n;
+  uint64_t mask = 0, touch = 0;
+  for (int p = 0; p < m->n_planes; p++) {
+    const dem_plane *pl = &m->planes[p];
+    double *sh = dem_wall_shear(w, n, i, p);
+    double d[3] = {s->x[3 * i] - pl->point[0], s->x[3 * i + 1] - pl->point[1], s->x[3 * i + 2] - pl->point[2]};
+    if (dem_dot(d, pl->normal) < s->radius[i] + m->skin) {
+      mask |= (uint64_t)1 << p;
+      if (sh[0] != 0 || sh[1] != 0 || sh[2] != 0) touch |= (uint64_t)1 << p;
+    } else {
+      memset(sh, 0, 3 * sizeof(double));
+    }
+  }
+  w->plane_mask[i] = mask;
+  w->plane_touch[i] = touch;
+  if (m->orientation) {
+    double *q = &s->q[4 * i];
+    const double nrm = 1.0 / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    for (int k = 0; k < 4; k++) q[k] *= nrm;
+  }
+  memcpy(&w->x_ref[3 * i], &s->x[3 * i], 3 * sizeof(double));
+}
+
+/* The rows of slots lo..hi−1 from the cells (list_chunk per chunk piece) and
+ * their history; lengths already summed into nl_start. */
+static int rows_from_cells(const dem_model *m, dem_state *s, int lo, int hi, int pass) {
+  struct dem_work *w = s->work;
+  int oom = 0;
+  const int c0 = lo / DEM_CHUNK, c1 = (hi + DEM_CHUNK - 1) / DEM_CHUNK;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads) reduction(| : oom)
+  for (int c = c0; c < c1; c++) {
+    const int a = c * DEM_CHUNK > lo ? c * DEM_CHUNK : lo, b = (c + 1) * DEM_CHUNK < hi ? (c + 1) * DEM_CHUNK : hi;
+    if (pass == 0) {
+      oom |= list_chunk(m, s, c, a, b, w->perm_tmp[omp_get_thread_num()]) != 0;
+      continue;
+    }
+    for (int i = a; i < b; i++) {
+      const int from = w->nl_start[i] - w->nl_start[a], len = w->nl_start[i + 1] - w->nl_start[i];
+      if (len > 0) memcpy(&w->nl_j[w->nl_start[i]], w->cbuf[c] + from, sizeof(int) * (size_t)len);
+      for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) {
+        double *sh = &w->nl_shear[3 * k];
+        carry_history(w, i, w->nl_j[k], sh);
+        w->pair_touch[k] = sh[0] != 0 || sh[1] != 0 || sh[2] != 0;
+      }
+      grain_refresh(m, s, i);
+    }
+  }
+  return oom;
+}
+
+/* Only grains woke since the last rebuild (dem_sleep_update): the awake rows
+ * keep their pairs (renumbered; the awake grains keep their reference, so the
+ * Verlet guarantee holds: a pair left out was farther than r_i + r_j + skin
+ * when the row was built, and each grain moves less than skin/2 from its own
+ * reference), the woken grains get rows from the cells, the asleep rows are
+ * copied without the pairs with woken grains. O(awake pairs + n) copies, no
+ * search outside the woken grains. */
+static int wake_rebuild(const dem_model *m, dem_state *s, int ncell, proto_err *err) {
+  struct dem_work *w = s->work;
+  const int n = s->n, na_old = w->n_active;
+  sort_wake(s, ncell);
+  const int na = w->n_active;
+  { int *t = w->old_start; w->old_start = w->nl_start; w->nl_start = t; }
+  { int *t = w->old_j; w->old_j = w->nl_j; w->nl_j = t; }
+  { double *t = w->old_shear; w->old_shear = w->nl_shear; w->nl_shear = t; }
+  { size_t t = w->old_cap; w->old_cap = w->cap; w->cap = t; }
+  if (permute_grains(m, s, na_old, n - na_old, err)) return -1;
+  int *new_of = w->rev_fill; /* scratch until dem_neigh_reverse */
+  for (int i = 0; i < n; i++) new_of[w->old_of[i]] = i;
+  memcpy(w->nl_start, w->old_start, sizeof(int) * (size_t)(na_old + 1));
+  if (rows_from_cells(m, s, na_old, na, 0))
+    return proto_fail(err, "out of memory for the neighbour list of %d grains", n);
+  for (int i = na_old; i < na; i++) w->nl_start[i + 1] += w->nl_start[i];
+  asleep_rows(s, new_of, 0);
+  for (int i = na; i < n; i++) w->nl_start[i + 1] += w->nl_start[i];
+  if (dem_neigh_reserve(m, s, w->nl_start[n], err)) return -1;
+#pragma omp parallel for schedule(dynamic, 256) num_threads(w->nthreads)
+  for (int i = 0; i < na_old; i++) awake_row_renumber(w, i, new_of, na_old);
+  rows_from_cells(m, s, na_old, na, 1);
+  asleep_rows(s, new_of, 1);
+  w->compact = 0;
+  s->sleeping = n - na;
+  w->wake_rebuilds++;
+  dem_neigh_reverse(s);
+  s->rebuilds++;
+  return m->n_meshes > 0 ? dem_mesh_lists(m, s, err) : 0;
+}
+
+/* A partial rebuild keeps the asleep block and the grid of the last full
+ * one: possible when the asleep set did not change and the awake grains are
+ * within one cell of that grid (outside it they would crowd its border cells;
+ * clamped coordinates still find every pair). Returns 1 if possible, −1 on a
+ * non-finite position. */
+static int partial_ok(const dem_model *m, dem_state *s, proto_err *err) {
+  struct dem_work *w = s->work;
+  if (!m->sleep.on || w->compact || !w->grid_ok || w->n_active == s->n) return 0;
+  const int na = w->n_active;
+  const double *x = s->x;
+  double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};
+  int bad = 0;
+#pragma omp parallel for schedule(static) num_threads(w->nthreads) reduction(min : lo[:3]) reduction(max : hi[:3]) \
+    reduction(| : bad)
+  for (int i = 0; i < na; i++)
+    for (int k = 0; k < 3; k++) {
+      const double xk = x[3 * i + k];
+      bad |= !isfinite(xk);
+      lo[k] = xk < lo[k] ? xk : lo[k];
+      hi[k] = xk > hi[k] ? xk : hi[k];
+    }
+  for (int i = 0; bad && i < na; i++)
+    if (!isfinite(x[3 * i] + x[3 * i + 1] + x[3 * i + 2]))
+      return proto_fail(err, "step %lld: grain %d has a non-finite position", (long long)s->step, (int)s->id[i]);
+  for (int k = 0; k < 3; k++)
+    if (lo[k] < w->cell_lo[k] - w->cell_size || hi[k] > w->cell_lo[k] + (w->cell_dim[k] + 1) * w->cell_size) return 0;
+  return 1;
 }
 
 int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
   const int n = s->n;
-  int ncell = setup_cells(m, s, err);
-  if (ncell < 0) return -1;
-  sort_by_cell(s, ncell);
+  /* wake: only grains woke (dem_sleep_update), the grid kept */
+  const int wake = m->sleep.on && w->compact == DEM_COMPACT_WAKE && w->grid_ok;
+  const int partial = wake ? 0 : partial_ok(m, s, err);
+  if (partial < 0) return -1;
+  int ncell = 0;
+  if (!partial && !wake) {
+    if ((ncell = setup_cells(m, s, err)) < 0) return -1;
+  } else {
+    ncell = w->cell_dim[0] * w->cell_dim[1] * w->cell_dim[2];
+  }
+  if (wake) return wake_rebuild(m, s, ncell, err);
+  sort_by_cell(m, s, ncell, partial ? w->n_active : n);
+  const int na = w->n_active;
+  const int cnt = partial ? na : n; /* slots listed again from the cells */
   /* the current list becomes the old one (old slot numbering): swap buffers */
   { int *t = w->old_start; w->old_start = w->nl_start; w->nl_start = t; }
   { int *t = w->old_j; w->old_j = w->nl_j; w->nl_j = t; }
   { double *t = w->old_shear; w->old_shear = w->nl_shear; w->nl_shear = t; }
   { size_t t = w->old_cap; w->old_cap = w->cap; w->cap = t; }
-  if (permute_grains(m, s, err)) return -1;
+  if (permute_grains(m, s, 0, partial ? na : n, err)) return -1;
   /* rows per chunk into the chunk's buffer, prefix sum, copy and carry the
-   * history (parallel and deterministic) */
-  const int nchunk = (n + DEM_CHUNK - 1) / DEM_CHUNK;
+   * history (parallel and deterministic); a partial rebuild copies the
+   * asleep block's rows (its pairs among asleep grains) as they were */
+  const int nchunk = (cnt + DEM_CHUNK - 1) / DEM_CHUNK;
   int oom = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads) reduction(| : oom)
   for (int c = 0; c < nchunk; c++)
-    oom |= list_chunk(m, s, c, c * DEM_CHUNK, (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n,
+    oom |= list_chunk(m, s, c, c * DEM_CHUNK, (c + 1) * DEM_CHUNK < cnt ? (c + 1) * DEM_CHUNK : cnt,
                       w->perm_tmp[omp_get_thread_num()]) != 0;
   if (oom) return proto_fail(err, "out of memory for the neighbour list of %d grains", n);
   w->nl_start[0] = 0;
-  for (int i = 0; i < n; i++) w->nl_start[i + 1] += w->nl_start[i];
+  for (int i = 0; i < cnt; i++) w->nl_start[i + 1] += w->nl_start[i];
+  for (int i = cnt; i < n; i++) w->nl_start[i + 1] = w->nl_start[i] + (w->old_start[i + 1] - w->old_start[i]);
   if (dem_neigh_reserve(m, s, w->nl_start[n], err)) return -1;
+  if (cnt < n) {
+    const size_t from = (size_t)w->old_start[cnt], to = (size_t)w->nl_start[cnt], len = (size_t)w->nl_start[n] - to;
+    memcpy(&w->nl_j[to], &w->old_j[from], sizeof(int) * len);
+    memcpy(&w->nl_shear[3 * to], &w->old_shear[3 * from], 3 * sizeof(double) * len);
+    for (size_t k = to; k < to + len; k++) {
+      const double *sh = &w->nl_shear[3 * k];
+      w->pair_touch[k] = sh[0] != 0 || sh[1] != 0 || sh[2] != 0;
+    }
+  }
 #pragma omp parallel for schedule(dynamic, 256) num_threads(w->nthreads)
-  for (int i = 0; i < n; i++) {
+  for (int i = 0; i < cnt; i++) {
     const int c = i / DEM_CHUNK, from = w->nl_start[i] - w->nl_start[c * DEM_CHUNK];
     const int len = w->nl_start[i + 1] - w->nl_start[i];
     if (len > 0) memcpy(&w->nl_j[w->nl_start[i]], w->cbuf[c] + from, sizeof(int) * (size_t)len);
@@ -419,34 +718,16 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
       carry_history(w, i, w->nl_j[k], sh);
       w->pair_touch[k] = sh[0] != 0 || sh[1] != 0 || sh[2] != 0; /* a spring to reset if open */
     }
-    /* planes a grain can touch before the next rebuild (it moves < skin/2);
-     * the springs of the others are cleared */
-    uint64_t mask = 0, touch = 0;
-    for (int p = 0; p < m->n_planes; p++) {
-      const dem_plane *pl = &m->planes[p];
-      double *sh = dem_wall_shear(w, n, i, p);
-      double d[3] = {s->x[3 * i] - pl->point[0], s->x[3 * i + 1] - pl->point[1], s->x[3 * i + 2] - pl->point[2]};
-      if (dem_dot(d, pl->normal) < s->radius[i] + m->skin) {
-        mask |= (uint64_t)1 << p;
-        if (sh[0] != 0 || sh[1] != 0 || sh[2] != 0) touch |= (uint64_t)1 << p;
-      } else {
-        memset(sh, 0, 3 * sizeof(double));
-      }
-    }
-    w->plane_mask[i] = mask;
-    w->plane_touch[i] = touch;
-    /* quaternions: the hot loop does not renormalise (|dq| = 1 + O(h⁶)); here */
-    if (m->orientation) {
-      double *q = &s->q[4 * i];
-      const double nrm = 1.0 / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-      for (int k = 0; k < 4; k++) q[k] *= nrm;
-    }
-    memcpy(&w->x_ref[3 * i], &s->x[3 * i], 3 * sizeof(double));
+    grain_refresh(m, s, i);
   }
   w->have_old = 1;
+  if (!partial) {
+    w->grid_ok = m->sleep.on;
+    w->compact = 0;
+    s->sleeping = n - na;
+  }
+  w->full_rebuilds += !partial;
   dem_neigh_reverse(s);
-  dem_sleep_count(m, s); /* chunks hold other grains now */
   s->rebuilds++;
-  if (dem_sleep_partners(m, s, err)) return -1;
   return m->n_meshes > 0 ? dem_mesh_lists(m, s, err) : 0;
 }

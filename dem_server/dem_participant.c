@@ -4,7 +4,20 @@
  * and the wall forces are the impulse over the step divided by dt, the mean
  * of the sub-steps' forces, so the tread receives exactly the impulse the
  * grains lost. The surface moves at the given velocity within the step
- * (dem_mesh_set_nodes, then dem_step moves it by v dt per sub-step). */
+ * (dem_mesh_set_nodes, then dem_step moves it by v dt per sub-step).
+ * Sparse exchange (dem_nodeset.c, PROTOCOL.md "Sparse exchange"): when the
+ * request says sparse, the done carries the nodal force as (index, force)
+ * for the nodes that carry one (dense beyond a third of the nodes) and the
+ * box the grains can reach next (header reach; with sleep grown to what the
+ * active region looks at, and reach_speed for the coupler to grow it by the
+ * surface's speed: dem_sleep_reach); a request with x_index sets only those
+ * nodes. With sleep the region's guard counts the jumps of the nodes near the
+ * grains only (dem_sleep_jump_box), the same nodes dense or sparse.
+ * A bed read from a file (particles.file) that holds a saved state continues
+ * the run that saved it (dem_bed_continue, after the state is made and the
+ * surface added); a generated bed settles in init (dem_bed_settle: with
+ * particles.prepare first with the preparation's laws, then the scene's) and
+ * with particles.save is written after settling, with its whole state. */
 #include "dem_server/dem.h"
 
 #include <math.h>
@@ -25,6 +38,9 @@ typedef struct dem_app {
   double series[DEM_N_SERIES];
   double *wall_row;    /* t, then Fx Fy Fz per wall (means over the step) */
   double *surface_force; /* [n*3] nodal force, mean over the step's sub-steps */
+  int32_t *force_index;  /* [n] sparse exchange: nodes whose force row is sent */
+  double *force_rows;    /* [n*3] their rows */
+  uint8_t *node_seen, *tri_live; /* [n], [m]: nodes set this step, live triangles */
   double *snap_x, *snap_v, *snap_w, *snap_r;
 } dem_app;
 
@@ -53,8 +69,14 @@ static int add_surface(dem_app *a, const proto_msg *welcome, proto_err *err) {
   const proto_array *tri = proto_msg_find(welcome, PROTO_A_SURFACE_TRI);
   if (!xa) return 0;
   a->surface = a->model.n_meshes;
-  a->surface_force = calloc(3 * (size_t)xa->shape[0], sizeof(double));
-  if (!a->surface_force) return proto_fail(err, "out of memory");
+  const size_t n = (size_t)xa->shape[0];
+  a->surface_force = calloc(3 * n, sizeof(double));
+  a->force_index = malloc(sizeof(int32_t) * (n + 1));
+  a->force_rows = malloc(sizeof(double) * 3 * (n + 1));
+  a->node_seen = malloc(n + 1);
+  a->tri_live = malloc((size_t)tri->shape[0] + 1);
+  if (!a->surface_force || !a->force_index || !a->force_rows || !a->node_seen || !a->tri_live)
+    return proto_fail(err, "out of memory");
   return dem_model_set_surface(&a->model, (int)xa->shape[0], xa->data, (int)tri->shape[0],
                                (const int32_t *)tri->data, err);
 }
@@ -69,6 +91,33 @@ static void log_threads(dem_app *a) {
 /* The DEM library's progress, as this participant's heartbeats say it. */
 static void report(void *ctx, double fraction, const char *what) {
   proto_peer_progress(ctx, fraction, what);
+}
+
+/* The state of a bed file (particles.file): the saved one continues the run
+ * that saved it; the log says which start this is. */
+static int continue_bed(dem_app *a, proto_err *err) {
+  const dem_model *m = &a->model;
+  const dem_state *s = &a->state;
+  dem_bed_info b;
+  if (dem_bed_continue(m, &a->state, &b, err)) return proto_wrap(err, "%s.particles.file", m->key_path);
+  const char *f = m->cfg.bed_file;
+  if (b.continued)
+    fprintf(stderr, "dem_server: bed %s: its saved state continues (contact springs, neighbour list, "
+            "sleep, clock: t = %.6g s, step %lld)\n", f, s->t, (long long)s->step);
+  else if (b.has_state)
+    fprintf(stderr, "dem_server: bed %s: positions only (particles.state = \"positions\"): the saved "
+            "state is not used, contacts start without tangential springs\n", f);
+  else
+    fprintf(stderr, "dem_server: bed %s has no saved state (an older or hand-made file): positions "
+            "only, contacts start without tangential springs\n", f);
+  const int same_g = b.gravity[0] == m->gravity[0] && b.gravity[1] == m->gravity[1] &&
+                     b.gravity[2] == m->gravity[2];
+  if (b.continued && (b.dt != s->dt || !same_g))
+    fprintf(stderr, "dem_server: bed %s was saved with dt = %.6g s, gravity (%g, %g, %g); this run has "
+            "dt = %.6g s, gravity (%g, %g, %g): it continues, but not bit for bit the run that saved "
+            "it\n", f, b.dt, b.gravity[0], b.gravity[1], b.gravity[2], s->dt, m->gravity[0],
+            m->gravity[1], m->gravity[2]);
+  return 0;
 }
 
 /* ready's bed_top: the settled bed's top under the coupled surface's x-y
@@ -98,6 +147,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   if (add_surface(a, welcome, err) || dem_state_init(m, &a->state, a->run_dt, err)) return -1;
   a->have_state = 1;
   log_threads(a);
+  if (m->cfg.bed_file[0] && a->restart_step == 0 && continue_bed(a, err)) return -1;
   /* a restart's state (dem_state_import into a fresh state, bitwise) takes
    * the place of the settled bed: no need to settle it first */
   if (m->cfg.settle_steps > 0 && a->restart_step > 0)
@@ -105,13 +155,14 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
             "has the bed)\n", (long long)a->restart_step);
   else if (m->cfg.settle_steps > 0) {
     double t0 = proto_now();
-    if (dem_settle(m, &a->state, m->cfg.settle_ke, (int64_t)m->cfg.settle_steps, report,
-                   a->peer, err))
-      return -1;
-    fprintf(stderr, "dem_server: bed of %d grains settled in %lld steps (%.1f s), KE %.3g J\n",
-            m->n_grains, (long long)a->state.step, proto_now() - t0, a->state.kinetic_energy);
-    a->state.t = 0;
-    a->state.step = 0;
+    int64_t steps = 0;
+    if (dem_bed_settle(m, &a->state, report, a->peer, &steps, err)) return -1;
+    fprintf(stderr, "dem_server: bed of %d grains settled in %lld steps (%.1f s), KE %.3g J", m->n_grains,
+            (long long)steps, proto_now() - t0, a->state.kinetic_energy);
+    if (m->cfg.prep.on)
+      fprintf(stderr, " (prepared: friction %g, rolling friction %g, then the scene's laws)",
+              m->cfg.prep.friction, m->cfg.prep.rolling);
+    fprintf(stderr, "\n");
   }
   if (m->cfg.save_bed[0] && a->restart_step == 0 &&
       dem_bed_save(m, &a->state, m->cfg.save_bed, err))
@@ -164,6 +215,79 @@ static void to_mean(double *sum, size_t n, long long nsub) {
   for (size_t i = 0; i < n; i++) sum[i] /= (double)nsub;
 }
 
+/* The surface of the request: dense, or the k nodes of x_index (v_index the
+ * same) inside the reach box the header gives (*k = -1: dense). */
+static int set_surface(dem_app *a, const proto_msg *req, double *reach, int64_t *k,
+                       proto_err *err) {
+  const dem_model *m = &a->model;
+  const int32_t *xi, *vi;
+  *k = proto_msg_sparse(req, PROTO_A_X, &xi);
+  const int64_t kv = proto_msg_sparse(req, PROTO_A_V, &vi);
+  double grains[6]; /* with sleep: the box the last done reported before the region's growth */
+  if (m->sleep.on) {
+    dem_reach_box(m, &a->state, a->run_dt, grains);
+    dem_sleep_jump_box(&a->state, grains, a->run_dt);
+  }
+  if (*k < 0 && kv < 0) {
+    a->state.mesh_live[a->surface] = NULL;
+    dem_mesh_set_nodes(m, &a->state, a->surface, proto_msg_data(req, PROTO_A_X),
+                       proto_msg_data(req, PROTO_A_V));
+    return 0;
+  }
+  if (*k != kv || memcmp(xi, vi, sizeof(int32_t) * (size_t)(*k > 0 ? *k : 0)) != 0)
+    return proto_fail(err, "step: %s and %s must list the same nodes", PROTO_A_X_INDEX,
+                      PROTO_A_V_INDEX);
+  const cJSON *b = cJSON_GetObjectItemCaseSensitive(req->header, PROTO_H_REACH);
+  int ok = cJSON_IsArray(b) && cJSON_GetArraySize(b) == 6;
+  for (int d = 0; ok && d < 6; d++) {
+    const cJSON *e = cJSON_GetArrayItem(b, d);
+    ok = cJSON_IsNumber(e) && isfinite(e->valuedouble);
+    if (ok) reach[d] = e->valuedouble;
+  }
+  if (!ok)
+    return proto_fail(err, "step: %s needs the header %s [lo x, y, z, hi x, y, z] it was "
+                      "chosen by", PROTO_A_X_INDEX, PROTO_H_REACH);
+  dem_mesh_set_nodes_sparse(m, &a->state, a->surface, *k, xi, proto_msg_data(req, PROTO_A_X),
+                            proto_msg_data(req, PROTO_A_V), a->node_seen, a->tri_live);
+  /* with sleep the grains are checked against their own box (inside the one
+   * sent): the region's grains box then stays inside what dem_sleep_reach grew */
+  if (m->sleep.on) memcpy(reach, grains, sizeof grains);
+  return 0;
+}
+
+/* A grain left the box the coupler chose the surface by: this step's
+ * contacts may miss triangles it did not send. */
+static int escaped(const dem_state *s, int i, const double *b, int64_t k, proto_err *err) {
+  const double *x = &s->x[3 * i];
+  return proto_fail(err, "coupling step %lld: sparse exchange: grain %d (at %.6g, %.6g, %.6g m, "
+                    "radius %.3g m) left the reach box [%.6g, %.6g, %.6g] - [%.6g, %.6g, %.6g] m "
+                    "the surface was sent by; it moved farther within one step than the margin "
+                    "allows (dem_nodeset.c): run with coupling.sparse false",
+                    (long long)k, s->id[i], x[0], x[1], x[2], s->radius[i], b[0], b[1], b[2],
+                    b[3], b[4], b[5]);
+}
+
+/* nodal_force into the reply: sparse (index, rows) when asked and at most a
+ * third of the nodes carry a force, else dense; with sparse, the reach box
+ * of the next step in the header. */
+static int add_force(dem_app *a, proto_msg *reply, int sparse, int64_t *rows) {
+  const dem_model *m = &a->model;
+  const int64_t n = m->meshes[a->surface].n_nodes;
+  const int64_t k = sparse ? proto_sparse_rows(a->surface_force, n, a->force_index, a->force_rows) : -1;
+  if (sparse) {
+    double box[6], per_speed;
+    dem_reach_box(m, &a->state, a->run_dt, box);
+    dem_sleep_reach(m, &a->state, box, &per_speed);
+    cJSON_AddItemToObject(proto_msg_header(reply), PROTO_H_REACH, cJSON_CreateDoubleArray(box, 6));
+    if (per_speed > 0) cJSON_AddNumberToObject(proto_msg_header(reply), PROTO_H_REACH_SPEED, per_speed);
+  }
+  *rows = k >= 0 && 3 * k <= n ? k : n;
+  if (k >= 0 && 3 * k <= n)
+    return proto_msg_add_i4(reply, PROTO_A_NODAL_FORCE_INDEX, k, 0, a->force_index) ||
+           proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, k, 3, a->force_rows);
+  return proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, n, 3, a->surface_force);
+}
+
 static int step(void *user, proto_peer *peer, const proto_step_info *info, const proto_msg *req,
                 proto_msg *reply, proto_err *err) {
   dem_app *a = user;
@@ -176,15 +300,19 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
   }
   const size_t nn3 = a->surface >= 0 ? 3 * (size_t)m->meshes[a->surface].n_nodes : 0;
   const size_t nw3 = 3 * (size_t)m->n_walls;
-  if (a->surface >= 0) /* checked against the role table by the participant loop */
-    dem_mesh_set_nodes(m, s, a->surface, proto_msg_data(req, PROTO_A_X),
-                       proto_msg_data(req, PROTO_A_V));
+  const int sparse = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(req->header, PROTO_H_SPARSE));
+  double reach[6];
+  int64_t k_x = -1;
+  /* checked against the role table by the participant loop */
+  if (a->surface >= 0 && set_surface(a, req, reach, &k_x, err) < 0) return -1;
   /* equal sub-steps s->dt = dt/nsub (dem_state_set_dt): the impulse/dt of a
    * force sampled once per sub-step is the mean of the samples */
   long long nsub = llround(dt / s->dt);
   if (nsub < 1) nsub = 1;
   for (long long k = 0; k < nsub; k++) {
     if (dem_step(m, s, err)) return proto_wrap(err, "coupling step %lld", (long long)info->k);
+    const int out = k_x >= 0 ? dem_reach_escaped(s, reach) : -1;
+    if (out >= 0) return escaped(s, out, reach, info->k, err);
     if (nn3) accumulate(a->surface_force, s->mesh_force[a->surface], nn3, k);
     accumulate(a->wall_row + 1, s->wall_force, nw3, k);
   }
@@ -204,9 +332,15 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
       proto_msg_add_prefixed(reply, PROTO_P_SERIES, DEM_WALL_FORCES, PROTO_F8, 1 + (int64_t)nw3, 0,
                              a->wall_row))
     return proto_fail(err, "reply full");
-  if (a->surface >= 0 &&
-      proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, m->meshes[a->surface].n_nodes, 3, a->surface_force))
-    return proto_fail(err, "reply full");
+  int64_t k_f = 0;
+  if (a->surface >= 0 && add_force(a, reply, sparse, &k_f)) return proto_fail(err, "reply full");
+  if (a->surface >= 0 && sparse && info->output)
+    fprintf(stderr, "dem_server: t = %.6g s: sparse exchange: x, v of %lld of %d nodes, nodal "
+            "force of %lld\n", t, (long long)(k_x >= 0 ? k_x : m->meshes[a->surface].n_nodes),
+            m->meshes[a->surface].n_nodes, (long long)k_f);
+  if (info->output && m->sleep.on) /* the active block (dem_sleep.c) */
+    fprintf(stderr, "dem_server: t = %.6g s: %lld of %d grains active (sleep)\n", t,
+            (long long)(s->n - s->sleeping), s->n);
   if (info->output) {
     dem_gather(s, s->x, 3, a->snap_x);
     dem_gather(s, s->v, 3, a->snap_v);
@@ -237,7 +371,8 @@ static void finish(void *user) {
   dem_app *a = user;
   if (a->have_state) dem_state_free(&a->state);
   if (a->have_model) dem_model_free(&a->model);
-  free(a->wall_row); free(a->surface_force); free(a->snap_x); free(a->snap_v); free(a->snap_w); free(a->snap_r);
+  free(a->wall_row); free(a->surface_force);
+  free(a->force_index); free(a->force_rows); free(a->node_seen); free(a->tri_live); free(a->snap_x); free(a->snap_v); free(a->snap_w); free(a->snap_r);
   memset(a, 0, sizeof *a);
 }
 

@@ -1,17 +1,48 @@
-/* dem_sleep.c — grains at rest far from every moving mesh sleep ("sleep" in
- * the config; Box2D's sleeping bodies, Chrono's active box around a wheel).
+/* dem_sleep.c — the active block: grains at rest outside the region that the
+ * moving meshes can reach sleep ("sleep" in the config; Box2D's sleeping
+ * bodies, Project Chrono's active box around a wheel).
  *
- * A grain sleeps after `time` below `velocity` (|v| and |ω| r) when no moving
- * mesh is within `distance` (see dem_sleep_near) and it touches no mesh: its
- * velocity is set to zero, it is not integrated, its contacts with other
- * sleeping grains are not evaluated (their springs stay as they are) and its
- * plane contacts are frozen. Contacts with awake grains are evaluated as with
- * a fixed grain (an awake grain pressing slowly on a sleeping one meets a
- * wall). It wakes when a touching awake grain is faster than `velocity` or a
- * moving mesh comes within `distance`; it then restarts from rest in
- * equilibrium (force −m g: the first half kick leaves it at rest).
- * Decisions use only the state, so results stay bitwise identical for any
- * number of threads. */
+ * Data flow: the force sweep (dem_force.c) counts each awake grain's steps at
+ * rest (dem_sleep_chunk) and marks asleep grains listed with a fast awake one
+ * (dem_wake); at the end of dem_step, dem_sleep_update wakes those, every
+ * DEM_REGION_STEPS steps moves the region with the meshes (wakes the asleep
+ * grains it reaches, marks the awake ones in it `near`) and puts to sleep the
+ * grains at rest outside it, then asks dem_neigh.c for a full rebuild when the
+ * asleep set changed. dem_neigh.c keeps the awake grains in slots
+ * [0, n_active) and the asleep ones after them, so every per-step loop (drift,
+ * pairs, walls, meshes, kick) and the partial list rebuild run over the awake
+ * block only: an asleep grain costs nothing per step. Its contacts with other
+ * asleep grains are not evaluated (springs kept), its plane contacts frozen;
+ * its contacts with awake grains are evaluated as with a fixed grain (it
+ * pushes back). Decisions use only the state: results are bitwise identical
+ * for any number of threads.
+ *
+ * A grain sleeps when it has been slower than `velocity` (|v| and |ω| r) for
+ * `time`, is outside the region and touches no mesh: v = ω = 0, not
+ * integrated. It wakes when an awake grain listed with it (within r_i + r_j +
+ * skin at the last rebuild) moves faster than `velocity`, or presses into it
+ * beyond `overlap` of the smaller radius, or the region reaches it; it
+ * restarts from rest in equilibrium (force −m g: the next half kick leaves it
+ * at rest).
+ *
+ * The region (derivation, also dem_server/README.md): the bounding box of the
+ * moving meshes' nodes grown by
+ *   margin = max(distance, r_max + 2 skin) + c N dt + v_mesh (N + 1) dt,
+ * N = DEM_REGION_STEPS, c = √(E/ρ) of the stiffest, lightest material.
+ * Between two updates (N steps) a mesh node moves at most v_mesh N dt (the
+ * third term; +1: a grain woken at an update joins at the next step) and a
+ * disturbance it starts travels at most c N dt through the grains: the bar
+ * wave speed of the grain's solid bounds the speed of any wave in a packing
+ * of Hertz contacts, which are softer than the solid (Hertz stiffness
+ * 2 Y* √(R* δ) with δ ≪ R*). The first term keeps r_max + skin between the
+ * mesh and any asleep grain's surface besides, so a mesh never meets an
+ * asleep grain (its candidate list is empty) and a grain woken at the edge is
+ * at rest when the disturbance arrives. Grains that move beyond the threshold
+ * outside the region wake their neighbours step by step: in explicit DEM a
+ * displacement reaches the next grain's force one step later, and the wake
+ * reaches every grain listed with a fast one in the same step. The region is
+ * kept with a hysteresis of half a margin (moved only when the required box
+ * leaves it), so that asleep grains wake in batches, not one at a time. */
 #include "dem_server/dem_internal.h"
 
 #include <math.h>
@@ -20,153 +51,118 @@
 
 int dem_sleep_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
+  w->n_active = s->n;
   if (!m->sleep.on) return 0;
+  for (int i = 0; i < m->n_grains; i++) w->region_rmax = fmax(w->region_rmax, m->radius[i]);
   w->asleep = calloc((size_t)s->n + 1, 1);
   w->wake = calloc((size_t)s->n + 1, 1);
   w->rest = calloc((size_t)s->n + 1, sizeof(int32_t));
-  w->chunk_awake = calloc((size_t)w->nchunk + 1, sizeof(int));
   w->near = calloc((size_t)s->n + 1, 1);
-  w->chunk_frozen = calloc((size_t)w->nchunk + 1, 1);
-  w->row_frozen = calloc((size_t)s->n + 1, 1);
-  w->prow_start = calloc((size_t)s->n + 1, sizeof(int));
-  if (!w->asleep || !w->wake || !w->rest || !w->chunk_awake || !w->near || !w->chunk_frozen || !w->row_frozen ||
-      !w->prow_start)
+  w->wake_list = calloc((size_t)s->n + 1, sizeof(int));
+  int nodes = 1;
+  for (int mi = 0; mi < m->n_meshes; mi++) nodes = m->meshes[mi].n_nodes > nodes ? m->meshes[mi].n_nodes : nodes;
+  w->jump_pos = malloc(sizeof(int32_t) * (size_t)nodes);
+  if (!w->asleep || !w->wake || !w->rest || !w->near || !w->wake_list || !w->jump_pos)
     return proto_fail(err, "out of memory for the sleep state of %d grains", s->n);
-  dem_sleep_count(m, s);
   return 0;
 }
 
 void dem_sleep_free(struct dem_work *w) {
-  free(w->asleep); free(w->wake); free(w->rest); free(w->chunk_awake); free(w->near); free(w->chunk_frozen);
-  free(w->row_frozen); free(w->prow_start); free(w->prow);
-  free(w->ng_start); free(w->ng_of); free(w->ng_x);
+  free(w->asleep); free(w->wake); free(w->rest); free(w->near); free(w->wake_list); free(w->frz_start);
+  free(w->jump_pos);
 }
 
-/* ---- nearness to moving meshes ----
- * Refreshed whenever the mesh candidate lists are rebuilt (dem_mesh_lists:
- * before any grain or node has moved skin/2 since the last time): points of
- * the moving meshes h = distance/2 apart at most (nodes, and grids on long
- * triangles) binned on a grid, and each grain marked near if a point lies
- * within distance + h + skin + r (every point of the surface is within h of
- * one): near means within `distance` of the surface, or somewhat farther. */
-static int grow_int(int **p, int *cap, int need) {
-  if (need <= *cap) return 0;
-  int *q = realloc(*p, sizeof(int) * (size_t)need);
-  if (!q) return -1;
-  *p = q;
-  *cap = need;
-  return 0;
-}
-
-static int node_cell(const struct dem_work *w, const double *x, int *c) {
-  for (int k = 0; k < 3; k++) {
-    c[k] = (int)floor((x[k] - w->ng_lo[k]) / w->ng_size);
-    if (c[k] < 0 || c[k] >= w->ng_dim[k]) return -1;
-  }
-  return (c[2] * w->ng_dim[1] + c[1]) * w->ng_dim[0] + c[0];
-}
-
-/* Points of the moving meshes no farther than h from any point of them: the
- * nodes, and barycentric grids on triangles longer than h (into ng_x).
- * Returns the count, −1 when out of memory. */
-static int mesh_samples(const dem_model *m, dem_state *s, double h) {
+void dem_sleep_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
   struct dem_work *w = s->work;
-  int total = 0;
-  for (int pass = 0; pass < 2; pass++) {
-    int q = 0;
-    for (int mi = 0; mi < m->n_meshes; mi++) {
-      if (!w->mesh_moving[mi]) continue;
-      const dem_mesh *me = &m->meshes[mi];
-      const double *x = s->mesh_x[mi];
-      for (int a = 0; a < me->n_nodes; a++, q++)
-        if (pass) memcpy(&w->ng_x[3 * (size_t)q], &x[3 * a], 3 * sizeof(double));
-      for (int t = 0; t < me->n_tri; t++) {
-        const double *p[3] = {&x[3 * me->tri[3 * t]], &x[3 * me->tri[3 * t + 1]], &x[3 * me->tri[3 * t + 2]]};
-        double edge = 0;
-        for (int e = 0; e < 3; e++) {
-          const double d[3] = {p[e][0] - p[(e + 1) % 3][0], p[e][1] - p[(e + 1) % 3][1], p[e][2] - p[(e + 1) % 3][2]};
-          edge = fmax(edge, sqrt(dem_dot(d, d)));
-        }
-        const int sub = (int)ceil(edge / h);
-        for (int i = 0; sub > 1 && i <= sub; i++)
-          for (int j = 0; i + j <= sub; j++) {
-            if ((i == 0 || i == sub) && (j == 0 || j == sub || i + j == sub)) continue; /* corners: nodes */
-            if (pass) {
-              const double u = (double)i / sub, v = (double)j / sub;
-              for (int k = 0; k < 3; k++)
-                w->ng_x[3 * (size_t)q + k] = (1 - u - v) * p[0][k] + u * p[1][k] + v * p[2][k];
-            }
-            q++;
-          }
-      }
-    }
-    if (!pass) {
-      total = q;
-      if (total > w->ng_xcap) {
-        double *nx = realloc(w->ng_x, sizeof(double) * 3 * (size_t)total);
-        if (!nx) return -1;
-        w->ng_x = nx;
-        w->ng_xcap = total;
-      }
-    }
+  const double v2max = m->sleep.velocity * m->sleep.velocity;
+  const int weightless = dem_dot(m->gravity, m->gravity) == 0;
+  for (int i = lo; i < hi; i++) {
+    const double *v = &s->v[3 * i], *o = &s->omega[3 * i], r = s->radius[i], *f = &s->force[3 * i];
+    /* slow, and resting on something: a grain without contacts under gravity is falling */
+    const int held = weightless || f[0] != 0 || f[1] != 0 || f[2] != 0;
+    const int still = held && dem_dot(v, v) < v2max && dem_dot(o, o) * r * r < v2max;
+    w->rest[i] = still ? (w->rest[i] < INT32_MAX ? w->rest[i] + 1 : INT32_MAX) : 0;
   }
-  return total;
 }
 
-int dem_sleep_near(const dem_model *m, dem_state *s, proto_err *err) {
+void dem_sleep_count(const dem_model *m, dem_state *s) {
+  struct dem_work *w = s->work;
+  if (!m->sleep.on) return;
+  s->sleeping = s->n - w->n_active;
+  w->n_wake = 0;
+}
+
+/* "state.active": region lo, hi, on; grid lo, size, dims, valid; the guard's
+ * move, budget and movers (dem_sleep_guard). */
+enum { ACT_REGION_LO = 0, ACT_REGION_HI = 3, ACT_REGION_ON = 6, ACT_GRID_LO = 7, ACT_GRID_SIZE = 10,
+       ACT_GRID_DIM = 11, ACT_GRID_OK = 14, ACT_MOVED = 15, ACT_BUDGET = 16, ACT_MOVERS = 17, ACT_N };
+_Static_assert(ACT_N <= DEM_IO_ACTIVE, "io_active holds the active block's state");
+
+void dem_sleep_export(const dem_model *m, dem_state *s) {
+  struct dem_work *w = s->work;
+  if (!m->sleep.on) return;
+  double *a = w->io_active;
+  memset(a, 0, sizeof w->io_active);
+  for (int k = 0; k < 3; k++) {
+    a[ACT_REGION_LO + k] = w->region_lo[k];
+    a[ACT_REGION_HI + k] = w->region_hi[k];
+    a[ACT_GRID_LO + k] = w->cell_lo[k];
+    a[ACT_GRID_DIM + k] = w->cell_dim[k];
+  }
+  a[ACT_REGION_ON] = w->region_on;
+  a[ACT_MOVED] = w->region_moved;
+  a[ACT_BUDGET] = w->region_budget;
+  a[ACT_MOVERS] = w->region_movers;
+  a[ACT_GRID_SIZE] = w->cell_size;
+  a[ACT_GRID_OK] = w->grid_ok;
+}
+
+int dem_sleep_partners(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
   if (!m->sleep.on) return 0;
-  memset(w->near, 0, (size_t)s->n);
-  double rmax = 0, rmin = 1e300;
-  for (int i = 0; i < s->n; i++) { rmax = fmax(rmax, s->radius[i]); rmin = fmin(rmin, s->radius[i]); }
-  const double h = fmax(0.5 * m->sleep.distance, rmin); /* sample spacing */
-  const int total = mesh_samples(m, s, h);
-  if (total < 0) return proto_fail(err, "out of memory for the sleep grid");
-  if (total == 0) return 0;
-  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-  for (int q = 0; q < total; q++)
-    for (int k = 0; k < 3; k++) { lo[k] = fmin(lo[k], w->ng_x[3 * q + k]); hi[k] = fmax(hi[k], w->ng_x[3 * q + k]); }
-  const double slack = m->sleep.distance + h + m->skin;
-  w->ng_size = slack + rmax;
+  for (int i = w->n_active; i < s->n; i++)
+    if (!w->asleep[i])
+      return proto_fail(err, "state import: 'state.asleep': awake grain in slot %d after the first asleep one (%d): "
+                        "the awake grains come first", i, w->n_active);
+  const double *a = w->io_active;
+  w->region_on = a[ACT_REGION_ON] != 0;
+  w->region_moved = a[ACT_MOVED];
+  w->region_budget = a[ACT_BUDGET];
+  if (!(a[ACT_MOVERS] >= 0 && a[ACT_MOVERS] < (1 << DEM_MAX_MESHES)) || !(w->region_moved >= 0) ||
+      !(w->region_budget >= 0))
+    return proto_fail(err, "state import: 'state.active' has a bad region guard (moved %g m, budget %g m, "
+                      "movers %g)", w->region_moved, w->region_budget, a[ACT_MOVERS]);
+  w->region_movers = (int)a[ACT_MOVERS];
+  w->grid_ok = 0;
+  for (int k = 0; k < 3; k++) {
+    w->region_lo[k] = a[ACT_REGION_LO + k];
+    w->region_hi[k] = a[ACT_REGION_HI + k];
+  }
+  if (a[ACT_GRID_OK] == 0) return 0; /* the next rebuild is a full one, as it would have been */
   long long cells = 1;
   for (int k = 0; k < 3; k++) {
-    w->ng_lo[k] = lo[k] - w->ng_size;
-    w->ng_dim[k] = (int)((hi[k] - lo[k]) / w->ng_size) + 3;
-    cells *= w->ng_dim[k];
+    if (!(a[ACT_GRID_DIM + k] >= 1 && a[ACT_GRID_DIM + k] <= 1e6) || !isfinite(a[ACT_GRID_LO + k]))
+      return proto_fail(err, "state import: 'state.active' has a bad grid (axis %d: %g cells from %g)", k,
+                        a[ACT_GRID_DIM + k], a[ACT_GRID_LO + k]);
+    w->cell_dim[k] = (int)a[ACT_GRID_DIM + k];
+    w->cell_lo[k] = a[ACT_GRID_LO + k];
+    cells *= w->cell_dim[k];
   }
-  if (cells > 64LL * total + 4096) return proto_fail(err, "sleep: mesh grid of %lld cells", cells);
-  if (grow_int(&w->ng_start, &w->ng_cap, (int)cells + 1) || grow_int(&w->ng_of, &w->ng_ncap, 2 * total))
-    return proto_fail(err, "out of memory for the sleep grid");
-  /* counting sort of the samples by cell (ng_of: cell, then sorted index) */
-  int *cell = w->ng_of, *order = w->ng_of + total, c[3];
-  memset(w->ng_start, 0, sizeof(int) * (size_t)(cells + 1));
-  for (int q = 0; q < total; q++) w->ng_start[(cell[q] = node_cell(w, &w->ng_x[3 * q], c)) + 1]++;
-  for (long long k = 0; k < cells; k++) w->ng_start[k + 1] += w->ng_start[k];
-  for (int q = 0; q < total; q++) order[w->ng_start[cell[q]]++] = q;
-  for (long long k = cells; k > 0; k--) w->ng_start[k] = w->ng_start[k - 1];
-  w->ng_start[0] = 0;
-  /* grains: a sample in the 27 cells around within reach */
-#pragma omp parallel for schedule(dynamic, 512) num_threads(w->nthreads)
-  for (int i = 0; i < s->n; i++) {
-    const double *x = &s->x[3 * i], reach = slack + s->radius[i];
-    int g[3];
-    for (int k = 0; k < 3; k++) g[k] = (int)floor((x[k] - w->ng_lo[k]) / w->ng_size);
-    int near = 0;
-    for (int dz = -1; dz <= 1 && !near; dz++)
-      for (int dy = -1; dy <= 1 && !near; dy++)
-        for (int dx = -1; dx <= 1 && !near; dx++) {
-          const int cx = g[0] + dx, cy = g[1] + dy, cz = g[2] + dz;
-          if (cx < 0 || cy < 0 || cz < 0 || cx >= w->ng_dim[0] || cy >= w->ng_dim[1] || cz >= w->ng_dim[2]) continue;
-          const int cl = (cz * w->ng_dim[1] + cy) * w->ng_dim[0] + cx;
-          for (int k = w->ng_start[cl]; k < w->ng_start[cl + 1] && !near; k++) {
-            const double *p = &w->ng_x[3 * (size_t)order[k]];
-            const double d[3] = {p[0] - x[0], p[1] - x[1], p[2] - x[2]};
-            near = dem_dot(d, d) < reach * reach;
-          }
-        }
-    w->near[i] = (uint8_t)near;
+  w->cell_size = a[ACT_GRID_SIZE];
+  if (!(w->cell_size > 0) || cells > 4LL * s->n + 1000)
+    return proto_fail(err, "state import: 'state.active' has a bad grid (%lld cells of %g m)", cells, w->cell_size);
+  if (cells + 1 > w->cell_cap) {
+    int *cs = realloc(w->cell_start, sizeof(int) * (size_t)(cells + 1));
+    if (cs) w->cell_start = cs;
+    int *cr = realloc(w->cell_rank, sizeof(int) * (size_t)(cells + 1));
+    if (cr) w->cell_rank = cr;
+    int *fz = realloc(w->frz_start, sizeof(int) * (size_t)(cells + 1));
+    if (fz) w->frz_start = fz;
+    if (!cs || !cr || !fz) return proto_fail(err, "state import: out of memory for cells");
+    w->cell_cap = (int)cells + 1;
   }
-  return 0;
+  w->rank_dim[0] = -1; /* ranks to redo */
+  return dem_neigh_asleep_cells(m, s, err);
 }
 
 static int touches_mesh(const dem_model *m, const struct dem_work *w, int i) {
@@ -175,86 +171,274 @@ static int touches_mesh(const dem_model *m, const struct dem_work *w, int i) {
   return 0;
 }
 
-/* Grain i woke: its row and the rows that pair with it are live again, and
- * their chunks. Other threads may clear the same flags: atomic stores, read
- * after the step's barriers. */
-static void unfreeze(struct dem_work *w, int i) {
-  w->row_frozen[i] = 0;
-  __atomic_store_n(&w->chunk_frozen[i / DEM_CHUNK], 0, __ATOMIC_RELAXED);
-  for (int q = w->prow_start[i]; q < w->prow_start[i + 1]; q++) {
-    const int row = w->prow[q];
-    __atomic_store_n(&w->row_frozen[row], 0, __ATOMIC_RELAXED);
-    __atomic_store_n(&w->chunk_frozen[row / DEM_CHUNK], 0, __ATOMIC_RELAXED);
-  }
+/* margin of the region (see the top of the file) for node speed vmax */
+static double region_margin(const dem_model *m, const dem_state *s, double vmax) {
+  double c = 0;
+  for (int k = 0; k < m->n_materials; k++) c = fmax(c, sqrt(m->mat[k].E / m->mat[k].density));
+  const double N = DEM_REGION_STEPS;
+  return fmax(m->sleep.distance, s->work->region_rmax + 2 * m->skin) + c * N * s->dt + vmax * (N + 1) * s->dt;
 }
 
-/* The rows in which each slot is a partner (after a list rebuild). */
-int dem_sleep_partners(const dem_model *m, dem_state *s, proto_err *err) {
-  struct dem_work *w = s->work;
-  if (!m->sleep.on) return 0;
-  const int n = s->n, np = w->nl_start[n];
-  if (np > w->prow_cap) {
-    int *p = realloc(w->prow, sizeof(int) * ((size_t)np + (size_t)np / 4 + 64));
-    if (!p) return proto_fail(err, "out of memory for the sleep index");
-    w->prow = p;
-    w->prow_cap = np + np / 4 + 64;
-  }
-  memset(w->prow_start, 0, sizeof(int) * (size_t)(n + 1));
-  for (int k = 0; k < np; k++) w->prow_start[w->nl_j[k] + 1]++;
-  for (int i = 0; i < n; i++) w->prow_start[i + 1] += w->prow_start[i];
-  for (int i = 0; i < n; i++)
-    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) w->prow[w->prow_start[w->nl_j[k]]++] = i;
-  for (int i = n; i > 0; i--) w->prow_start[i] = w->prow_start[i - 1];
-  w->prow_start[0] = 0;
-  memset(w->row_frozen, 0, (size_t)n); /* found again at the next step */
-  memset(w->chunk_frozen, 0, (size_t)w->nchunk);
-  return 0;
+/* Relative slack of the region's reach (dem_sleep_reach): covers the
+ * rounding between the margin as one sum (region_margin) and the coupler's
+ * box grown in two parts; a larger box selects more nodes, never other bits. */
+#define DEM_REACH_SLACK 1e-9
+
+static int in_box(const double *x, double r, const double *lo, const double *hi) {
+  return x[0] + r > lo[0] && x[0] - r < hi[0] && x[1] + r > lo[1] && x[1] - r < hi[1] && x[2] + r > lo[2] &&
+         x[2] - r < hi[2];
 }
 
-void dem_sleep_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi) {
-  struct dem_work *w = s->work;
-  const double v2max = m->sleep.velocity * m->sleep.velocity, *g = m->gravity;
-  const int32_t rest_steps = (int32_t)ceil(m->sleep.time / s->dt - 1e-9);
-  int awake = 0;
-  for (int i = lo; i < hi; i++) {
-    if (w->asleep[i]) {
-      if (w->wake[i] || w->near[i]) {
-        w->asleep[i] = w->wake[i] = 0;
-        w->rest[i] = 0;
-        unfreeze(w, i);
-        for (int a = 0; a < 3; a++) {
-          s->force[3 * i + a] = -g[a] * w->mass[i]; /* at rest in equilibrium */
-          s->torque[3 * i + a] = 0;
-        }
-        awake++;
-      }
-      continue;
+/* The box of every grain's centre: the awake ones' and the grid of the last
+ * full rebuild, which held the asleep ones (they have not moved since). */
+static void grains_box(const dem_state *s, double *lo, double *hi) {
+  const struct dem_work *w = s->work;
+  const int all = w->grid_ok ? w->n_active : s->n;
+  for (int k = 0; k < 3; k++) {
+    lo[k] = w->grid_ok ? w->cell_lo[k] : INFINITY;
+    hi[k] = w->grid_ok ? w->cell_lo[k] + w->cell_dim[k] * w->cell_size : -INFINITY;
+  }
+  for (int i = 0; i < all; i++)
+    for (int k = 0; k < 3; k++) {
+      lo[k] = fmin(lo[k], s->x[3 * i + k]);
+      hi[k] = fmax(hi[k], s->x[3 * i + k]);
     }
-    w->wake[i] = 0;
-    const double *v = &s->v[3 * i], *o = &s->omega[3 * i], r = s->radius[i];
-    const int still = dem_dot(v, v) < v2max && dem_dot(o, o) * r * r < v2max;
-    w->rest[i] = still ? w->rest[i] + 1 : 0;
-    if (w->rest[i] >= rest_steps && !touches_mesh(m, w, i) && !w->near[i]) {
+}
+
+/* The region follows the moving meshes; awake grains in it are near, asleep
+ * ones in it wake. Only the triangles whose box comes within the margin of
+ * the grains' box count (a wheel's upper half reaches no grain within the
+ * next steps). */
+static void region_update(const dem_model *m, dem_state *s) {
+  struct dem_work *w = s->work;
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, vmax = 0;
+  double glo[3], ghi[3];
+  int moving = 0;
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    if (!w->mesh_moving[mi]) continue;
+    vmax = fmax(vmax, w->mesh_vmax[mi]); /* the largest node speed (dem_mesh_velocities_changed) */
+    moving = 1;
+  }
+  const double margin = moving ? region_margin(m, s, vmax) : 0;
+  /* the guard (dem_sleep_guard): from here, the mesh term of the margin */
+  w->region_moved = 0;
+  w->region_budget = moving ? vmax * (DEM_REGION_STEPS + 1) * s->dt : 0;
+  w->region_movers = 0;
+  for (int mi = 0; mi < m->n_meshes; mi++) w->region_movers |= w->mesh_moving[mi] << mi;
+  if (moving) {
+    grains_box(s, glo, ghi);
+    for (int k = 0; k < 3; k++) { glo[k] -= margin; ghi[k] += margin; }
+  }
+  for (int mi = 0; mi < m->n_meshes && moving; mi++) {
+    if (!w->mesh_moving[mi]) continue;
+    const dem_mesh *me = &m->meshes[mi];
+    const double *x = s->mesh_x[mi];
+    const uint8_t *live = s->mesh_live[mi]; /* sparse exchange: the triangles sent (dem_sleep_reach) */
+    for (int t = 0; t < me->n_tri; t++) {
+      const int32_t *tn = &me->tri[3 * t];
+      double tlo[3], thi[3];
+      if (live && !live[t]) continue;
+      int meets = 1;
+      for (int k = 0; k < 3; k++) {
+        const double a = x[3 * tn[0] + k], b = x[3 * tn[1] + k], c = x[3 * tn[2] + k];
+        tlo[k] = fmin(a, fmin(b, c));
+        thi[k] = fmax(a, fmax(b, c));
+        meets &= thi[k] >= glo[k] && tlo[k] <= ghi[k];
+      }
+      for (int k = 0; k < 3 && meets; k++) {
+        lo[k] = fmin(lo[k], tlo[k]);
+        hi[k] = fmax(hi[k], thi[k]);
+      }
+    }
+  }
+  int changed = 0;
+  if (moving && lo[0] <= hi[0]) { /* some triangle near the grains */
+    int inside = w->region_on;
+    for (int k = 0; k < 3; k++) {
+      lo[k] -= margin;
+      hi[k] += margin;
+      inside &= lo[k] >= w->region_lo[k] && hi[k] <= w->region_hi[k];
+    }
+    if (!inside) { /* moved on: with half a margin of room ahead (hysteresis) */
+      for (int k = 0; k < 3; k++) {
+        w->region_lo[k] = lo[k] - 0.5 * margin;
+        w->region_hi[k] = hi[k] + 0.5 * margin;
+      }
+      w->region_on = changed = 1;
+    }
+  }
+  w->region_step = s->step;
+  const int na = w->n_active;
+  if (!w->region_on) { /* nothing moves: no grain is near (fall_asleep adds the fast ones' partners) */
+    memset(w->near, 0, (size_t)na);
+    return;
+  }
+  for (int i = 0; i < na; i++) w->near[i] = (uint8_t)in_box(&s->x[3 * i], s->radius[i], w->region_lo, w->region_hi);
+  for (int i = na; changed && i < s->n; i++)
+    if (in_box(&s->x[3 * i], s->radius[i], w->region_lo, w->region_hi)) dem_wake(w, i);
+}
+
+/* The grains at rest outside the region fall asleep, in batches: each batch
+ * costs a full list rebuild, O(n), so at least 1/64 of all grains (a batch
+ * then saves its rebuild within a few dozen steps of the grains it stops). */
+static void fall_asleep(const dem_model *m, dem_state *s) {
+  struct dem_work *w = s->work;
+  const int32_t rest_steps = (int32_t)ceil(m->sleep.time / s->dt - 1e-9);
+  const int na = w->n_active, batch = 1 + s->n / 64;
+  int cand = 0;
+  for (int i = 0; i < na; i++)
+    cand += w->rest[i] >= rest_steps && !w->near[i] && !w->wake[i] && !touches_mesh(m, w, i);
+  if (cand < batch && cand < na) return;
+  /* not next to a fast grain: it would wake at once, and might touch it in
+   * the same step (its reaction then lost) */
+  const double v2max = m->sleep.velocity * m->sleep.velocity;
+  for (int i = 0; i < na; i++) {
+    const int fi = dem_dot(&s->v[3 * i], &s->v[3 * i]) > v2max;
+    for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) {
+      const int j = w->nl_j[k];
+      if (j >= na) break; /* asleep partners end the row */
+      if (fi) w->near[j] = 1;
+      if (dem_dot(&s->v[3 * j], &s->v[3 * j]) > v2max) w->near[i] = 1;
+    }
+  }
+
+  for (int i = 0; i < na; i++)
+    if (w->rest[i] >= rest_steps && !w->near[i] && !touches_mesh(m, w, i)) { /* near: also fast partners */
       w->asleep[i] = 1;
       memset(&s->v[3 * i], 0, 3 * sizeof(double));
       memset(&s->omega[3 * i], 0, 3 * sizeof(double));
-    } else {
-      awake++;
+      w->compact |= DEM_COMPACT_SLEEP;
     }
-  }
-  w->chunk_awake[c] = awake;
 }
 
-void dem_sleep_count(const dem_model *m, dem_state *s) {
+/* The woken grains join the awake block (a wake rebuild, or a full one when
+ * grains fell asleep too); each restarts at rest in equilibrium. */
+static int wake_woken(const dem_model *m, dem_state *s, proto_err *err) {
+  struct dem_work *w = s->work;
+  const double *g = m->gravity;
+  for (int q = 0; q < w->n_wake; q++) {
+    const int i = w->wake_list[q];
+    w->wake[i] = 0;
+    if (!w->asleep[i]) continue;
+    w->asleep[i] = 0;
+    w->rest[i] = 0;
+    w->near[i] = 1; /* until the next region update */
+    for (int a = 0; a < 3; a++) {
+      s->force[3 * i + a] = -g[a] * w->mass[i]; /* at rest in equilibrium */
+      s->torque[3 * i + a] = 0;
+    }
+    w->compact |= DEM_COMPACT_WAKE;
+  }
+  w->n_wake = 0;
+  if (!w->compact) return 0;
+  return dem_neigh_rebuild(m, s, err); /* a wake or full rebuild: clears compact */
+}
+
+int dem_sleep_update(const dem_model *m, dem_state *s, proto_err *err) {
+  if (!m->sleep.on) return 0;
+  if (s->step % DEM_REGION_STEPS == 0) {
+    region_update(m, s);
+    fall_asleep(m, s);
+  }
+  return wake_woken(m, s, err);
+}
+
+void dem_sleep_jump_box(dem_state *s, const double box[6], double dt) {
+  struct dem_work *w = s->work;
+  memcpy(w->jump_box, box, sizeof w->jump_box);
+  w->jump_dt = dt;
+  w->jump_on = 1;
+}
+
+/* The jump of node a from x0 to x (squared). */
+static double jump2(const double *x0, const double *x) {
+  const double d0 = x[0] - x0[0], d1 = x[1] - x0[1], d2 = x[2] - x0[2];
+  return d0 * d0 + d1 * d1 + d2 * d2;
+}
+
+/* The squared jump of the nodes of the triangles that can come into the jump
+ * box over the step (every node set: seen or all; new x, v of row pos[node]). */
+static double jump_near(const dem_model *m, const dem_state *s, int mesh, const uint8_t *seen, const int32_t *pos,
+                        const double *x, const double *v) {
+  const struct dem_work *w = s->work;
+  const dem_mesh *me = &m->meshes[mesh];
+  const double *x0 = s->mesh_x[mesh], *b = w->jump_box, dt = w->jump_dt;
+  double worst = 0;
+  for (int t = 0; t < me->n_tri; t++) {
+    const int32_t *tn = &me->tri[3 * t];
+    if (seen && !(seen[tn[0]] & seen[tn[1]] & seen[tn[2]])) continue; /* not sent: cannot meet the box */
+    int meets = 1;
+    for (int d = 0; d < 3 && meets; d++) {
+      double lo = INFINITY, hi = -INFINITY;
+      for (int a = 0; a < 3; a++) {
+        const size_t r = 3 * (size_t)(pos ? pos[tn[a]] : tn[a]);
+        const double p = x[r + d], q = p + v[r + d] * dt;
+        lo = fmin(lo, fmin(p, q));
+        hi = fmax(hi, fmax(p, q));
+      }
+      meets = lo <= b[3 + d] && hi >= b[d];
+    }
+    for (int a = 0; a < 3 && meets; a++) {
+      const double d = jump2(&x0[3 * (size_t)tn[a]], &x[3 * (size_t)(pos ? pos[tn[a]] : tn[a])]);
+      worst = d > worst || isnan(d) ? d : worst;
+    }
+  }
+  return worst;
+}
+
+void dem_sleep_mesh_jump(const dem_model *m, dem_state *s, int mesh, int64_t k, const int32_t *idx,
+                         const double *x, const double *v, const uint8_t *seen) {
   struct dem_work *w = s->work;
   if (!m->sleep.on) return;
-  int64_t sleeping = 0;
-  for (int c = 0; c < w->nchunk; c++) {
-    const int lo = c * DEM_CHUNK, hi = (c + 1) * DEM_CHUNK < s->n ? (c + 1) * DEM_CHUNK : s->n;
-    int awake = 0;
-    for (int i = lo; i < hi; i++) awake += !w->asleep[i];
-    w->chunk_awake[c] = awake;
-    sleeping += hi - lo - awake;
+  int32_t *pos = w->jump_pos;
+  double worst = 0;
+  if (w->jump_on) { /* the participant's filter: the same nodes dense or sparse */
+    if (idx)
+      for (int64_t j = 0; j < k; j++) pos[idx[j]] = (int32_t)j;
+    worst = jump_near(m, s, mesh, idx ? seen : NULL, idx ? pos : NULL, x, v);
+    w->jump_on = 0;
+  } else {
+    for (int64_t j = 0; j < k; j++) {
+      const double d = jump2(&s->mesh_x[mesh][3 * (idx ? (size_t)idx[j] : (size_t)j)], &x[3 * j]);
+      worst = d > worst || isnan(d) ? d : worst;
+    }
   }
-  s->sleeping = sleeping;
+  w->region_moved += isfinite(worst) ? sqrt(worst) : INFINITY; /* NaN: the health check names it */
+}
+
+/* Reach of the region (sparse exchange, PROTOCOL.md): every triangle that
+ * region_update looks at meets the grains' box (awake centres, the grid of
+ * the last full rebuild) grown by the margin; the margin's mesh term is the
+ * largest node speed times (N + 1) dt, for the coupler to add (per_speed):
+ * the dem does not know the next step's speeds. The rest is added here. */
+void dem_sleep_reach(const dem_model *m, const dem_state *s, double box[6], double *per_speed) {
+  *per_speed = 0;
+  if (!m->sleep.on) return;
+  double glo[3], ghi[3];
+  grains_box(s, glo, ghi);
+  const double grow = region_margin(m, s, 0) * (1 + DEM_REACH_SLACK);
+  for (int k = 0; k < 3; k++) {
+    box[k] = fmin(box[k], glo[k] - grow);
+    box[3 + k] = fmax(box[3 + k], ghi[k] + grow);
+  }
+  *per_speed = (DEM_REGION_STEPS + 1) * s->dt * (1 + DEM_REACH_SLACK);
+}
+
+/* The region's guard. Every step a bound on any mesh node's move since the
+ * last region update accumulates (max node speed x dt in dem_mesh_move, the
+ * jumps of dem_mesh_set_nodes); while it stays within the margin's mesh term
+ * of that update, and no mesh that stood still then moves now, the mesh is
+ * farther than the rest of the margin from every asleep grain. Otherwise the
+ * region follows now, before the forces: a grain woken here was asleep, at
+ * rest and not drifted this step (its half kick from equilibrium is zero), so
+ * waking it now is waking it at the end of the last step. */
+int dem_sleep_guard(const dem_model *m, dem_state *s, proto_err *err) {
+  struct dem_work *w = s->work;
+  if (w->n_active == s->n) return 0; /* no asleep grain to miss */
+  int movers = 0;
+  for (int mi = 0; mi < m->n_meshes; mi++) movers |= w->mesh_moving[mi] << mi;
+  if (!movers || ((movers & ~w->region_movers) == 0 && w->region_moved <= w->region_budget)) return 0;
+  region_update(m, s);
+  w->guard_updates++;
+  return wake_woken(m, s, err);
 }

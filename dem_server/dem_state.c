@@ -205,14 +205,12 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   const double *g = m->gravity;
   int rebuild = 0, jumped = 0;
   dem_threads_begin(s);
-  const uint8_t *asleep = w->asleep; /* NULL unless "sleep" is on */
-  const int n = s->n;
+  const int n = w->n_active; /* the awake grains (all unless "sleep": dem_sleep.c) */
+  const int nchunk = (n + DEM_CHUNK - 1) / DEM_CHUNK;
 #pragma omp parallel for schedule(dynamic, 1) reduction(| : rebuild, jumped) num_threads(w->nthreads)
-  for (int c = 0; c < w->nchunk; c++) {
-    if (asleep && w->chunk_awake[c] == 0) continue;
+  for (int c = 0; c < nchunk; c++) {
     const int hi = (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n;
     for (int i = c * DEM_CHUNK; i < hi; i++) {
-      if (asleep && asleep[i]) continue;
       double *x = &s->x[3 * i], *v = &s->v[3 * i], *o = &s->omega[3 * i];
       const double *f = &s->force[3 * i], *t = &s->torque[3 * i], *xr = &w->x_ref[3 * i];
       const double im = s->inv_mass[i], ii = s->inv_inertia[i], r = s->radius[i];
@@ -235,9 +233,11 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
     return check_health(m, s, 2.0, err);
   }
   if (rebuild ? dem_neigh_rebuild(m, s, err) : (m->n_meshes > 0 && dem_mesh_lists_check(m, s, err))) return -1;
+  if (w->asleep && dem_sleep_guard(m, s, err)) return -1; /* a mesh beyond the region's margin */
   dem_compute_forces(m, s, 1); /* and the second half kick */
   dem_threads_end(s);
-  return check_health(m, s, 0.0, err);
+  if (check_health(m, s, 0.0, err)) return -1;
+  return dem_sleep_update(m, s, err); /* wake, region, fall asleep: the awake grains first again */
 }
 
 int dem_advance(const dem_model *m, dem_state *s, double duration, proto_err *err) {
@@ -250,10 +250,12 @@ int dem_advance(const dem_model *m, dem_state *s, double duration, proto_err *er
 void dem_mesh_set_nodes(const dem_model *m, dem_state *s, int mesh, const double *x,
                         const double *v) {
   const dem_mesh *me = &m->meshes[mesh];
+  dem_sleep_mesh_jump(m, s, mesh, me->n_nodes, NULL, x, v, NULL); /* the active region's guard */
   memcpy(s->mesh_x[mesh], x, sizeof(double) * 3 * (size_t)me->n_nodes);
   memcpy(s->mesh_v[mesh], v, sizeof(double) * 3 * (size_t)me->n_nodes);
   s->work->mesh_set[mesh] = 1; /* lists: checked at the next step */
   dem_mesh_velocities_changed(m, s, mesh);
+  dem_mesh_nodes_set(m, s, mesh);
 }
 
 void dem_gather(const dem_state *s, const double *slot_data, int cols, double *out) {

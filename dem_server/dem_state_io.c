@@ -9,22 +9,37 @@
  * clock and the last forces (the next half kick uses them). Everything else in
  * the work struct is scratch or recomputed each step. Not the step s->dt: the
  * importing state keeps its own, which its coupling step decides
- * (dem_state_set_dt). */
+ * (dem_state_set_dt). A saved bed (dem_bed.c) holds the same arrays: a run
+ * from it continues the run that settled it. `state.model` holds the model's
+ * fingerprint by part (grains, materials, walls, meshes, skin, sleep), so a
+ * refusal names what differs. */
 #include "dem_server/dem_internal.h"
 
 #include <limits.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 _Static_assert(sizeof(int) == 4, "neighbour-list indices travel as i4");
 
-#define IO_FORMAT 1 /* bump when the set or meaning of the arrays changes */
+#define IO_FORMAT 2 /* bump when the set or meaning of the arrays changes (2: state.model) */
 /* IO_C_MESH_FLAGS: bit k = nodes of mesh k set since the list build, bit
  * DEM_MAX_MESHES = lists to rebuild (the rebuild schedule decides the sleep
  * "near" flags, so it travels too) */
 enum { IO_C_FORMAT, IO_C_MODEL, IO_C_STEP, IO_C_REBUILDS, IO_C_CONTACTS, IO_C_SLEEPING, IO_C_MESH_FLAGS, IO_NCOUNTERS };
 enum { IO_S_T, IO_S_KE, IO_S_ELASTIC, IO_S_OVERLAP, IO_NSCALARS };
 #define IO_MAX 32 /* the arrays of one export (PROTO_MAX_ARRAYS) */
+/* The parts of the model fingerprint (state.model), named in a refusal. */
+enum { IO_M_GRAINS, IO_M_MATERIALS, IO_M_WALLS, IO_M_MESHES, IO_M_SKIN, IO_M_SLEEP, IO_NPARTS };
+static const char *const io_part_name[IO_NPARTS] = {
+    [IO_M_GRAINS] = "grains (count, radii, materials, fixed rotation)",
+    [IO_M_MATERIALS] = "materials (their values, pair values, limit_force)",
+    [IO_M_WALLS] = "walls (planes: point, normal, material)",
+    [IO_M_MESHES] = "meshes (node and triangle counts, triangles, material; the coupled surface included)",
+    [IO_M_SKIN] = "skin",
+    [IO_M_SLEEP] = "sleep (on/off and its thresholds)"};
+_Static_assert(IO_NPARTS <= (int)(sizeof ((struct dem_work *)0)->io_model / sizeof(int64_t)),
+               "io_model holds the parts");
 
 typedef struct io_entry {
   const char *name;
@@ -60,6 +75,7 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
   const int64_t n = s->n, K = DEM_MESH_SLOTS, nodes = total_nodes(m);
   int c = 0;
   add(e, &c, PROTO_P_STATE "counters", PROTO_I8, w->io_counters, 1, IO_NCOUNTERS, 0, 0);
+  add(e, &c, PROTO_P_STATE "model", PROTO_I8, w->io_model, 1, IO_NPARTS, 0, 0);
   add(e, &c, PROTO_P_STATE "scalars", PROTO_F8, w->io_scalars, 1, IO_NSCALARS, 0, 0);
   add(e, &c, PROTO_P_STATE "id", PROTO_I4, s->id, 1, n, 0, 0);
   add(e, &c, PROTO_P_STATE "x", PROTO_F8, s->x, 2, n, 3, 0);
@@ -95,45 +111,78 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
     add(e, &c, PROTO_P_STATE "rest", PROTO_I4, w->rest, 1, n, 0, 0);
     add(e, &c, PROTO_P_STATE "near", PROTO_U1, w->near, 1, n, 0, 0);
   }
+  /* ---- the active block (dem_sleep.c): region and the grid of the last full
+   * rebuild, which the asleep grains are sorted by (owner: the sleep code) ---- */
+  if (m->sleep.on) add(e, &c, PROTO_P_STATE "active", PROTO_F8, w->io_active, 1, DEM_IO_ACTIVE, 0, 0);
+  /* ---- end of the active block ---- */
   return c;
 }
 
-/* FNV-1a over what a state's arrays depend on: grains, materials, walls,
- * mesh topology, skin (the list's validity). Not dt nor gravity (a restart
- * may change them). */
+/* FNV-1a over what a state's arrays depend on and what a continued run
+ * needs unchanged: grains, materials, walls, mesh topology, skin (the list's
+ * validity), sleep. Not dt nor gravity (a restart may change them). Fields one
+ * by one: struct padding is not hashed. */
 static uint64_t fnv(uint64_t h, const void *p, size_t n) {
   const unsigned char *b = p;
   for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 0x100000001b3ull;
   return h;
 }
+#define FNV0 0xcbf29ce484222325ull
+#define FNV_VAL(h, v) fnv((h), &(v), sizeof(v))
 
-static int64_t model_fingerprint(const dem_model *m) {
-  uint64_t h = 0xcbf29ce484222325ull;
+static void model_parts(const dem_model *m, int64_t *part) {
   const size_t n = (size_t)m->n_grains;
-  h = fnv(h, &m->n_grains, sizeof m->n_grains);
+  uint64_t h = FNV_VAL(FNV0, m->n_grains);
   h = fnv(h, m->radius, n * sizeof *m->radius);
   h = fnv(h, m->material, n * sizeof *m->material);
-  h = fnv(h, m->fix_rotation, n);
-  h = fnv(h, &m->n_materials, sizeof m->n_materials);
-  h = fnv(h, m->mat, (size_t)m->n_materials * sizeof m->mat[0]);
-  h = fnv(h, &m->n_planes, sizeof m->n_planes);
+  part[IO_M_GRAINS] = (int64_t)fnv(h, m->fix_rotation, n);
+  h = FNV_VAL(FNV0, m->n_materials);
+  for (int a = 0; a < m->n_materials; a++) {
+    const dem_material *mt = &m->mat[a];
+    const double v[] = {mt->density, mt->E, mt->nu, mt->G, mt->restitution, mt->friction, mt->rolling_friction};
+    h = fnv(h, v, sizeof v);
+    for (int b = 0; b < m->n_materials; b++) {
+      const dem_pair_law *l = &m->law[a][b];
+      const double lv[] = {l->Estar, l->Gstar, l->beta, l->mu, l->mu_roll, l->damp_n, l->damp_t};
+      h = fnv(h, lv, sizeof lv);
+      h = FNV_VAL(h, l->clamp);
+    }
+  }
+  part[IO_M_MATERIALS] = (int64_t)FNV_VAL(h, m->limit_force);
+  h = FNV_VAL(FNV0, m->n_planes);
   for (int p = 0; p < m->n_planes; p++) {
     h = fnv(h, m->planes[p].point, sizeof m->planes[p].point);
     h = fnv(h, m->planes[p].normal, sizeof m->planes[p].normal);
-    h = fnv(h, &m->planes[p].material, sizeof m->planes[p].material);
+    h = FNV_VAL(h, m->planes[p].material);
   }
-  h = fnv(h, &m->n_walls, sizeof m->n_walls);
-  h = fnv(h, &m->n_meshes, sizeof m->n_meshes);
+  part[IO_M_WALLS] = (int64_t)FNV_VAL(h, m->n_walls);
+  h = FNV_VAL(FNV0, m->n_meshes);
   for (int mi = 0; mi < m->n_meshes; mi++) {
     const dem_mesh *me = &m->meshes[mi];
-    h = fnv(h, &me->n_nodes, sizeof me->n_nodes);
-    h = fnv(h, &me->n_tri, sizeof me->n_tri);
+    h = FNV_VAL(h, me->n_nodes);
+    h = FNV_VAL(h, me->n_tri);
     h = fnv(h, me->tri, 3 * (size_t)me->n_tri * sizeof *me->tri);
-    h = fnv(h, &me->material, sizeof me->material);
+    h = FNV_VAL(h, me->material);
   }
-  h = fnv(h, &m->skin, sizeof m->skin);
-  h = fnv(h, &m->sleep.on, sizeof m->sleep.on); /* the set of arrays */
-  return (int64_t)h;
+  part[IO_M_MESHES] = (int64_t)h;
+  part[IO_M_SKIN] = (int64_t)FNV_VAL(FNV0, m->skin);
+  const dem_sleep_config *sl = &m->sleep;
+  const double sv[] = {sl->velocity, sl->time, sl->distance, sl->overlap};
+  h = FNV_VAL(FNV0, sl->on); /* also the set of arrays */
+  part[IO_M_SLEEP] = (int64_t)(sl->on ? fnv(h, sv, sizeof sv) : h);
+}
+
+static int64_t model_fingerprint(const int64_t *part) {
+  return (int64_t)fnv(FNV0, part, sizeof(int64_t) * IO_NPARTS);
+}
+
+/* "grains, walls" into out: the parts in which two fingerprints differ. */
+static void parts_differ(const int64_t *a, const int64_t *b, char *out, size_t cap) {
+  size_t len = 0;
+  out[0] = 0;
+  for (int k = 0; k < IO_NPARTS; k++)
+    if (a[k] != b[k] && len < cap)
+      len += (size_t)snprintf(out + len, cap - len, "%s%s", len ? "; " : "", io_part_name[k]);
 }
 
 /* Scratch for the mesh nodes, allocated once. */
@@ -149,7 +198,9 @@ int dem_state_export(const dem_model *m, const dem_state *cs, proto_msg *out, pr
   struct dem_work *w = s->work;
   if (io_scratch(m, s, err)) return -1;
   w->io_counters[IO_C_FORMAT] = IO_FORMAT;
-  w->io_counters[IO_C_MODEL] = model_fingerprint(m);
+  dem_sleep_export(m, s); /* the active block's "state.active" */
+  model_parts(m, w->io_model);
+  w->io_counters[IO_C_MODEL] = model_fingerprint(w->io_model);
   w->io_counters[IO_C_STEP] = s->step;
   w->io_counters[IO_C_REBUILDS] = s->rebuilds;
   w->io_counters[IO_C_CONTACTS] = s->contacts;
@@ -265,10 +316,19 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   if (cnt[IO_C_FORMAT] != IO_FORMAT)
     return proto_fail(err, "state import: 'state.counters' has format %lld, this dem_server reads %d",
                       (long long)cnt[IO_C_FORMAT], IO_FORMAT);
-  if (cnt[IO_C_MODEL] != model_fingerprint(m))
+  int64_t mine[IO_NPARTS];
+  model_parts(m, mine);
+  if (cnt[IO_C_MODEL] != model_fingerprint(mine)) {
+    const io_entry parts = {PROTO_P_STATE "model", PROTO_I8, 1, {IO_NPARTS}, NULL};
+    const int64_t *theirs = get(in, &parts, err);
+    char what[512];
+    if (!theirs) return -1;
+    parts_differ(theirs, mine, what, sizeof what);
     return proto_fail(err, "state import: 'state.counters' comes from another model (fingerprint %016llx, "
-                      "this model %016llx: grains, materials, walls, meshes or skin differ)",
-                      (unsigned long long)cnt[IO_C_MODEL], (unsigned long long)model_fingerprint(m));
+                      "this model %016llx): %s differ%s",
+                      (unsigned long long)cnt[IO_C_MODEL], (unsigned long long)model_fingerprint(mine),
+                      what[0] ? what : "'state.model' and 'state.counters'", what[0] ? "" : " (damaged)");
+  }
   const io_entry start = {PROTO_P_STATE "nl_start", PROTO_I4, 1, {n + 1}, NULL};
   const int32_t *st = get(in, &start, err);
   if (!st) return -1;

@@ -1,7 +1,8 @@
 /* fem_participant.c — the FEM participant of fem_server (role "fem", PROTOCOL.md).
  *
  * The tread is solved in the rim's frame (docs/architecture.md): x = R(t)(X + u) + c(t).
- * Each coupling step: nodal forces (world) are rotated into the rim frame,
+ * Each coupling step: nodal forces (world; a sparse nodal_force, PROTOCOL.md
+ * "Sparse exchange", is expanded first) are rotated into the rim frame,
  * added to the inflation pressure and gravity (rotated likewise), the tread
  * is advanced by sub-cycled central differences (or re-solved statically
  * with the kept factor in quasi_static mode), and the surface nodes go back
@@ -38,6 +39,7 @@ typedef struct server {
   int32_t *surf_tri;    /* [n_tri*3] */
   double *surf_x0;      /* [n_surf*3] rim frame, after the static solve */
   double *x_out, *v_out; /* [n_surf*3] world */
+  double *f_dense;       /* [n_surf*3] a sparse nodal_force expanded */
   double series[FEM_N_SERIES];
   double scalars[8];    /* state_save: the scalar part of fem_state */
   /* snapshots */
@@ -108,7 +110,8 @@ static int build_surface(server *s, proto_err *err) {
   s->surf_x0 = malloc(sizeof *s->surf_x0 * n3);
   s->x_out = malloc(sizeof *s->x_out * n3);
   s->v_out = malloc(sizeof *s->v_out * n3);
-  if (!s->surf_x0 || !s->x_out || !s->v_out) return proto_fail(err, "out of memory (surface)");
+  s->f_dense = malloc(sizeof *s->f_dense * (n3 + 1));
+  if (!s->surf_x0 || !s->x_out || !s->v_out || !s->f_dense) return proto_fail(err, "out of memory (surface)");
   for (int32_t i = 0; i < s->n_surf; i++)
     for (int d = 0; d < 3; d++)
       s->surf_x0[3 * i + d] = m->x[3 * (size_t)s->surf_node[i] + d] + s->st.u[3 * (size_t)s->surf_node[i] + d];
@@ -187,6 +190,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
                            4, SNAP + SNAP_U) < 0)
     return proto_fail(err, "out of memory");
   cJSON *h = proto_msg_header(ready);
+  cJSON_AddBoolToObject(h, PROTO_H_SPARSE, 1); /* nodal_force may come sparse */
   cJSON *info = cJSON_AddObjectToObject(h, "fem");
   cJSON_AddNumberToObject(info, "dt_crit", s->st.dt_crit);
   cJSON_AddNumberToObject(info, "nodes", md->mesh.n_nodes);
@@ -232,7 +236,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   server *s = user;
   const fem_model *md = &s->md;
   /* checked against the role table by the participant loop */
-  const double *f = proto_msg_data(req, PROTO_A_NODAL_FORCE);
+  const double *f = proto_msg_dense(req, PROTO_A_NODAL_FORCE, s->n_surf, 3, s->f_dense);
   const double *R = proto_msg_data(req, PROTO_A_RIM_R);
   const double *c = proto_msg_data(req, PROTO_A_RIM_C);
   const double *w = proto_msg_data(req, PROTO_A_RIM_OMEGA);
@@ -355,7 +359,7 @@ static void finish(void *user) {
   fem_model_free(&s->md);
   free(s->b_static); free(s->b_qs); free(s->u_prev);
   free(s->surf_node); free(s->surf_tri); free(s->surf_x0);
-  free(s->x_out); free(s->v_out);
+  free(s->x_out); free(s->v_out); free(s->f_dense);
   free(s->cells); free(s->mesh_x0); free(s->snap_x); free(s->snap_v);
   free(s->strain); free(s->stress); free(s->voigt);
   memset(s, 0, sizeof *s);

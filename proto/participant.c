@@ -1,5 +1,7 @@
 /* participant.c — the loop every solver process runs (PROTOCOL.md, "Control
  * channel"): hello → welcome → configure/init → ready → step... → stop.
+ * A welcome that offers the coupler's shared-memory segment is answered
+ * with ours: from then on large arrays travel in the segments (shm.c).
  * Messages are checked against the role table both ways; the state is saved
  * at each step start when the coupler may repeat steps (implicit scheme) and
  * restored for a repeat; each reply carries the seconds step() took. */
@@ -77,6 +79,10 @@ struct proto_peer {
   progress_rec prog;
   int curve_on;          /* CURVE keys from --curve / COSIM_CURVE_FILE */
   proto_curve curve;
+  /* shared memory (PROTOCOL.md "Shared memory"): the coupler's segment
+   * (read) and ours (written), used once the ready is out */
+  proto_shm *shm_in, *shm_out;
+  int shm_on;
 };
 
 int proto_peer_publish(proto_peer *peer, const proto_msg *m) {
@@ -102,9 +108,18 @@ static void set_phase(proto_peer *p, const char *phase, int64_t step) {
   pthread_mutex_unlock(&p->prog.lock);
 }
 
-/* Sends on the dealer; the caller holds io. */
+void *proto_peer_reply_buffer(proto_peer *peer, size_t nbytes) {
+  return peer && peer->shm_on ? proto_shm_next(peer->shm_out, nbytes) : NULL;
+}
+
+const char *proto_peer_transport(const proto_peer *peer) {
+  return peer && peer->shm_on ? "shm" : "socket";
+}
+
+/* Sends on the dealer (large arrays through our segment once shared memory
+ * is on); the caller holds io. */
 static int send_locked(proto_peer *p, const proto_msg *m, proto_err *err) {
-  int rc = proto_send(p->dealer, m, 0, err);
+  int rc = proto_send_via(p->dealer, NULL, m, 0, p->shm_on ? p->shm_out : NULL, err);
   if (rc == 0) p->last_sent = proto_now();
   return rc;
 }
@@ -271,6 +286,8 @@ static int send_simple(proto_peer *p, const char *type, int64_t step,
 
 static int launched(void) { return getenv("COSIM_LAUNCHED") != NULL; }
 
+static proto_shm *coupler_segment(void *ctx, const char *identity);
+
 /* Waits for the next message from the coupler, sending heartbeats while it
  * waits; timeout_s <= 0: no limit (a launched participant watches its
  * launcher instead). -1 on timeout or decode error (err says which). */
@@ -287,13 +304,21 @@ static int wait_message(proto_peer *p, proto_msg *m, const char *phase,
     pthread_mutex_lock(&p->io);
     if (proto_now() - p->last_sent >= HEARTBEAT_DUE_S) heartbeat_locked(p);
     int r = proto_poll_in(p->dealer, slice);
-    int rc = r > 0 ? proto_recv(p->dealer, m, NULL, err) : 0;
+    int rc = r > 0 ? proto_recv_via(p->dealer, m, NULL, p->shm_on ? coupler_segment : NULL,
+                                    p, err)
+                   : 0;
     pthread_mutex_unlock(&p->io);
     if (r > 0) return rc;
     /* the launcher (or a wrapper between it and us, e.g. mpirun) is gone */
     if (getppid() != p->parent && launched())
       return proto_fail(err, "the launcher died; exiting");
   }
+}
+
+/* The reader of the coupler's segment (the dealer has one sender). */
+static proto_shm *coupler_segment(void *ctx, const char *identity) {
+  (void)identity;
+  return ((proto_peer *)ctx)->shm_in;
 }
 
 static const char *json_str(const cJSON *o, const char *key) {
@@ -307,6 +332,28 @@ static double json_num(const cJSON *o, const char *key, double def) {
   const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
   return cJSON_IsNumber(v) && fabs(v->valuedouble) <= PROTO_MAX_HEADER_INT
              ? v->valuedouble : def;
+}
+
+/* A welcome that offers the coupler's segment: map it and make ours. The
+ * ready says which transport this process takes, and why not shm when the
+ * offer could not be taken (then everything stays on the socket). */
+static int shm_accept(proto_peer *p, const proto_msg *welcome, proto_msg *ready) {
+  const cJSON *seg = cJSON_GetObjectItemCaseSensitive(welcome->header, PROTO_H_SHM_SEGMENT);
+  cJSON *h = proto_msg_header(ready);
+  if (!seg) return cJSON_AddStringToObject(h, PROTO_H_TRANSPORT, "socket") ? 0 : -1;
+  proto_err why = {{0}};
+  p->shm_in = proto_shm_reader();
+  if (!p->shm_in || proto_shm_attach(p->shm_in, seg, &why) < 0 ||
+      !(p->shm_out = proto_shm_writer(PROTO_SHM_INITIAL_BYTES, &why)) ||
+      proto_shm_announce(p->shm_out, h) < 0) {
+    proto_shm_free(p->shm_in);
+    proto_shm_free(p->shm_out);
+    p->shm_in = p->shm_out = NULL;
+    cJSON_DeleteItemFromObjectCaseSensitive(h, PROTO_H_SHM_SEGMENT);
+    cJSON_AddStringToObject(h, PROTO_H_SHM_ERROR, why.msg[0] ? why.msg : "out of memory");
+    return cJSON_AddStringToObject(h, PROTO_H_TRANSPORT, "socket") ? 0 : -1;
+  }
+  return cJSON_AddStringToObject(h, PROTO_H_TRANSPORT, "shm") ? 0 : -1;
 }
 
 /* welcome → configure → init → ready. */
@@ -367,8 +414,10 @@ static int handshake(proto_peer *p, const proto_participant_ops *ops,
   int rc = ops->init ? ops->init(user, welcome, &ready, err) : 0;
   if (rc == 0 && proto_role_check(p->role, PROTO_MSG_READY, &ready, &p->dims, err) < 0)
     rc = proto_wrap(err, "the ready message built by init()");
-  if (rc == 0) rc = peer_send(p, &ready, err);
+  if (rc == 0 && shm_accept(p, welcome, &ready) < 0) rc = proto_fail(err, "out of memory");
+  if (rc == 0) rc = peer_send(p, &ready, err); /* the ready itself: frames */
   proto_msg_free(&ready);
+  p->shm_on = rc == 0 && p->shm_out != NULL;
   return rc;
 }
 
@@ -535,6 +584,13 @@ static int connect_and_hello(proto_peer *p, const args *a, proto_err *err) {
   cJSON_AddStringToObject(h, PROTO_H_NAME, p->name);
   cJSON_AddNumberToObject(h, PROTO_H_PID, (double)getpid());
   cJSON_AddNumberToObject(h, PROTO_H_HEARTBEAT_S, PROTO_HEARTBEAT_S);
+  char host[256], boot[64];
+  if (proto_shm_host(host, sizeof host, boot, sizeof boot) == 0) {
+    /* "this process can map segments, on this host": the coupler's offer */
+    cJSON *o = cJSON_AddObjectToObject(h, PROTO_H_HOST);
+    cJSON_AddStringToObject(o, "name", host);
+    cJSON_AddStringToObject(o, "boot_id", boot);
+  }
   int rc = peer_send(p, &hello, err);
   proto_msg_free(&hello);
   if (rc == 0 && pthread_create(&p->hb_thread, NULL, heartbeat_main, p) == 0)
@@ -584,6 +640,8 @@ int proto_participant_main(int argc, char **argv,
   proto_msg_free(&p.state.saved);
   free(p.state.arena);
   if (ops->finish) ops->finish(user);
+  proto_shm_free(p.shm_in); /* after every message that may point into it */
+  proto_shm_free(p.shm_out);
   if (p.bus) zmq_close(p.bus);
   zmq_close(p.dealer);
   zmq_ctx_term(p.ctx);

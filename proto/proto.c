@@ -1,5 +1,7 @@
 /* proto.c — the multipart message format (PROTOCOL.md, "Framing"); errors,
- * names and the clock are in error.c, duplicate-key checks in config.c. */
+ * names and the clock are in error.c, duplicate-key checks in config.c, the
+ * shared-memory placement of large arrays (descriptors instead of frames)
+ * in shm.c. */
 #include "proto.h"
 
 #include <errno.h>
@@ -207,7 +209,11 @@ static int tb_printf(text_buf *b, const char *fmt, ...) {
  * spliced in from the cJSON object. Array names are checked plain by
  * proto_msg_add, so they need no escaping; the fixed fields take precedence
  * over extras of the same name. */
-static char *header_json(const proto_msg *m) {
+/* pl (may be NULL): the arrays placed in a shared-memory segment get their
+ * descriptor [message number, offset]; a new segment's descriptor goes in
+ * the header (proto_shm.h). */
+static char *header_json(const proto_msg *m, const proto_shm *w,
+                         const proto_shm_place *pl) {
   text_buf b = {malloc(512), 0, 512};
   if (!b.p) return NULL;
   int rc = tb_printf(&b, "{\"v\":%d,\"type\":\"%s\",\"step\":%lld,\"t\":%.17g,"
@@ -219,13 +225,23 @@ static char *header_json(const proto_msg *m) {
                    i ? "," : "", a->name, dtype_names[a->dtype]);
     for (int d = 0; rc == 0 && d < a->ndim; d++)
       rc = tb_printf(&b, "%s%lld", d ? "," : "", (long long)a->shape[d]);
-    if (rc == 0) rc = tb_printf(&b, "]}");
+    if (rc == 0) rc = tb_printf(&b, "]");
+    if (rc == 0 && pl && pl->offset[i] >= 0)
+      rc = tb_printf(&b, ",\"%s\":[%llu,%lld]", PROTO_A_SHM,
+                     (unsigned long long)pl->seq, (long long)pl->offset[i]);
+    if (rc == 0) rc = tb_printf(&b, "}");
   }
   if (rc == 0) rc = tb_printf(&b, "]");
+  const int announce = pl && pl->announce;
+  if (rc == 0 && announce) {
+    char *desc = proto_shm_descriptor_json(w);
+    rc = desc ? tb_printf(&b, ",\"%s\":%s", PROTO_H_SHM_SEGMENT, desc) : -1;
+    free(desc);
+  }
   for (const cJSON *e = m->header ? m->header->child : NULL; rc == 0 && e;
        e = e->next) {
     static const char *const fixed[] = {"v", "type", "step", "t", "arrays"};
-    int skip = 0;
+    int skip = announce && strcmp(e->string, PROTO_H_SHM_SEGMENT) == 0;
     for (int k = 0; k < 5; k++) skip |= strcmp(e->string, fixed[k]) == 0;
     if (skip) continue;
     char *value = cJSON_PrintUnformatted(e);
@@ -264,37 +280,48 @@ static int send_frame(void *s, const void *data, size_t n, int more, int copy,
   return 0;
 }
 
+/* w (may be NULL): arrays of PROTO_SHM_MIN_BYTES or more go into its
+ * segment and travel as an empty frame plus their descriptor. */
 static int send_msg(void *s, const proto_msg *m, int flags, int copy,
-                    proto_err *err) {
-  char *hdr = header_json(m);
+                    proto_shm *w, proto_err *err) {
+  proto_shm_place pl;
+  if (w && proto_shm_place_msg(w, m, &pl, err) < 0) return -1;
+  char *hdr = header_json(m, w, w && pl.seq ? &pl : NULL);
   if (!hdr) return proto_fail(err, "cannot encode header of '%s'", m->type);
   int rc = send_frame(s, m->topic, strlen(m->topic), 1, 1, flags, err);
   if (rc == 0)
     rc = send_frame(s, hdr, strlen(hdr), m->narrays > 0, 1, flags, err);
   free(hdr);
-  for (int i = 0; rc == 0 && i < m->narrays; i++)
-    rc = send_frame(s, m->arrays[i].data, m->arrays[i].nbytes,
+  for (int i = 0; rc == 0 && i < m->narrays; i++) {
+    const int in_shm = w && pl.seq && pl.offset[i] >= 0;
+    rc = send_frame(s, m->arrays[i].data, in_shm ? 0 : m->arrays[i].nbytes,
                     i + 1 < m->narrays, copy, flags, err);
+  }
   return rc;
 }
 
 int proto_send(void *socket, const proto_msg *m, int flags, proto_err *err) {
-  return send_msg(socket, m, flags, 0, err);
+  return send_msg(socket, m, flags, 0, NULL, err);
+}
+
+int proto_send_via(void *socket, const char *identity, const proto_msg *m,
+                   int flags, proto_shm *w, proto_err *err) {
+  if (identity && send_frame(socket, identity, strlen(identity), 1, 1, flags, err) < 0)
+    return proto_wrap(err, "to '%s'", identity);
+  if (send_msg(socket, m, flags, 0, w, err) < 0)
+    return identity ? proto_wrap(err, "to '%s'", identity) : -1;
+  return 0;
 }
 
 int proto_send_to(void *router, const char *identity, const proto_msg *m,
                   proto_err *err) {
-  if (send_frame(router, identity, strlen(identity), 1, 1, 0, err) < 0)
-    return proto_wrap(err, "to '%s'", identity);
-  if (send_msg(router, m, 0, 0, err) < 0)
-    return proto_wrap(err, "to '%s'", identity);
-  return 0;
+  return proto_send_via(router, identity, m, 0, NULL, err);
 }
 
 int proto_publish(void *pub, const proto_msg *m) {
   /* Copies: queued bus messages may outlive the caller's buffers. PUB drops
    * at the high-water mark instead of blocking. */
-  return send_msg(pub, m, ZMQ_DONTWAIT, 1, NULL);
+  return send_msg(pub, m, ZMQ_DONTWAIT, 1, NULL, NULL);
 }
 
 /* ------------------------------------------------------------------ decode */
@@ -305,8 +332,10 @@ static int parse_dtype(const char *s) {
   return -1;
 }
 
+/* An array's spec; with "shm" its bytes are in rd's segment (shm.c), its
+ * frame empty. */
 static int decode_array_spec(proto_array *a, const cJSON *spec, int idx,
-                             size_t frame_bytes, proto_err *err) {
+                             size_t frame_bytes, proto_shm *rd, proto_err *err) {
   if (!cJSON_IsObject(spec))
     return proto_fail(err, "arrays[%d]: expected an object {name, dtype, shape}",
                       idx);
@@ -349,6 +378,8 @@ static int decode_array_spec(proto_array *a, const cJSON *spec, int idx,
     return proto_fail(err, "array '%s': %.0f bytes exceeds the limit of %zu",
                       a->name, bytes, PROTO_MAX_FRAME_BYTES);
   a->nbytes = (size_t)bytes;
+  const cJSON *shm = cJSON_GetObjectItemCaseSensitive(spec, PROTO_A_SHM);
+  if (shm) return proto_shm_resolve(rd, a, shm, frame_bytes, err);
   if (a->nbytes != frame_bytes)
     return proto_fail(err,
                       "array '%s' (%s, shape product %.0f) needs %zu bytes, "
@@ -437,6 +468,11 @@ static int decode_header(proto_msg *m, const char *text, size_t len,
 
 int proto_decode(proto_msg *m, int nframes, const void *const *frames,
                  const size_t *sizes, proto_err *err) {
+  return proto_decode_via(m, nframes, frames, sizes, NULL, err);
+}
+
+int proto_decode_via(proto_msg *m, int nframes, const void *const *frames,
+                     const size_t *sizes, proto_shm *rd, proto_err *err) {
   proto_msg_reset(m, "", "", 0, 0);
   if (nframes < 2) return proto_fail(err, "message has %d frame(s), need at "
                                      "least topic and header", nframes);
@@ -454,6 +490,9 @@ int proto_decode(proto_msg *m, int nframes, const void *const *frames,
   }
   const cJSON *specs = NULL;
   if (decode_header(m, frames[1], sizes[1], &specs, err) < 0) goto fail;
+  /* a new segment of the sender's comes before the arrays that lie in it */
+  const cJSON *seg = cJSON_GetObjectItemCaseSensitive(m->header, PROTO_H_SHM_SEGMENT);
+  if (seg && rd && proto_shm_attach(rd, seg, err) < 0) goto fail;
   int n = specs ? cJSON_GetArraySize(specs) : 0;
   if (n > PROTO_MAX_ARRAYS) {
     proto_fail(err, "%d arrays, at most %d allowed", n, PROTO_MAX_ARRAYS);
@@ -466,7 +505,7 @@ int proto_decode(proto_msg *m, int nframes, const void *const *frames,
   }
   for (int i = 0; i < n; i++) {
     proto_array *a = &m->arrays[i];
-    if (decode_array_spec(a, cJSON_GetArrayItem(specs, i), i, sizes[i + 2],
+    if (decode_array_spec(a, cJSON_GetArrayItem(specs, i), i, sizes[i + 2], rd,
                           err) < 0)
       goto fail;
     for (int j = 0; j < i; j++)
@@ -474,7 +513,7 @@ int proto_decode(proto_msg *m, int nframes, const void *const *frames,
         proto_fail(err, "array '%s' appears twice", a->name);
         goto fail;
       }
-    a->data = frames[i + 2];
+    if (!a->data) a->data = frames[i + 2]; /* else: in the segment (shm.c) */
     m->narrays = i + 1;
   }
   return 0;
@@ -513,6 +552,11 @@ static int recv_frames(void *s, struct proto_msg_frames *f, proto_err *err) {
 }
 
 int proto_recv(void *socket, proto_msg *m, char *identity, proto_err *err) {
+  return proto_recv_via(socket, m, identity, NULL, NULL, err);
+}
+
+int proto_recv_via(void *socket, proto_msg *m, char *identity,
+                   proto_shm_lookup reader_of, void *ctx, proto_err *err) {
   proto_msg_reset(m, "", "", 0, 0);
   struct proto_msg_frames *f = m->frames_;
   m->frames_ = NULL;
@@ -550,7 +594,8 @@ int proto_recv(void *socket, proto_msg *m, char *identity, proto_err *err) {
         data[i] = f->aligned[i - 2];
       }
     }
-    if (rc == 0) rc = proto_decode(m, nf, data, size, err);
+    proto_shm *rd = reader_of ? reader_of(ctx, identity ? identity : "") : NULL;
+    if (rc == 0) rc = proto_decode_via(m, nf, data, size, rd, err);
   }
   m->frames_ = f; /* kept even on error: its buffers serve the next receive */
   if (rc < 0) {

@@ -71,6 +71,14 @@ typedef enum proto_msg_kind {
 #define PROTO_A_V "v"
 #define PROTO_A_D_ROAD "d_road"
 #define PROTO_A_FORCE "force"
+/* Sparse form of an [n, ...] array (PROTOCOL.md "Sparse exchange"): the
+ * array has k rows, the rows of the nodes listed in "<name>_index" (i4 [k],
+ * increasing). Rows not listed are zero (forces) or not carried (positions,
+ * velocities: the node is out of the dem's reach this step). */
+#define PROTO_SUFFIX_INDEX "_index"
+#define PROTO_A_NODAL_FORCE_INDEX "nodal_force_index"
+#define PROTO_A_X_INDEX "x_index"
+#define PROTO_A_V_INDEX "v_index"
 /* Participant-defined arrays, by prefix (PROTOCOL.md "Series", "Snapshots") */
 #define PROTO_A_SERIES "series"  /* the row of the "series" dataset */
 #define PROTO_P_SERIES "series." /* rows of further datasets */
@@ -99,6 +107,14 @@ typedef enum proto_msg_kind {
 #define PROTO_H_BED_TOP "bed_top"     /* ready (dem, optional): settled bed's top under the surface, m */
 #define PROTO_H_BED_TOP_GRAINS "bed_top_grains" /* ready (dem): grains it was taken over */
 #define PROTO_H_RESTART_STEP "restart_step" /* welcome run: the checkpoint's step, 0 if none */
+#define PROTO_H_SPARSE "sparse"       /* step: the coupler takes sparse replies (bool);
+                                       * ready (fem): it takes a sparse nodal_force */
+#define PROTO_H_REACH "reach"         /* done (dem): [lo xyz, hi xyz] the box its grains
+                                       * can reach in the next step, m; step (dem): the
+                                       * box x_index was chosen by */
+#define PROTO_H_REACH_SPEED "reach_speed" /* done (dem), optional: s; grow reach by this
+                                       * times the surface's largest node speed |v| of
+                                       * the step, and send that node too */
 
 /* A participant says something at least this often (s): a heartbeat when it
  * has nothing else to say. */
@@ -109,11 +125,15 @@ typedef enum proto_msg_kind {
 
 /* Symbolic dimensions of the table (a positive dim is literal). */
 enum { PROTO_DIM_NODES = -1, /* n: surface nodes (bound by surface_x0) */
-       PROTO_DIM_TRIS = -2   /* m: surface triangles (bound by surface_tri) */ };
+       PROTO_DIM_TRIS = -2,  /* m: surface triangles (bound by surface_tri) */
+       PROTO_DIM_ROWS = -3   /* k: rows of a sparse array (its index, per message) */ };
 
 typedef enum proto_when {
   PROTO_WHEN_ALWAYS = 0,
-  PROTO_WHEN_SURFACE = 1 /* only when the participant has a coupled surface */
+  PROTO_WHEN_SURFACE = 1, /* only when the participant has a coupled surface */
+  PROTO_WHEN_INDEX = 2    /* optional "<name>_index" of the [n, ...] row <name>
+                           * of the same role and message: with it, <name> has
+                           * k rows (its sparse form) */
 } proto_when;
 
 typedef struct proto_array_spec {
@@ -177,8 +197,37 @@ int proto_role_check(proto_role role, proto_msg_kind kind, const proto_msg *m,
                      proto_dims *d, proto_err *err);
 /* Data of an array already checked by proto_role_check (NULL if absent). */
 const void *proto_msg_data(const proto_msg *m, const char *name);
+/* The sparse form of array `name` in a checked message: its row count k and
+ * *index the k node indices (increasing, < n), or -1 (*index NULL) when the
+ * array is dense (no "<name>_index"). */
+int64_t proto_msg_sparse(const proto_msg *m, const char *name, const int32_t **index);
+/* The f8 array `name` [n, cols] of a checked message as dense rows: the
+ * array itself, or its sparse form expanded into scratch [n*cols] (rows not
+ * listed +0.0: what the dense form holds there when the sender packs only
+ * the rows that are not all +0.0, as the forces are). */
+const double *proto_msg_dense(const proto_msg *m, const char *name, int64_t n, int cols,
+                              double *scratch);
+/* The sparse form of a force field f [n*3]: the rows that are not
+ * (+0, +0, +0) bit for bit (the rows a dense field would differ in from
+ * zeros) as idx [k] (increasing) and rows [k*3]; returns k. The one rule for
+ * which force rows travel (the dem's reply, the coupler's message to the fem). */
+int64_t proto_sparse_rows(const double *f, int64_t n, int32_t *idx, double *rows);
+/* x_index's contract (PROTOCOL.md "Sparse exchange"): the nodes of every
+ * triangle tri [n_tri*3] whose box over a step of dt — its nodes at x and
+ * at x + v dt [n*3], grown by PROTO_REACH_ROUNDING — meets box [lo xyz, hi
+ * xyz]. A node moves on that segment within the step, so the triangle stays
+ * inside the box of its six end points: one left out does not meet the box
+ * all step. Into index (increasing; mark [n] scratch); returns the count. */
+int64_t proto_reach_nodes(const double *x, const double *v, double dt, const int32_t *tri,
+                          int64_t n_tri, int64_t n, const double box[6], uint8_t *mark,
+                          int32_t *index);
+/* m: how far a node's end of step may lie from x + v dt by rounding (a dem
+ * moves it by v dt/nsub per sub-step: < nsub * 2.2e-16 * |x|, below 1e-9 m for
+ * |x| < 10 m and up to 10^5 sub-steps). */
+#define PROTO_REACH_ROUNDING 1e-9
 
 #include "proto_participant.h"
+#include "proto_shm.h"
 #include "proto_cfg.h"
 #include "proto_h5.h"
 

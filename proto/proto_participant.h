@@ -113,6 +113,14 @@ int proto_participant_main(int argc, char **argv,
                            const proto_participant_ops *ops, void *user);
 /* Publishes on the bus from inside step() (topic "<name>.<what>"). */
 int proto_peer_publish(proto_peer *peer, const proto_msg *m);
+/* Zero copy (PROTOCOL.md "Shared memory"): when this process's arrays travel
+ * by shared memory, the start of the buffer its next message is written to
+ * (nbytes fit; 8-byte aligned: carve several arrays at offsets that are
+ * multiples of 8), else NULL. An array of a reply added from there is sent
+ * without a copy; valid until that reply is sent. */
+void *proto_peer_reply_buffer(proto_peer *peer, size_t nbytes);
+/* "shm" or "socket": how this process's arrays travel (after the handshake). */
+const char *proto_peer_transport(const proto_peer *peer);
 /* Reports progress of a long init (or step): fraction in [0, 1] (< 0:
  * unknown) and what is being done. Only records the values (cheap: call it
  * as often as you like); the loop's heartbeat thread sends them, so the

@@ -4,6 +4,7 @@
  * several sub-steps. Both sides validate messages against it. */
 #include "proto.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -17,6 +18,7 @@ static const int from_participant[PROTO_N_MSGS] = {1, 0, 1, 0, 1, 0, 1, 1,
 
 #define N3 {PROTO_DIM_NODES, 3}
 #define M3 {PROTO_DIM_TRIS, 3}
+#define K1 {PROTO_DIM_ROWS}
 
 static const proto_array_spec table[] = {
     /* ---- fem: the tread. It declares the coupled surface. */
@@ -36,6 +38,11 @@ static const proto_array_spec table[] = {
      "[t_{k-1}, t_k]: the impulse the grains exchanged with the node over the "
      "coupling step divided by dt. Apply it unchanged in every sub-step "
      "(zero at step 1)",
+     "surface.force", 0},
+    {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_NODAL_FORCE_INDEX, PROTO_I4, 1, K1, "-",
+     PROTO_WHEN_INDEX,
+     "optional, only to a fem whose ready says sparse: the nodes whose rows "
+     "nodal_force then carries (k rows); every other node's force is zero",
      "surface.force", 0},
     {PROTO_ROLE_FEM, PROTO_MSG_STEP, PROTO_A_RIM_R, PROTO_F8, 2, {3, 3}, "-",
      PROTO_WHEN_ALWAYS, "rotation rim -> world at t_k, row-major",
@@ -72,6 +79,15 @@ static const proto_array_spec table[] = {
      "surface velocity over the step: within [t_{k-1}, t_k] the surface is at "
      "x + (t - t_{k-1}) v (contact damping and friction use v)",
      "surface.v", 0},
+    {PROTO_ROLE_DEM, PROTO_MSG_STEP, PROTO_A_X_INDEX, PROTO_I4, 1, K1, "-",
+     PROTO_WHEN_INDEX,
+     "optional, after a done that gave a reach box: the nodes whose rows x then "
+     "carries (k rows): those of every triangle whose box over the step meets "
+     "the box (header reach); the other nodes cannot touch the grains this step",
+     "surface.x", 0},
+    {PROTO_ROLE_DEM, PROTO_MSG_STEP, PROTO_A_V_INDEX, PROTO_I4, 1, K1, "-",
+     PROTO_WHEN_INDEX, "with x_index: the same nodes, the rows v carries",
+     "surface.v", 0},
     {PROTO_ROLE_DEM, PROTO_MSG_DONE, PROTO_A_NODAL_FORCE, PROTO_F8, 2, N3, "N",
      PROTO_WHEN_SURFACE,
      "force of the grains ON each surface node, world frame, as the impulse "
@@ -80,6 +96,12 @@ static const proto_array_spec table[] = {
      "(each evaluation kicks the grains with -dt_j f_j in total). Its sum is "
      "minus the impulse/dt the grains received from the surface",
      "surface.force", 1},
+    {PROTO_ROLE_DEM, PROTO_MSG_DONE, PROTO_A_NODAL_FORCE_INDEX, PROTO_I4, 1, K1,
+     "-", PROTO_WHEN_INDEX,
+     "optional, when the step's header said sparse: the nodes whose rows "
+     "nodal_force then carries (k rows); every other node's force is zero "
+     "(+0.0)",
+     "surface.force", 0},
     /* ---- block: the tread block on the road. */
     {PROTO_ROLE_BLOCK, PROTO_MSG_STEP, PROTO_A_D_ROAD, PROTO_F8, 1, {1}, "m",
      PROTO_WHEN_ALWAYS,
@@ -122,13 +144,14 @@ void proto_dims_init(proto_dims *d) {
   d->nodes = d->tris = -1;
 }
 
-static int64_t *dim_slot(proto_dims *d, int64_t sym) {
+static int64_t *dim_slot(proto_dims *d, int64_t sym) { /* NULL: k, per message */
   return sym == PROTO_DIM_NODES ? &d->nodes : sym == PROTO_DIM_TRIS ? &d->tris
                                                                     : NULL;
 }
 
 static const char *dim_symbol(int64_t sym) {
-  return sym == PROTO_DIM_NODES ? "n" : sym == PROTO_DIM_TRIS ? "m" : "?";
+  return sym == PROTO_DIM_NODES ? "n" : sym == PROTO_DIM_TRIS ? "m"
+         : sym == PROTO_DIM_ROWS ? "k" : "?";
 }
 
 /* "[n=25, 3]" (or "[n, 3]" while n is unbound). */
@@ -138,10 +161,11 @@ static void want_str(const proto_array_spec *s, const proto_dims *d, char *out,
   for (int i = 0; i < s->ndim && len < cap; i++) {
     const char *sep = i ? ", " : "";
     int64_t v = s->dims[i];
-    if (v > 0) {
+    if (v >= 0) {
       len += (size_t)snprintf(out + len, cap - len, "%s%lld", sep, (long long)v);
     } else {
-      int64_t bound = *dim_slot((proto_dims *)d, v);
+      const int64_t *slot = dim_slot((proto_dims *)d, v);
+      int64_t bound = slot ? *slot : -1;
       if (bound >= 0)
         len += (size_t)snprintf(out + len, cap - len, "%s%s=%lld", sep,
                                 dim_symbol(v), (long long)bound);
@@ -179,11 +203,12 @@ static int check_one(const proto_array_spec *s, const proto_array *a,
   proto_dims trial = *d;
   for (int i = 0; i < s->ndim; i++) {
     int64_t want = s->dims[i];
-    if (want > 0) {
+    if (want >= 0) { /* literal (0: a sparse array of no rows) */
       if (a->shape[i] != want) return spec_fail(s, d, a, err);
       continue;
     }
     int64_t *slot = dim_slot(&trial, want);
+    if (!slot) return spec_fail(s, d, a, err); /* k outside a sparse form */
     if (*slot < 0) *slot = a->shape[i];
     else if (*slot != a->shape[i]) return spec_fail(s, d, a, err);
   }
@@ -302,6 +327,41 @@ static int check_done_series(const proto_msg *m, const proto_dims *d,
   return 0;
 }
 
+/* The index row of s ("<name>_index", WHEN_INDEX) in the table, or NULL. */
+static const proto_array_spec *index_row(const proto_array_spec *t, int n,
+                                         const proto_array_spec *s) {
+  char iname[PROTO_NAME_LEN + 8];
+  snprintf(iname, sizeof iname, "%s%s", s->name, PROTO_SUFFIX_INDEX);
+  for (int i = 0; i < n; i++)
+    if (t[i].role == s->role && t[i].msg == s->msg && t[i].when == PROTO_WHEN_INDEX &&
+        strcmp(t[i].name, iname) == 0)
+      return &t[i];
+  return NULL;
+}
+
+/* Row s's sparse form in m: 0 dense (no index array), 1 sparse with *rows
+ * listed nodes (i4 [k], strictly increasing, each in [0, n)), -1 naming the
+ * defect. */
+static int check_index(const proto_array_spec *t, int n, const proto_array_spec *s,
+                       const proto_msg *m, const proto_dims *d, int64_t *rows,
+                       proto_err *err) {
+  const proto_array_spec *is = index_row(t, n, s);
+  const proto_array *ia = is ? proto_msg_find(m, is->name) : NULL;
+  if (!ia) return 0;
+  if (ia->dtype != PROTO_I4 || ia->ndim != 1 || s->dims[0] != PROTO_DIM_NODES ||
+      d->nodes < 0 || ia->shape[0] > d->nodes)
+    return spec_fail(is, d, ia, err);
+  const int32_t *idx = ia->data;
+  for (int64_t j = 0; j < ia->shape[0]; j++)
+    if (idx[j] < 0 || idx[j] >= d->nodes || (j > 0 && idx[j] <= idx[j - 1]))
+      return proto_fail(err, "%s (role %s): %s[%lld] = %d: expected node indices in "
+                        "[0, %lld), strictly increasing (%s)", proto_msg_type(s->msg),
+                        role_names[s->role], is->name, (long long)j, (int)idx[j],
+                        (long long)d->nodes, is->meaning);
+  *rows = ia->shape[0];
+  return 1;
+}
+
 int proto_role_check(proto_role role, proto_msg_kind kind, const proto_msg *m,
                      proto_dims *d, proto_err *err) {
   if (kind == PROTO_MSG_READY &&
@@ -322,12 +382,64 @@ int proto_role_check(proto_role role, proto_msg_kind kind, const proto_msg *m,
   for (int i = 0; i < n; i++) {
     const proto_array_spec *s = &t[i];
     if (s->role != role || s->msg != kind) continue;
+    if (s->when == PROTO_WHEN_INDEX) continue; /* checked with the array it indexes */
     if (s->when == PROTO_WHEN_SURFACE && !d->surface) continue;
     const proto_array *a = proto_msg_find(m, s->name);
     if (!a) return spec_fail(s, d, NULL, err);
-    if (check_one(s, a, d, err) < 0) return -1;
+    int64_t rows = 0;
+    const int r = check_index(t, n, s, m, d, &rows, err);
+    if (r < 0) return -1;
+    proto_array_spec sparse = *s;
+    if (r == 1) sparse.dims[0] = rows; /* the sparse form: k rows */
+    if (check_one(&sparse, a, d, err) < 0) return -1;
   }
   return 0;
+}
+
+int64_t proto_reach_nodes(const double *x, const double *v, double dt, const int32_t *tri,
+                          int64_t n_tri, int64_t n, const double box[6], uint8_t *mark,
+                          int32_t *index) {
+  memset(mark, 0, (size_t)n);
+  for (int64_t t = 0; t < n_tri; t++) {
+    const int32_t *tn = &tri[3 * t];
+    int meets = 1;
+    /* z first: a bed under gravity is a layer, most of a wheel lies above it */
+    for (int d = 2; d >= 0 && meets; d--) {
+      double lo = INFINITY, hi = -INFINITY;
+      for (int a = 0; a < 3; a++) {
+        const double p = x[3 * tn[a] + d], q = p + v[3 * tn[a] + d] * dt;
+        const double l = p < q ? p : q, h = p < q ? q : p; /* finite: checked on arrival */
+        lo = l < lo ? l : lo;
+        hi = h > hi ? h : hi;
+      }
+      meets = lo - PROTO_REACH_ROUNDING <= box[3 + d] && hi + PROTO_REACH_ROUNDING >= box[d];
+    }
+    if (meets) mark[tn[0]] = mark[tn[1]] = mark[tn[2]] = 1;
+  }
+  int64_t k = 0;
+  for (int64_t a = 0; a < n; a++)
+    if (mark[a]) index[k++] = (int32_t)a;
+  return k;
+}
+
+const double *proto_msg_dense(const proto_msg *m, const char *name, int64_t n, int cols,
+                              double *scratch) {
+  const int32_t *idx;
+  const int64_t k = proto_msg_sparse(m, name, &idx);
+  const double *a = proto_msg_data(m, name);
+  if (k < 0) return a;
+  memset(scratch, 0, sizeof(double) * (size_t)n * (size_t)cols); /* +0.0, as dense */
+  for (int64_t j = 0; j < k; j++)
+    memcpy(&scratch[(size_t)idx[j] * (size_t)cols], &a[j * cols], sizeof(double) * (size_t)cols);
+  return scratch;
+}
+
+int64_t proto_msg_sparse(const proto_msg *m, const char *name, const int32_t **index) {
+  char iname[PROTO_NAME_LEN + 8];
+  snprintf(iname, sizeof iname, "%s%s", name, PROTO_SUFFIX_INDEX);
+  const proto_array *ia = proto_msg_find(m, iname);
+  *index = ia ? ia->data : NULL;
+  return ia ? ia->shape[0] : -1;
 }
 
 const void *proto_msg_data(const proto_msg *m, const char *name) {
@@ -352,6 +464,8 @@ cJSON *proto_role_table_json(void) {
   cJSON *dims = cJSON_AddObjectToObject(root, "dims");
   cJSON_AddStringToObject(dims, "n", "surface nodes (bound by surface_x0)");
   cJSON_AddStringToObject(dims, "m", "surface triangles (bound by surface_tri)");
+  cJSON_AddStringToObject(dims, "k", "rows of a sparse array: the length of its "
+                          "<name>_index in the same message");
   cJSON *prefixes = cJSON_AddObjectToObject(root, "prefixes");
   cJSON_AddStringToObject(prefixes, PROTO_A_SERIES, "done: the row of the series dataset");
   cJSON_AddStringToObject(prefixes, PROTO_P_SERIES, "done: rows of further datasets");
@@ -378,8 +492,9 @@ cJSON *proto_role_table_json(void) {
       cJSON_AddStringToObject(a, "direction", from_participant[s->msg]
                                                   ? "participant->coupler"
                                                   : "coupler->participant");
-      cJSON_AddStringToObject(a, "when", s->when == PROTO_WHEN_SURFACE
-                                             ? "with_surface" : "always");
+      cJSON_AddStringToObject(a, "when", s->when == PROTO_WHEN_SURFACE ? "with_surface"
+                                         : s->when == PROTO_WHEN_INDEX ? "sparse_index"
+                                                                       : "always");
       cJSON_AddStringToObject(a, "meaning", s->meaning);
       if (s->field) {
         cJSON_AddStringToObject(a, "field", s->field);
@@ -389,4 +504,17 @@ cJSON *proto_role_table_json(void) {
     }
   }
   return root;
+}
+
+int64_t proto_sparse_rows(const double *f, int64_t n, int32_t *idx, double *rows) {
+  int64_t k = 0;
+  for (int64_t a = 0; a < n; a++) {
+    const double *r = &f[3 * a];
+    if (r[0] == 0 && r[1] == 0 && r[2] == 0 && !signbit(r[0]) && !signbit(r[1]) &&
+        !signbit(r[2]))
+      continue;
+    idx[k] = (int32_t)a;
+    memcpy(&rows[3 * k++], r, 3 * sizeof(double));
+  }
+  return k;
 }

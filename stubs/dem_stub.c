@@ -3,9 +3,15 @@
  * ramp_time. As the role table says, the reply is the impulse over the step
  * divided by dt: force_per_node times the mean of the ramp over
  * [t_{k-1}, t_k]. It echoes the surface it receives as its snapshot.
+ * With bed_top only the nodes below it (z at t_{k-1}) get the force. Sparse
+ * exchange (PROTOCOL.md): when the request says sparse it sends the force as
+ * (index, force) of the nodes that carry one (dense beyond a third of them);
+ * it gives no reach box, so it always gets every node (its snapshot echoes
+ * them all).
  * Config: {"exec": "dem_stub", "force_per_node": [fx, fy, fz],
- *          "ramp_time": 0.0}; other keys (a dem_server section) are named in
- * the log and ignored (then the force is zero). */
+ *          "ramp_time": 0.0, "bed_top": z}; other keys (a dem_server
+ * section) are named in the log and ignored (then the force is zero). */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -19,6 +25,9 @@ static const char *const SNAP_ATTRS[] = {PROTO_A_NODAL_FORCE};
 typedef struct dem_stub {
   double force_per_node[3]; /* N */
   double ramp_time;         /* s */
+  double bed_top;           /* m: only nodes below it get the force */
+  int32_t *index;           /* [n] sparse reply: the nodes that carry a force */
+  double *rows;             /* [n*3] their forces */
   int64_t n_nodes;
   double *force;
   double series[NCOL];
@@ -29,11 +38,13 @@ static int configure(void *user, const proto_run_info *info,
   dem_stub *s = user;
   proto_cfg c;
   char exec[256];
+  s->bed_top = INFINITY;
   if (proto_cfg_open(&c, section, info->key_path, err) < 0 ||
       proto_cfg_str(&c, "exec", PROTO_OPTIONAL, exec, sizeof exec) < 0 ||
       proto_cfg_vec(&c, "force_per_node", PROTO_OPTIONAL, s->force_per_node, 3,
                     3, NULL) < 0 ||
-      proto_cfg_num(&c, "ramp_time", PROTO_OPTIONAL, 0, 1e9, &s->ramp_time) < 0)
+      proto_cfg_num(&c, "ramp_time", PROTO_OPTIONAL, 0, 1e9, &s->ramp_time) < 0 ||
+      proto_cfg_num(&c, "bed_top", PROTO_OPTIONAL, -1e9, 1e9, &s->bed_top) < 0)
     return -1;
   return stub_cfg_end(&c, "dem_stub");
 }
@@ -45,7 +56,9 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready,
   if (x0) { /* checked against the role table by the participant loop */
     s->n_nodes = x0->shape[0];
     s->force = calloc((size_t)s->n_nodes * 3, sizeof(double));
-    if (!s->force) return proto_fail(err, "out of memory");
+    s->index = malloc(sizeof(int32_t) * (size_t)s->n_nodes);
+    s->rows = malloc(sizeof(double) * 3 * (size_t)s->n_nodes);
+    if (!s->force || !s->index || !s->rows) return proto_fail(err, "out of memory");
   }
   if (proto_ready_series(ready, PROTO_A_SERIES, NCOL, columns) < 0 ||
       (s->n_nodes > 0 &&
@@ -69,12 +82,23 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   double total[3] = {0, 0, 0};
   if (s->n_nodes > 0) {
     const double *x = proto_msg_data(req, PROTO_A_X);
-    for (int64_t i = 0; i < s->n_nodes; i++)
+    int64_t k = 0;
+    for (int64_t i = 0; i < s->n_nodes; i++) {
+      const int below = x[3 * i + 2] < s->bed_top;
       for (int a = 0; a < 3; a++) {
-        s->force[3 * i + a] = ramp * s->force_per_node[a];
+        s->force[3 * i + a] = below ? ramp * s->force_per_node[a] : 0;
         total[a] += s->force[3 * i + a];
       }
-    if (proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, s->n_nodes, 3, s->force) < 0 ||
+      if (below) { /* rows of +0.0 may be sent too: the coupler expands to +0.0 */
+        s->index[k] = (int32_t)i;
+        memcpy(&s->rows[3 * k++], &s->force[3 * i], 3 * sizeof(double));
+      }
+    }
+    const int sparse = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(req->header, PROTO_H_SPARSE)) &&
+                       3 * k <= s->n_nodes;
+    if ((sparse ? proto_msg_add_i4(reply, PROTO_A_NODAL_FORCE_INDEX, k, 0, s->index) < 0 ||
+                      proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, k, 3, s->rows) < 0
+                : proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, s->n_nodes, 3, s->force) < 0) ||
         (info->output &&
          (proto_msg_add_prefixed(reply, PROTO_P_SNAP, PROTO_A_X, PROTO_F8,
                                  s->n_nodes, 3, x) < 0 ||
@@ -92,7 +116,11 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
 static void finish(void *user) {
   dem_stub *s = user;
   free(s->force);
+  free(s->index);
+  free(s->rows);
   s->force = NULL;
+  s->index = NULL;
+  s->rows = NULL;
 }
 
 int main(int argc, char **argv) {

@@ -40,6 +40,7 @@ static const char *const columns[NCOL] = {"t", "force_x", "force_y", "force_z",
 typedef struct fem_stub {
   int64_t n_nodes, n_tris;
   double *x0, *x, *v;
+  double *f_dense; /* a sparse nodal_force expanded (PROTOCOL.md "Sparse exchange") */
   int32_t *tri;
   int wheel; /* 1: body of revolution about the axle, nodes kept at the bottom */
   double series[NCOL];
@@ -187,7 +188,8 @@ static int configure(void *user, const proto_run_info *info,
   if (rc < 0 || stub_cfg_end(&c, "fem_stub") < 0) return -1;
   s->x = calloc((size_t)s->n_nodes * 3, sizeof(double));
   s->v = calloc((size_t)s->n_nodes * 3, sizeof(double));
-  return s->x && s->v ? 0 : proto_fail(err, "out of memory");
+  s->f_dense = calloc((size_t)s->n_nodes * 3 + 1, sizeof(double));
+  return s->x && s->v && s->f_dense ? 0 : proto_fail(err, "out of memory");
 }
 
 static int init(void *user, const proto_msg *welcome, proto_msg *ready,
@@ -198,6 +200,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready,
       proto_msg_add_i4(ready, PROTO_A_SURFACE_TRI, s->n_tris, 3, s->tri) < 0 ||
       proto_ready_series(ready, PROTO_A_SERIES, NCOL, columns) < 0)
     return proto_fail(err, "cannot build the ready message");
+  cJSON_AddBoolToObject(proto_msg_header(ready), PROTO_H_SPARSE, 1); /* takes a sparse force */
   return 0;
 }
 
@@ -206,7 +209,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   (void)peer;
   fem_stub *s = user;
   /* checked against the role table by the participant loop */
-  const double *f = proto_msg_data(req, PROTO_A_NODAL_FORCE);
+  const double *f = proto_msg_dense(req, PROTO_A_NODAL_FORCE, s->n_nodes, 3, s->f_dense);
   const double *R = proto_msg_data(req, PROTO_A_RIM_R);
   const double *c = proto_msg_data(req, PROTO_A_RIM_C);
   const double *w = proto_msg_data(req, PROTO_A_RIM_OMEGA);
@@ -244,6 +247,7 @@ static void finish(void *user) {
   free(s->x0);
   free(s->x);
   free(s->v);
+  free(s->f_dense);
   free(s->tri);
   memset(s, 0, sizeof *s);
 }

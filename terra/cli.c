@@ -17,6 +17,10 @@ static const char USAGE[] =
     "       cosim_terra shear SCENE.json --sigma P --out FILE.csv [--length L] [--box-width W]\n"
     "                   [--height H] [--dmin D] [--dmax D] [--speed V] [--jmax J] [--dj DJ]\n"
     "                   [--seed S] [--threads T] [--settle-steps N]\n"
+    "       (plate and shear also take [--prep-friction MU [--prep-rolling MUR]]; plate [--pmax P])\n"
+    "       cosim_terra bed SCENE.json --out BED.h5 [--particles JSON] [--prep-friction MU\n"
+    "                   [--prep-rolling MUR]] [--seed S] [--settle-steps N] [--threads T]\n"
+    "                   [--inset M] [--slabs K]\n"
     "       cosim_terra fit --plate FILE.csv... --shear FILE.csv... --out SOIL.json\n"
     "                   [--zmin Z] [--zmax Z] [--jfit J] [--c1 C] [--c2 C]\n"
     "       cosim_terra combine SOIL.json... --out PARAMS.json\n"
@@ -113,17 +117,33 @@ static int run_test(test_fn fn, const void *spec, const char *scene_path, double
 
 /* ------------------------------------------------------- virtual tests */
 
+/* --prep-friction MU [--prep-rolling MUR]: the preparation (terra.h ter_prep);
+ * the options' values start as NAN = not given. */
+static int prep_from_opts(double friction, double rolling, ter_prep *p, proto_err *err) {
+  if (isnan(friction) && !isnan(rolling))
+    return proto_fail(err, "--prep-rolling %g needs --prep-friction (the preparation's sliding friction)", rolling);
+  if (isnan(friction)) return 0;
+  *p = (ter_prep){.on = 1, .friction = friction, .rolling = isnan(rolling) ? 0 : rolling};
+  if (!(friction >= 0 && friction <= 10)) return proto_fail(err, "--prep-friction %g: must lie in [0, 10]", friction);
+  if (!(p->rolling >= 0 && p->rolling <= 10)) return proto_fail(err, "--prep-rolling %g: must lie in [0, 10]", rolling);
+  return 0;
+}
+
 static int cmd_plate(int argc, char **argv, proto_err *err) {
   ter_plate_spec sp;
   ter_plate_defaults(&sp);
-  double seed = (double)sp.seed, threads = 0, settle = (double)sp.settle_max_steps;
+  double seed = (double)sp.seed, threads = 0, settle = (double)sp.settle_max_steps, pf = NAN, pr = NAN;
   const char *scene_path = NULL, *out = NULL;
   const opt o[] = {{"width", OPT_NUM, &sp.width, 0},          {"container", OPT_NUM, &sp.container, 0},
                    {"depth-factor", OPT_NUM, &sp.depth_factor, 0}, {"speed", OPT_NUM, &sp.speed, 0},
                    {"zmax", OPT_NUM, &sp.z_max, 0},           {"dz", OPT_NUM, &sp.dz, 0},
                    {"seed", OPT_NUM, &seed, 0},               {"threads", OPT_NUM, &threads, 0},
-                   {"settle-steps", OPT_NUM, &settle, 0},     {"out", OPT_STR, &out, 0}};
-  if (parse(argc, argv, 2, o, sizeof o / sizeof *o, &scene_path, err) || need_out(out, err)) return -1;
+                   {"settle-steps", OPT_NUM, &settle, 0},     {"out", OPT_STR, &out, 0},
+                   {"prep-friction", OPT_NUM, &pf, 0},        {"prep-rolling", OPT_NUM, &pr, 0},
+                   {"pmax", OPT_NUM, &sp.p_max, 0}};
+  if (parse(argc, argv, 2, o, sizeof o / sizeof *o, &scene_path, err) || need_out(out, err) ||
+      prep_from_opts(pf, pr, &sp.prep, err))
+    return -1;
   sp.seed = (uint64_t)seed;
   sp.settle_max_steps = (int64_t)settle;
   return run_test(plate_fn, &sp, scene_path, threads, out, err);
@@ -132,7 +152,7 @@ static int cmd_plate(int argc, char **argv, proto_err *err) {
 static int cmd_shear(int argc, char **argv, proto_err *err) {
   ter_shear_spec sp;
   ter_shear_defaults(&sp);
-  double seed = (double)sp.seed, threads = 0, settle = (double)sp.settle_max_steps;
+  double seed = (double)sp.seed, threads = 0, settle = (double)sp.settle_max_steps, pf = NAN, pr = NAN;
   const char *scene_path = NULL, *out = NULL;
   const opt o[] = {{"sigma", OPT_NUM, &sp.sigma_n, 0},   {"length", OPT_NUM, &sp.length, 0},
                    {"box-width", OPT_NUM, &sp.width, 0}, {"height", OPT_NUM, &sp.height, 0},
@@ -140,11 +160,62 @@ static int cmd_shear(int argc, char **argv, proto_err *err) {
                    {"speed", OPT_NUM, &sp.speed, 0},     {"jmax", OPT_NUM, &sp.j_max, 0},
                    {"dj", OPT_NUM, &sp.dj, 0},           {"seed", OPT_NUM, &seed, 0},
                    {"threads", OPT_NUM, &threads, 0},    {"settle-steps", OPT_NUM, &settle, 0},
-                   {"out", OPT_STR, &out, 0}};
-  if (parse(argc, argv, 2, o, sizeof o / sizeof *o, &scene_path, err) || need_out(out, err)) return -1;
+                   {"out", OPT_STR, &out, 0},            {"prep-friction", OPT_NUM, &pf, 0},
+                   {"prep-rolling", OPT_NUM, &pr, 0}};
+  if (parse(argc, argv, 2, o, sizeof o / sizeof *o, &scene_path, err) || need_out(out, err) ||
+      prep_from_opts(pf, pr, &sp.prep, err))
+    return -1;
   sp.seed = (uint64_t)seed;
   sp.settle_max_steps = (int64_t)settle;
   return run_test(shear_fn, &sp, scene_path, threads, out, err);
+}
+
+/* A prepared bed for the scene (terra.h ter_prepare_bed). --particles
+ * replaces the scene's particles section (a JSON object), e.g. when the scene
+ * itself loads the file this writes. */
+static int cmd_bed(int argc, char **argv, proto_err *err) {
+  ter_bed_spec sp = {.inset = 0.05, .slabs = 5};
+  double seed = 0, threads = 0, settle = 0, pf = NAN, pr = NAN, slabs = sp.slabs;
+  const char *scene_path = NULL, *out = NULL, *particles = NULL;
+  const opt o[] = {{"out", OPT_STR, &out, 0},           {"particles", OPT_STR, &particles, 0},
+                   {"prep-friction", OPT_NUM, &pf, 0},  {"prep-rolling", OPT_NUM, &pr, 0},
+                   {"seed", OPT_NUM, &seed, 0},         {"settle-steps", OPT_NUM, &settle, 0},
+                   {"threads", OPT_NUM, &threads, 0},   {"inset", OPT_NUM, &sp.inset, 0},
+                   {"slabs", OPT_NUM, &slabs, 0}};
+  if (parse(argc, argv, 2, o, sizeof o / sizeof *o, &scene_path, err) || need_out(out, err) ||
+      prep_from_opts(pf, pr, &sp.prep, err))
+    return -1;
+  if (!(seed >= 0 && settle >= 0 && slabs >= 1 && slabs <= 16))
+    return proto_fail(err, "--seed %g, --settle-steps %g must be >= 0 and --slabs %g in [1, 16]", seed, settle, slabs);
+  sp.seed = (uint64_t)seed;
+  sp.settle_max_steps = (int64_t)settle;
+  sp.slabs = (int)slabs;
+  ter_dem_soil soil;
+  cJSON *scene = load_scene(scene_path, &soil, err);
+  if (!scene) return -1;
+  soil.threads = (int)threads;
+  int rc = 0;
+  if (particles) {
+    cJSON *pj = proto_json_parse(particles, "--particles", err);
+    if (!pj || !cJSON_IsObject(pj)) {
+      cJSON_Delete(pj);
+      cJSON_Delete(scene);
+      return pj ? proto_fail(err, "--particles: expected a JSON object") : -1;
+    }
+    cJSON_ReplaceItemInObjectCaseSensitive((cJSON *)soil.section, "particles", pj);
+  }
+  ter_bed_result res;
+  rc = ter_prepare_bed(&soil, &sp, out, stderr, &res, err);
+  if (!rc) {
+    printf("{\"grains\": %d, \"top_m\": %.6g, \"max_overlap\": %.4g, \"solid_fraction\": [", res.grains, res.top,
+           res.max_overlap);
+    for (int k = 0; k < sp.slabs; k++) printf("%s%.4f", k ? ", " : "", res.solid_fraction[k]);
+    printf("], \"bulk_density_kg_m3\": [");
+    for (int k = 0; k < sp.slabs; k++) printf("%s%.1f", k ? ", " : "", res.bulk_density[k]);
+    printf("]}\n");
+  }
+  cJSON_Delete(scene);
+  return rc;
 }
 
 /* ------------------------------------------------------------------ fit */
@@ -517,6 +588,7 @@ int main(int argc, char **argv) {
   int rc;
   if (strcmp(cmd, "plate") == 0) rc = cmd_plate(argc, argv, &err);
   else if (strcmp(cmd, "shear") == 0) rc = cmd_shear(argc, argv, &err);
+  else if (strcmp(cmd, "bed") == 0) rc = cmd_bed(argc, argv, &err);
   else if (strcmp(cmd, "fit") == 0) rc = cmd_fit(argc, argv, &err);
   else if (strcmp(cmd, "combine") == 0) rc = cmd_combine(argc, argv, &err);
   else if (strcmp(cmd, "curve") == 0) rc = cmd_curve(argc, argv, &err);

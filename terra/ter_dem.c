@@ -6,7 +6,12 @@
  *
  * Rigid tools are mesh walls (two-sided triangles); each tool part is its own
  * wall so that its force is reported on its own (dem_state.wall_force, the
- * force of the grains ON the wall). */
+ * force of the grains ON the wall).
+ *
+ * A preparation (ter_prep) swaps the model's pair laws' friction and rolling
+ * friction while the grains settle and consolidate, then puts the scene's
+ * back; ter_prepare_bed runs the scene's own section that way and writes
+ * the settled bed with dem_bed_save. */
 #include "terra/terra.h"
 
 #include "dem_server/dem.h"
@@ -153,12 +158,71 @@ static int settle(const dem_model *m, dem_state *s, double ke, int64_t max_steps
                   proto_err *err) {
   double t0 = proto_now();
   int64_t k0 = s->step;
-  if (dem_settle(m, s, ke, max_steps, log ? settle_progress : NULL, log, err)) return -1;
+  /* grains placed at rest on the lattice start with no kinetic energy: the KE
+   * test alone stopped a 9 us-step bed after 101 steps, still in free fall
+   * (dem.h DEM_SETTLE_MIN_TIME, the rule dem_server's beds settle by too) */
+  if (dem_settle_placed(m, s, ke, max_steps, log ? settle_progress : NULL, log, err)) return -1;
   if (log)
     fprintf(log, "terra: %d grains settled in %lld steps of %.3g s (%.1f s wall, %.3g grain-steps/s), "
             "KE %.3g J per grain\n", s->n, (long long)(s->step - k0), s->dt, proto_now() - t0,
             rate(s, k0, t0), s->kinetic_energy / s->n);
   return 0;
+}
+
+/* --------------------------------------------------------- preparation */
+
+/* The scene's contact laws while the preparation's are in force. */
+typedef struct prep_saved {
+  dem_pair_law law[DEM_MAX_MATERIALS][DEM_MAX_MATERIALS];
+} prep_saved;
+
+/* The override and its checks are dem_server's (dem.h dem_prep, one owner
+ * with particles.prepare); terra's ter_prep carries the same three values. */
+static dem_prep as_dem_prep(const ter_prep *p) { return (dem_prep){p->on, p->friction, p->rolling}; }
+
+static int prep_check(const dem_model *m, const ter_prep *p, proto_err *err) {
+  const dem_prep d = as_dem_prep(p);
+  return dem_prep_check(m, &d, "preparation", err);
+}
+
+/* Every law's friction and rolling friction become the preparation's
+ * (dem_prep_laws); the scene's laws are kept in *sv for prep_restore. At the
+ * switch back the tangential springs stay as they are: the scene's Coulomb
+ * rule limits them at the next step. */
+static void prep_apply(dem_model *m, const ter_prep *p, prep_saved *sv) {
+  memcpy(sv->law, m->law, sizeof sv->law);
+  const dem_prep d = as_dem_prep(p);
+  dem_prep_laws(m, &d);
+}
+
+static void prep_restore(dem_model *m, const prep_saved *sv) { memcpy(m->law, sv->law, sizeof m->law); }
+
+static void prep_meta(ter_series *out, const ter_prep *p) {
+  if (p->on)
+    ter_series_meta(out, "preparation", "settled with friction %.6g, rolling friction %.6g, then the scene's laws",
+                    p->friction, p->rolling);
+  else
+    ter_series_meta(out, "preparation", "the scene's laws throughout");
+}
+
+/* Volume of the sphere (centre zc, radius r) between the planes z0 < z1. */
+static double sphere_slab(double zc, double r, double z0, double z1) {
+  double a = fmax(z0 - zc, -r), b = fmin(z1 - zc, r);
+  if (b <= a) return 0;
+  return M_PI * (r * r * (b - a) - (b * b * b - a * a * a) / 3);
+}
+
+double ter_solid_fraction(int n, const double *x, const double *radius, const double lo[3],
+                          const double hi[3]) {
+  const double vol = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
+  if (!(vol > 0)) return 0;
+  double v = 0;
+  for (int i = 0; i < n; i++) {
+    const double *xi = &x[3 * i];
+    if (xi[0] < lo[0] || xi[0] >= hi[0] || xi[1] < lo[1] || xi[1] >= hi[1]) continue;
+    v += sphere_slab(xi[2], radius[i], lo[2], hi[2]);
+  }
+  return v / vol;
 }
 
 /* --------------------------------------------------------------- plate */
@@ -225,10 +289,10 @@ enum { SH_J, SH_TAU, SH_TAU_UPPER, SH_SIGMA, SH_SIGMA_PLATEN, SH_DILATION, SH_IN
 int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log, ter_series *out,
                    proto_err *err) {
   if (!(sp->width > 0 && sp->container > 2 * sp->width && sp->depth_factor > 0 && sp->speed > 0 &&
-        sp->z_max > 0 && sp->dz > 0))
+        sp->z_max > 0 && sp->dz > 0 && sp->p_max >= 0))
     return proto_fail(err, "plate test: need width > 0, container > 2 width, depth_factor, speed, "
-                      "z_max, dz > 0 (got %g, %g, %g, %g, %g, %g)", sp->width, sp->container,
-                      sp->depth_factor, sp->speed, sp->z_max, sp->dz);
+                      "z_max, dz > 0, p_max >= 0 (got %g, %g, %g, %g, %g, %g, %g)", sp->width,
+                      sp->container, sp->depth_factor, sp->speed, sp->z_max, sp->dz, sp->p_max);
   static const char *const cols[N_PL] = {
       [PL_Z] = "z", [PL_P] = "p", [PL_P_SKIRT] = "p_skirt", [PL_INERTIAL] = "inertial",
       [PL_MAX_OVERLAP] = "max_overlap", [PL_KE] = "ke_per_grain"};
@@ -256,7 +320,12 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
   if (rc) return proto_wrap(err, "plate test");
   const int w_base = 1, w_skirt = 2, mesh_base = 0, mesh_skirt = 1;
   double xbuf[3 * 24], vbuf[3 * 24];
-  if (settle(&m, &s, sp->settle_ke, sp->settle_max_steps, log, err)) goto fail;
+  prep_saved laws;
+  if (prep_check(&m, &sp->prep, err)) goto fail;
+  prep_apply(&m, &sp->prep, &laws);
+  rc = settle(&m, &s, sp->settle_ke, sp->settle_max_steps, log, err);
+  prep_restore(&m, &laws);
+  if (rc) goto fail;
   double d_top, z_surf = surface_height(&s, c, c, h, &d_top);
   const double rho = grain_density(&m, soil->grain_material);
   double dmax = 0;
@@ -273,9 +342,18 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
   ter_series_meta(out, "grains", "%d", s.n);
   ter_series_meta(out, "speed_m_s", "%.6g", sp->speed);
   ter_series_meta(out, "seed", "%llu", (unsigned long long)sp->seed);
+  if (sp->p_max > 0) ter_series_meta(out, "p_max_Pa", "%.6g", sp->p_max);
   ter_series_meta(out, "surface_z_m", "%.6g", z_surf);
   ter_series_meta(out, "top_grain_diameter_m", "%.6g", d_top);
   ter_series_meta(out, "dt_s", "%.6g", s.dt);
+  prep_meta(out, &sp->prep);
+  {
+    /* the bed under the plate's column, a max diameter clear of the surface's roughness */
+    const double lo[3] = {c - h, c - h, 0}, hi[3] = {c + h, c + h, z_surf - dmax};
+    const double phi = ter_solid_fraction(s.n, s.x, s.radius, lo, hi);
+    ter_series_meta(out, "solid_fraction", "%.4f", phi);
+    ter_series_meta(out, "bulk_density_kg_m3", "%.1f", phi * rho);
+  }
   double bed_top = 0;
   for (int i = 0; i < s.n; i++) bed_top = fmax(bed_top, s.x[3 * i + 2] + s.radius[i]);
   ter_series_meta(out, "bed_max_height_m", "%.6g", bed_top);
@@ -307,7 +385,9 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
         fprintf(log, "terra: plate sinkage %.1f mm, p %.4g Pa, I %.2g, max overlap %.3g, %.3g grain-steps/s\n",
                 1e3 * sink, p, I, row[PL_MAX_OVERLAP], rate(&s, k0, t0));
     }
-    if (sink >= sp->z_max) break;
+    if (sink >= sp->z_max || (sp->p_max > 0 && bin > 0 && out->n > 0 &&
+                              out->row[(size_t)(out->n - 1) * out->ncol + PL_P] > sp->p_max))
+      break;
   }
   release(&m, &s);
   return 0;
@@ -434,6 +514,8 @@ static int shear_build(const ter_dem_soil *soil, shear_run *r, proto_err *err) {
   return 0;
 }
 
+static int shear_hold(shear_run *r, proto_err *err);
+
 /* Platen down onto the settled grains, servo only, until sigma_n holds within
  * TER_CONSOLIDATE_TOL for TER_CONSOLIDATE_HOLD; then the specimen's height and
  * the mass above the shear plane. */
@@ -448,8 +530,17 @@ static int shear_consolidate(shear_run *r, proto_err *err) {
                 .vmax = sp->servo_vmax > 0 ? sp->servo_vmax : fmax(0.05, 3 * sp->speed)};
   double vz0[3] = {0, 0, -sv->vmax};
   move_mesh(&r->m, s, W_PLAT, top + 0.5 * r->d1 - TER_PARK_Z, vz0, r->xbuf, r->vbuf);
-  double held = 0;
   r->t_cons0 = s->t;
+  return shear_hold(r, err);
+}
+
+/* The servo alone until sigma_n holds within TER_CONSOLIDATE_TOL for
+ * TER_CONSOLIDATE_HOLD (at most TER_CONSOLIDATE_MAX since consolidation
+ * began); then the specimen's height and the mass above the shear plane. */
+static int shear_hold(shear_run *r, proto_err *err) {
+  dem_state *s = &r->s;
+  servo *sv = &r->sv;
+  double held = 0;
   while (held < TER_CONSOLIDATE_HOLD) {
     if (dem_step(&r->m, s, err)) return -1;
     double v[3] = {0, 0, servo_velocity(sv, s->wall_force[3 * W_PLAT + 2])};
@@ -475,14 +566,28 @@ static void shear_meta(const shear_run *r, ter_series *out, FILE *log) {
   ter_series_meta(out, "diameters_m", "%.6g..%.6g", r->d0, r->d1);
   ter_series_meta(out, "grains", "%d", s->n);
   ter_series_meta(out, "specimen_height_m", "%.6g", r->z_plat0);
+  prep_meta(out, &sp->prep);
+  /* packing before the shear: of the whole specimen (grain mass over box area x
+   * height, as a laboratory weighs it: includes the looser layer at the walls)
+   * and of its core (a max diameter clear of every wall and of the platen) */
+  double vg = 0;
+  for (int i = 0; i < s->n; i++) vg += 4.0 / 3 * M_PI * pow(s->radius[i], 3);
+  const double phi_box = vg / (r->L * r->W * r->z_plat0);
+  const double lo[3] = {r->d1, r->d1, r->d1}, hi[3] = {r->L - r->d1, r->W - r->d1, r->z_plat0 - r->d1};
+  const double phi_core = ter_solid_fraction(s->n, s->x, s->radius, lo, hi);
+  ter_series_meta(out, "solid_fraction", "%.4f", phi_box);
+  ter_series_meta(out, "bulk_density_kg_m3", "%.1f", phi_box * r->rho);
+  ter_series_meta(out, "solid_fraction_core", "%.4f", phi_core);
+  ter_series_meta(out, "bulk_density_core_kg_m3", "%.1f", phi_core * r->rho);
   ter_series_meta(out, "speed_m_s", "%.6g", sp->speed);
   ter_series_meta(out, "seed", "%llu", (unsigned long long)sp->seed);
   ter_series_meta(out, "dt_s", "%.6g", s->dt);
   ter_series_meta(out, "servo", "v_z = -%.4g m/s x (N_target - N)/N_target, |v_z| <= %.4g m/s", r->sv.gain,
                   r->sv.vmax);
   if (log)
-    fprintf(log, "terra: shear box %d grains, specimen %.4g m high, consolidated to %.4g Pa in %.3g s\n",
-            s->n, r->z_plat0, r->sv.N_filt / r->A0, s->t - r->t_cons0);
+    fprintf(log, "terra: shear box %d grains, specimen %.4g m high, solid fraction %.4f (core %.4f), "
+            "consolidated to %.4g Pa in %.3g s\n",
+            s->n, r->z_plat0, phi_box, phi_core, r->sv.N_filt / r->A0, s->t - r->t_cons0);
 }
 
 /* Shear: the upper ring and the platen move along +x up to j_max; one row per
@@ -546,8 +651,13 @@ int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log
   if (shear_size(r, err) || shear_build(soil, r, err)) return -1;
   r->rho = grain_density(&r->m, soil->grain_material);
   r->A0 = (r->L - 2 * r->in) * (r->W - 2 * r->in);
-  if (settle(&r->m, &r->s, sp->settle_ke, sp->settle_max_steps, log, err) || shear_consolidate(r, err))
-    goto fail;
+  prep_saved laws;
+  if (prep_check(&r->m, &sp->prep, err)) goto fail;
+  prep_apply(&r->m, &sp->prep, &laws);
+  int rc = settle(&r->m, &r->s, sp->settle_ke, sp->settle_max_steps, log, err) || shear_consolidate(r, err);
+  prep_restore(&r->m, &laws);
+  /* the scene's friction back: the platen holds sigma_n again before the shear */
+  if (rc || (sp->prep.on && shear_hold(r, err))) goto fail;
   shear_meta(r, out, log);
   if (shear_displace(r, out, log, err)) goto fail;
   int lost = 0;
@@ -560,4 +670,85 @@ fail:
   release(&r->m, &r->s);
   ter_series_free(out);
   return proto_wrap(err, "shear test (sigma_n = %g Pa)", sp->sigma_n);
+}
+
+/* ------------------------------------------------------- prepared bed */
+
+int ter_prepare_bed(const ter_dem_soil *soil, const ter_bed_spec *sp, const char *out, FILE *log,
+                    ter_bed_result *res, proto_err *err) {
+  memset(res, 0, sizeof *res);
+  if (!(sp->slabs >= 1 && sp->slabs <= 16 && sp->inset >= 0 && sp->settle_max_steps >= 0))
+    return proto_fail(err, "bed: need 1 <= slabs <= 16 (got %d), inset >= 0 (got %g), settle steps >= 0",
+                      sp->slabs, sp->inset);
+  const cJSON *parts = cJSON_GetObjectItemCaseSensitive(soil->section, "particles");
+  const cJSON *gen = cJSON_IsObject(parts) ? cJSON_GetObjectItemCaseSensitive(parts, "generate") : NULL;
+  if (!cJSON_IsString(gen))
+    return proto_fail(err, "bed: %s.particles must be a generated bed ({\"generate\": \"bed\", ...}; "
+                      "give one with --particles)", soil->path);
+  cJSON *sec = cJSON_Duplicate(soil->section, 1);
+  if (!sec) return proto_fail(err, "out of memory");
+  static const char *const drop[] = {"exec", "threads"};
+  for (size_t k = 0; k < sizeof drop / sizeof *drop; k++) cJSON_DeleteItemFromObjectCaseSensitive(sec, drop[k]);
+  if (soil->threads > 0) cJSON_AddNumberToObject(sec, "threads", soil->threads);
+  cJSON *p = cJSON_GetObjectItemCaseSensitive(sec, "particles");
+  cJSON_DeleteItemFromObjectCaseSensitive(p, "save"); /* written here, after the second settling */
+  if (sp->seed > 0) {
+    cJSON_DeleteItemFromObjectCaseSensitive(p, "seed");
+    cJSON_AddNumberToObject(p, "seed", (double)sp->seed);
+  }
+  dem_model m;
+  dem_state s;
+  int rc = build(sec, soil->path, &m, &s, err);
+  cJSON_Delete(sec);
+  if (rc) return proto_wrap(err, "bed");
+  const int64_t steps = sp->settle_max_steps > 0 ? sp->settle_max_steps : (int64_t)m.cfg.settle_steps;
+  const double ke = m.cfg.settle_ke;
+  /* --prep-friction, else the section's own particles.prepare */
+  const ter_prep prep = sp->prep.on || !m.cfg.prep.on
+                            ? sp->prep
+                            : (ter_prep){1, m.cfg.prep.friction, m.cfg.prep.rolling};
+  prep_saved laws;
+  if (prep_check(&m, &prep, err)) goto fail;
+  prep_apply(&m, &prep, &laws);
+  rc = settle(&m, &s, ke, steps, log, err);
+  prep_restore(&m, &laws);
+  /* the scene's laws: the tangential springs and rolling torques build up */
+  if (rc || (prep.on && settle(&m, &s, ke, steps, log, err))) goto fail;
+  double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+  for (int i = 0; i < s.n; i++)
+    for (int d = 0; d < 2; d++) {
+      lo[d] = fmin(lo[d], s.x[3 * i + d] - s.radius[i]);
+      hi[d] = fmax(hi[d], s.x[3 * i + d] + s.radius[i]);
+    }
+  for (int d = 0; d < 2; d++) lo[d] += sp->inset, hi[d] -= sp->inset;
+  int count = 0;
+  if (!(hi[0] > lo[0] && hi[1] > lo[1])) {
+    proto_fail(err, "inset %g m leaves no footprint", sp->inset);
+    goto fail;
+  }
+  if (dem_bed_top(&s, lo, hi, 50.0, &res->top, &count, err) || count == 0) {
+    if (!count) proto_fail(err, "no grain inside the inset footprint");
+    goto fail;
+  }
+  const double rho = grain_density(&m, soil->grain_material);
+  for (int k = 0; k < sp->slabs; k++) {
+    const double b0[3] = {lo[0], lo[1], res->top * k / sp->slabs};
+    const double b1[3] = {hi[0], hi[1], res->top * (k + 1) / sp->slabs};
+    res->solid_fraction[k] = ter_solid_fraction(s.n, s.x, s.radius, b0, b1);
+    res->bulk_density[k] = res->solid_fraction[k] * rho;
+  }
+  res->grains = s.n;
+  res->max_overlap = s.max_overlap_ratio;
+  if (dem_bed_save(&m, &s, out, err)) goto fail;
+  if (log) {
+    fprintf(log, "terra: bed of %d grains saved to %s: median top %.4g m; solid fraction (bulk density kg/m^3) "
+            "by slab from the floor:", s.n, out, res->top);
+    for (int k = 0; k < sp->slabs; k++) fprintf(log, " %.4f (%.0f)", res->solid_fraction[k], res->bulk_density[k]);
+    fprintf(log, "\n");
+  }
+  release(&m, &s);
+  return 0;
+fail:
+  release(&m, &s);
+  return proto_wrap(err, "bed");
 }

@@ -166,11 +166,26 @@ int ter_dem_soil_from_scene(const cJSON *scene, ter_dem_soil *soil, proto_err *e
  * Rows every dz of sinkage (means over the bin): z, p (base force / area),
  * p_skirt (vertical force on the plate's sides / area), inertial number I,
  * max overlap ratio, kinetic energy per grain. */
+/* Preparation of the packing (a sand bin compacted before the test): while
+ * the grains settle (and, in the shear box, while the platen consolidates
+ * them), every contact law's sliding friction is `friction` and its rolling
+ * friction `rolling`; the scene's laws are restored before the test proper
+ * (and the shear box's platen then holds sigma_n again before shearing).
+ * Low friction while settling packs the grains denser. on = 0: the scene's
+ * laws throughout (the default). rolling > 0 needs a scene with rolling
+ * friction on some pair (the DEM keeps rolling state only then). */
+typedef struct ter_prep {
+  int on;
+  double friction, rolling;
+} ter_prep;
+
 typedef struct ter_plate_spec {
   double width, container, depth_factor, speed, z_max, dz;
   uint64_t seed;
   double settle_ke;         /* J per grain */
   int64_t settle_max_steps;
+  ter_prep prep;
+  double p_max;             /* Pa: stop once a bin's mean pressure exceeds it (0 = at z_max only) */
 } ter_plate_spec;
 void ter_plate_defaults(ter_plate_spec *p);
 int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *spec, FILE *log,
@@ -192,9 +207,40 @@ typedef struct ter_shear_spec {
   uint64_t seed;
   double settle_ke;
   int64_t settle_max_steps;
+  ter_prep prep;
 } ter_shear_spec;
 void ter_shear_defaults(ter_shear_spec *p);
 int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *spec, FILE *log,
                    ter_series *out, proto_err *err);
+
+/* A prepared bed for a scene: the scene's own DEM section (its generated bed,
+ * materials, walls), settled with the preparation's laws for up to the
+ * section's settle_max_steps (or settle_max_steps here if > 0) to its
+ * settle_ke_per_grain, the scene's laws restored, settled again (same
+ * limits), then saved with dem_bed_save to `out` (load it with particles
+ * {"file": ...}). Reports the bed's solid fraction in `slabs` equal
+ * horizontal slabs from the floor to the mean top (grains counted by the
+ * part of their volume inside a slab; x-y: the footprint inset by `inset`
+ * m from the walls) in solid_fraction[] (at most 16), and the mean top. */
+typedef struct ter_bed_spec {
+  ter_prep prep;
+  int64_t settle_max_steps; /* 0: the section's */
+  uint64_t seed;            /* 0: the section's */
+  double inset;             /* m */
+  int slabs;
+} ter_bed_spec;
+typedef struct ter_bed_result {
+  int grains;
+  double top, solid_fraction[16], bulk_density[16];
+  double max_overlap;
+} ter_bed_result;
+int ter_prepare_bed(const ter_dem_soil *soil, const ter_bed_spec *spec, const char *out, FILE *log,
+                    ter_bed_result *res, proto_err *err);
+
+/* Solid fraction of the grains in the box [lo, hi]: the volume of each
+ * grain whose centre lies in the box's x-y rectangle, cut to lo[2] <= z <=
+ * hi[2] (exact sphere segment), over the box's volume. */
+double ter_solid_fraction(int n, const double *x, const double *radius, const double lo[3],
+                          const double hi[3]);
 
 #endif

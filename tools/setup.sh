@@ -4,7 +4,7 @@
 # to cmake's configure step, e.g. -DCOSIM_SANITIZE=ON.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PACKAGES="build-essential cmake pkg-config libzmq3-dev libhdf5-dev \
+PACKAGES="build-essential cmake pkg-config libzmq3-dev libsodium-dev libhdf5-dev \
 libsuitesparse-dev libopenblas-dev libcjson-dev libfftw3-dev \
 liggghts libliggghts-dev mpi-default-dev \
 python3 python3-numpy python3-scipy python3-h5py python3-matplotlib python3-zmq \

@@ -11,7 +11,7 @@ faults  each fault injected several times; survived = handled as specified
         rows lost = rows the bus had published before the fault (so they had
         been computed and recorded) that are missing from results.h5.
 cost    the run time of checkpoints (the default scene, real DEM + FEM) and
-        of CURVE (lock-step with stubs; big surface arrays), min of
+        of CURVE (lock-step with stubs; big arrays: bench_curve.py), min of
         alternated rounds, as ratios against the same scene without.
 soak    10^6 lock-step exchanges with a stub: resident memory and open file
         descriptors of the coupler and the participant along the run.
@@ -429,8 +429,6 @@ def cost(args):
     cu = alternate({
         "lock-step, no CURVE": lambda: block("curve0", 20.0),
         "lock-step, CURVE": lambda: block("curve1", 20.0, security={"curve": True}),
-        "big surface, no CURVE": lambda: tyre("curve2", 0.3, n=150, every=1000),
-        "big surface, CURVE": lambda: tyre("curve3", 0.3, n=150, every=1000, security={"curve": True}),
     }, args.rounds)
     load = os.getloadavg()[0]
     lines = [f"Min of {args.rounds} alternated runs, the coupler's loop time per step (the "
@@ -444,13 +442,13 @@ def cost(args):
     lines.append(f"One checkpoint of the default scene (2181 grains, 608-node tread): "
                  f"{size / 1e6:.1f} MB, {1e3 * per:.0f} ms (from the every-20 rows).")
     lines += ["", "| run | ms per step | ratio |", "|---|---|---|"]
-    for a, b in (("lock-step, no CURVE", "lock-step, CURVE"),
-                 ("big surface, no CURVE", "big surface, CURVE")):
+    for a, b in (("lock-step, no CURVE", "lock-step, CURVE"),):
         for k in (a, b):
             lines.append(f"| {k} | {1e3 * cu[k]:.4f} | {cu[k] / cu[a]:.2f} |")
     lines += ["", "Lock-step: block_stub, 20 000 steps (tiny messages: the cost is latency). "
-              "Big surface: fem_stub + dem_stub with 150 x 150 surface nodes (0.54 MB each way "
-              "per step). CURVE is on every socket, ipc included, when security.curve is set."]
+              "CURVE is on every socket, ipc included, when security.curve is set. Big "
+              "messages under CURVE, against the cipher's own speed: the section \"CURVE and "
+              "the cipher\" (bench/reliability/bench_curve.py)."]
     write_section(OUT, "Cost of checkpoints and CURVE", "\n".join(lines))
 
 

@@ -130,6 +130,12 @@ class Results:
         (``_ci95``, batch means: cosim.stats), min and max."""
         return traction.summarise_run(self, skip_travel)
 
+    def dbp_curve(self, bin_width=traction.DBP_BIN_WIDTH):
+        """A dbp-rig run's traction-slip curve: per slip bin the means of
+        T_H, T_R, T_P, the load and the resistive force with 95 % intervals
+        (cosim.traction.dbp_curve)."""
+        return traction.dbp_curve(self, bin_width)
+
     @property
     def timing(self):
         """``/coupler/timing``: per step, each process's compute, transfer

@@ -22,6 +22,10 @@ from . import protocol as P
 from .errors import ArrayError, CosimError, ProtocolError
 
 WHEN_SURFACE = "with_surface"
+# "<name>_index" rows (proto/PROTOCOL.md "Sparse exchange") are optional: this
+# package sends and expects the dense form (its fem says no "sparse" in ready,
+# its dem gives no "reach"), so the coupler never sends it the sparse one
+WHEN_INDEX = "sparse_index"
 _cache = {}
 
 
@@ -129,7 +133,7 @@ class RoleTable:
                 s.when == WHEN_SURFACE and s.name in arrays for s in specs):
             dims.surface = True
         for s in specs:
-            if s.when == WHEN_SURFACE and not dims.surface:
+            if s.when == WHEN_INDEX or (s.when == WHEN_SURFACE and not dims.surface):
                 continue
             a = arrays.get(s.name)
             if a is None or not self._fits(s, a, dims):

@@ -138,6 +138,41 @@ def run(scene, set=None, output_dir=None, cosim=None, quiet=True, timeout=None,
     return r
 
 
+def settle(scene, beds, set=None, output_dir=None, **run_args):
+    """Settle-only: runs the scene cut to one coupled step (``time.end`` =
+    ``time.dt``), each dem process named in ``beds`` ({process: path})
+    writing its settled bed with its whole state to that path
+    (``particles.save``; dem_server saves at the end of its init, before
+    the step, so the file holds the bed exactly as the full run would start
+    from it). Loading it (``particles = {"file": path}``) then continues that
+    run bit for bit. Returns the short run's :class:`Results`."""
+    from .sweep_beds import apply_sets  # it imports this module
+    sets = dict(set or {})
+    path, data = _scene_file(scene)
+    eff = apply_sets(data or {}, sets)  # time.dt may come from --set
+    try:
+        sets["time.end"] = eff["time"]["dt"]
+    except (KeyError, TypeError):
+        raise RunError(f"cosim.settle {path}: the scene has no time.dt") from None
+    for name, bed in beds.items():
+        sets[f"processes.{name}.particles.save"] = bed
+    args = list(run_args.pop("args", ()))
+    if "--overwrite" not in args:
+        args.append("--overwrite")  # the settle run's own folder
+    return run(path, set=sets, output_dir=output_dir, args=args, **run_args)
+
+
+def finished(run_dir):
+    """True if run_dir holds a results.h5 whose coupler rows reach the
+    scene's time.end (within half a step): a run that needs no rerun."""
+    try:
+        with Results(run_dir) as r:
+            sc, t = r.scene["time"], r.series("coupler")["t"]
+            return len(t) > 0 and t[-1] >= sc["end"] - 0.5 * sc["dt"]
+    except Exception:  # missing, damaged, cut short: run it
+        return False
+
+
 def _dir_name(point):
     text = ",".join(f"{k}={json.dumps(v) if not isinstance(v, str) else v}"
                     for k, v in point.items())
@@ -151,7 +186,8 @@ def grid_points(values):
     return [dict(zip(keys, combo)) for combo in itertools.product(*(values[k] for k in keys))]
 
 
-def sweep(scene, values, out, set=None, jobs=1, keep_going=False, **run_args):
+def sweep(scene, values, out, set=None, jobs=1, keep_going=False, beds=None, resume=False,
+          **run_args):
     """One run per combination of ``values`` ({key.path: [v0, v1, ...]},
     several keys: every combination), each into its own ``out/<key>=<value>``
     (ports are chosen free by each run). ``jobs`` runs at once.
@@ -161,15 +197,34 @@ def sweep(scene, values, out, set=None, jobs=1, keep_going=False, **run_args):
     (naming the point) once the runs under way have ended; with
     ``keep_going`` the error takes the place of the Results instead.
 
-    This loops over :func:`run` (``cosim sweep`` of the full-scale tyre
-    issue, with its summary.csv, does not exist yet)."""
-    points = grid_points(values)
+    ``beds`` (a folder): every distinct bed is settled
+    once into it (a settle-only run, :func:`settle`; a bed already there is
+    not settled again) and each run loads its bed (cosim/sweep_beds.py).
+    ``resume``: a point whose results.h5 already reaches time.end is not
+    run again (its Results are returned); the others run with --overwrite.
 
-    def one(point):
+    This loops over :func:`run`; ``cosim sweep`` (sweep_cli.py) adds the
+    summary."""
+    points = grid_points(values)
+    shared = None
+    if beds:
+        from .sweep_beds import Beds
+        shared = Beds(scene, points, set, beds)
+        shared.settle(points, jobs=jobs, **run_args)
+
+    def one(index):
+        point = points[index]
         sets = dict(set or {}, **point)
+        if shared:
+            sets = shared.run_sets(index, sets)
         sets["output.dir"] = os.path.join(out, _dir_name(point))
+        if resume and finished(sets["output.dir"]):
+            return Results(sets["output.dir"])
+        opts = dict(run_args)
+        if resume:
+            opts["args"] = list(opts.get("args", ())) + ["--overwrite"]
         try:
-            return run(scene, set=sets, **run_args)
+            return run(scene, set=sets, **opts)
         except RunError as e:
             e.args = (f"{_dir_name(point)}: {e}",)
             if keep_going:
@@ -177,5 +232,5 @@ def sweep(scene, values, out, set=None, jobs=1, keep_going=False, **run_args):
             raise
 
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        results = list(pool.map(one, points))
+        results = list(pool.map(one, range(len(points))))
     return list(zip(points, results))

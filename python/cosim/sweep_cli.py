@@ -3,7 +3,7 @@
     cosim sweep SCENE --values scenario.slip=0,0.05,0.1,0.2,0.3 [--set K=V]...
                 [--jobs N] --out DIR [--repeat N] [--skip-travel M]
                 [--reference REF.csv | --terra-params PARAMS.json] [--overwrite]
-                [--keep-going]
+                [--keep-going] [--resume] [--no-bed-reuse]
 
 Each run goes to ``DIR/<key>=<value>/`` (ports: whatever the scene says; its
 ``tcp://...:0`` endpoints are free ports chosen by each run). Then
@@ -17,11 +17,17 @@ reference (terra/README.md "Files and how to call the reference").
 ``--repeat N`` runs N realisations of each value on different beds: the bed
 generator's seed (``processes.<dem>.particles.seed``, the scene's value s0,
 default 1) is s0, s0 + 1, ..., s0 + N - 1, each run in
-``DIR/<key>=<value>,<seed key>=<seed>/``. A bed is generated and settled in
-each run, so the realisations are independent; the same seed gives the same
-run bit for bit. summary.csv then gives per value the mean of the run means
-and its interval from their spread (Student t, N - 1 degrees of freedom);
-``DIR/runs.csv`` has one row per run with its own batch-means interval. With
+``DIR/<key>=<value>,<seed key>=<seed>/``. Each distinct bed (one per seed when
+only the scenario is swept) is settled once, by a settle-only run into
+``DIR/beds/``, and every run of it starts from that saved bed, which
+continues the settling bit for bit (cosim/sweep_beds.py; ``--no-bed-reuse``:
+each run settles its own, as before); the realisations are independent, and
+the same seed gives the same run bit for bit either way. ``--resume`` skips
+the points whose results.h5 already reaches time.end and reruns the others;
+beds already in ``DIR/beds/`` are never settled again. summary.csv then
+gives per value the mean of the run means and its interval from their
+spread (Student t, N - 1 degrees of freedom); ``DIR/runs.csv`` has one row
+per run with its own batch-means interval. With
 one run per value the interval is the run's batch-means interval
 (cosim/stats.py says how the batches are chosen).
 
@@ -48,6 +54,7 @@ from . import stats
 from .traction import QUANTITIES, summarise_run, travel_window  # noqa: F401 (report.py)
 from .roles import cosim_executable
 from .runner import _dir_name, grid_points, sweep as run_sweep
+from .sweep_beds import BEDS_DIR
 
 STATS = ["mean", "ci95", "min", "max"]  # ci95: half-width of the mean's 95 % interval
 SUMMARY_FILE, PLOT_FILE, REFERENCE_FILE = "summary.csv", "summary.png", "reference.csv"
@@ -324,6 +331,10 @@ def main(argv):
     ap.add_argument("--terra-params", metavar="PARAMS.json")
     ap.add_argument("--overwrite", action="store_true")
     ap.add_argument("--keep-going", action="store_true")
+    ap.add_argument("--resume", action="store_true",
+                    help="skip the points already run to time.end; rerun the rest")
+    ap.add_argument("--no-bed-reuse", action="store_true",
+                    help="every run settles its own bed (default: once per bed, in DIR/beds)")
     ap.add_argument("--summary-only", action="store_true",
                     help="summarise the runs already in --out")
     ap.add_argument("--cosim", help=argparse.SUPPRESS)
@@ -353,9 +364,10 @@ def main(argv):
     if not args.summary_only:
         check_points(args.scene, sets, key, values, args.cosim)
         run_args = ["--overwrite"] if args.overwrite else []
+        beds = None if args.no_bed_reuse else os.path.join(args.out, BEDS_DIR)
         done = run_sweep(args.scene, grid, args.out, set=sets, jobs=args.jobs,
                          keep_going=args.keep_going, quiet=True, cosim=args.cosim,
-                         args=run_args)
+                         args=run_args, beds=beds, resume=args.resume)
     else:
         done = [(p, os.path.join(args.out, _dir_name(p))) for p in grid_points(grid)]
     rows, scene = [], None

@@ -1,5 +1,8 @@
 """The steady travel of a tyre run and its traction summary (used by
-`cosim sweep`, cosim.Results.traction_summary and bench/tire_soil)."""
+`cosim sweep`, cosim.Results.traction_summary and bench/tire_soil), and the
+traction-slip curve of a dbp-rig run (scenario.rig = "dbp", coupler/README.md):
+``/coupler/traction`` and ``/coupler/dbp`` -> rows binned by the measured slip,
+each quantity's mean with its 95 % batch-means interval (cosim.stats)."""
 import math
 
 import numpy as np
@@ -8,6 +11,11 @@ from . import stats
 from .errors import CosimError
 
 QUANTITIES = ["T_H", "T_R", "T_P", "vertical_load", "sinkage"]
+# the dbp curve: the traction row's quantities and the rig's resistive force
+DBP_QUANTITIES = ["T_H", "T_R", "T_P", "vertical_load", "resistive_force"]
+DBP_BIN_WIDTH = 0.02  # slip: ten points over 0-0.2, as fig. 15's slips are spaced
+DBP_PHASE_RAMP = 2    # /coupler/dbp phase: 0 sinkage, 1 hold, 2 ramp
+DBP_WINDOW_S = 0.1    # scenario.dbp_window's default (coupler.h CPL_DBP_WINDOW)
 
 
 def travel_window(traction, scene, skip_travel):
@@ -39,4 +47,99 @@ def summarise_run(results, skip_travel):
         row[f"{q}_ci95"] = stats.batch_means(v)["half"]
         row[f"{q}_min"] = float(np.min(v)) if len(v) else math.nan
         row[f"{q}_max"] = float(np.max(v)) if len(v) else math.nan
+    if is_dbp(results.scene):
+        # the window's means mix the slips the ramp swept: the curve is the answer
+        row["dbp_curve"] = dbp_curve(results)
     return row
+
+
+def is_dbp(scene):
+    sc = scene.get("scenario", {})
+    return sc.get("kind") == "tire_travel" and sc.get("rig") == "dbp"
+
+
+def dbp_series(results):
+    """{column: array} of a dbp run: /coupler/traction's columns and
+    /coupler/dbp's (the same rows, one per step)."""
+    if not is_dbp(results.scene):
+        raise CosimError("scenario.rig is not 'dbp': the run has no /coupler/dbp")
+    tr, db = results.series("coupler", "traction"), results.series("coupler", "dbp")
+    out = {c: tr[c] for c in tr}
+    out.update({c: db[c] for c in db})
+    return out
+
+
+def dbp_curve(results, bin_width=DBP_BIN_WIDTH, phases=(DBP_PHASE_RAMP,)):
+    """The traction-slip curve of one dbp run: the rows of the given phases
+    (default the ramp) binned by their measured slip into bins of bin_width
+    (edges at multiples of it). Per bin: slip_lo, slip_hi, rows, t0_s, t1_s
+    (its first and last row's time), slip_mean, and per quantity of
+    DBP_QUANTITIES and their ratio to the load (T_H/W, T_R/W, T_P/W with
+    W = scenario.sinkage_force) the mean and its 95 % half-width
+    (``_ci95``) by batch means over the bin's rows in time order, each
+    batch at least scenario.dbp_window long (the scene's averaging time,
+    which should cover the force's correlation time, e.g. a lug's passage),
+    so a bin needs stats.MIN_BATCHES windows of rows for an interval
+    (stats.batch_means: nan for a bin too short to say, and nan when its
+    fewest batches are still correlated, lag-1 above stats.BATCH_LAG1_MAX:
+    a bin short against a lug's passage). The ramp moves the
+    curve within a bin, so a bin's mean is the curve's average over it, and
+    the trend inflates the batch spread (the interval errs wide)."""
+    d = dbp_series(results)
+    sc = results.scene["scenario"]
+    load = float(sc["sinkage_force"])
+    batch_rows = max(1, math.ceil(sc.get("dbp_window", DBP_WINDOW_S) /
+                                  float(results.scene["time"]["dt"]) - 1e-9))
+    mask = np.isin(d["phase"], phases)
+    slip = d["slip"][mask]
+    if not len(slip):
+        return []
+    lo = math.floor(slip.min() / bin_width)
+    hi = math.floor(slip.max() / bin_width)
+    idx = np.floor(slip / bin_width).astype(int)
+    rows = []
+    for b in range(lo, hi + 1):
+        sel = idx == b
+        if not sel.any():
+            continue
+        t = d["t"][mask][sel]
+        row = {"slip_lo": b * bin_width, "slip_hi": (b + 1) * bin_width,
+               "rows": int(sel.sum()), "t0_s": float(t[0]), "t1_s": float(t[-1]),
+               "slip_mean": float(slip[sel].mean())}
+        for q in DBP_QUANTITIES:
+            # batches of at least one window: at most rows // batch_rows of them
+            bm = stats.batch_means(d[q][mask][sel], max_batches=min(
+                stats.MAX_BATCHES, int(sel.sum()) // batch_rows))
+            # batch means still correlated at the fewest batches: the bin is
+            # short against the correlation time (a lug's passage), and the
+            # interval would be too narrow: none
+            half = bm["half"] if bm["lag1"] <= stats.BATCH_LAG1_MAX else math.nan
+            row[f"{q}_mean"], row[f"{q}_ci95"] = bm["mean"], half
+        for q in ("T_H", "T_R", "T_P"):
+            row[f"{q}_W_mean"] = row[f"{q}_mean"] / load if load > 0 else math.nan
+            row[f"{q}_W_ci95"] = row[f"{q}_ci95"] / load if load > 0 else math.nan
+        rows.append(row)
+    return rows
+
+
+DBP_CURVE_COLUMNS = (["slip_lo", "slip_hi", "rows", "t0_s", "t1_s", "slip_mean"] +
+                     [f"{q}_{st}" for q in DBP_QUANTITIES for st in ("mean", "ci95")] +
+                     [f"{q}_W_{st}" for q in ("T_H", "T_R", "T_P") for st in ("mean", "ci95")])
+
+
+def write_dbp_curve(path, curve, scene):
+    """The curve as CSV with # lines saying what it is."""
+    sc = scene["scenario"]
+    with open(path, "w") as f:
+        f.write("# cosim dbp curve: /coupler/traction and /coupler/dbp rows of the ramp "
+                "(phase 2) binned by the measured slip 1 - v / (omega radius)\n")
+        f.write(f"# ramp: {sc.get('dbp_force_start', 0)} N held {sc.get('dbp_hold', 0.2)} s, "
+                f"then {sc['dbp_force_rate']} N/s; carriage "
+                f"{sc.get('carriage_mass', 'rig_mass')} kg; load {sc['sinkage_force']} N\n")
+        f.write("# ci95: half-width of the bin mean's 95 % interval, batch means over the "
+                "bin's rows (cosim.stats.batch_means); nan: too few rows\n")
+        f.write("# units: N (T_H, T_R, T_P, vertical_load, resistive_force), s, slip 1\n")
+        f.write(",".join(DBP_CURVE_COLUMNS) + "\n")
+        for r in curve:
+            f.write(",".join(f"{r[c]:.9g}" if isinstance(r[c], float) else str(r[c])
+                             for c in DBP_CURVE_COLUMNS) + "\n")

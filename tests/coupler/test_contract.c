@@ -110,8 +110,41 @@ static void newcomer_row(void) {
   CHECK(b && b->sum && b->spec == &rows[nrows - 1], "bound to its own row");
 }
 
+/* Index rows (the sparse form, PROTOCOL.md "Sparse exchange") go with the
+ * [n, ...] row they index, same field; they are not bindings of their own. */
+static void index_rows_bind(void) {
+  static cpl_contract c;
+  proto_err err = {0};
+  copy_table();
+  OK(cpl_contract_build(&c, rows, nrows, &err));
+  const cpl_binding *b = binding_of(&c, PROTO_ROLE_DEM, PROTO_MSG_DONE, PROTO_A_NODAL_FORCE);
+  CHECK(b && b->index && strcmp(b->index->name, PROTO_A_NODAL_FORCE_INDEX) == 0,
+        "the dem's nodal_force has its sparse form");
+  b = binding_of(&c, PROTO_ROLE_DEM, PROTO_MSG_STEP, PROTO_A_V);
+  CHECK(b && b->index && strcmp(b->index->name, PROTO_A_V_INDEX) == 0, "so has the dem's v");
+  b = binding_of(&c, PROTO_ROLE_FEM, PROTO_MSG_DONE, PROTO_A_X);
+  CHECK(b && !b->index, "the fem's x stays dense");
+  CHECK(!binding_of(&c, PROTO_ROLE_DEM, PROTO_MSG_STEP, PROTO_A_X_INDEX), "no binding of its own");
+  const proto_array_spec idx = {PROTO_ROLE_DEM, PROTO_MSG_DONE, "nodal_force_index", PROTO_I4, 1,
+                                {PROTO_DIM_ROWS}, "-", PROTO_WHEN_INDEX, "test", "surface.force", 0};
+  for (int i = 0; i < nrows; i++)
+    if (rows[i].when == PROTO_WHEN_INDEX && strcmp(rows[i].name, "nodal_force_index") == 0 &&
+        rows[i].role == PROTO_ROLE_DEM)
+      rows[i].dtype = PROTO_F8;
+  FAILS_WITH(cpl_contract_build(&c, rows, nrows, &err), "an index row is i4 [k]");
+  copy_table();
+  rows[nrows] = idx;
+  rows[nrows++].field = "surface.x";
+  FAILS_WITH(cpl_contract_build(&c, rows, nrows, &err), "must name the field of its [n, ...] row");
+  copy_table();
+  rows[nrows] = idx;
+  rows[nrows++].name = "heat_index";
+  FAILS_WITH(cpl_contract_build(&c, rows, nrows, &err), "no earlier row of its role and message");
+}
+
 int main(void) {
   shipped_table_binds();
+  index_rows_bind();
   bad_rows_fail();
   newcomer_row();
   return cosim_test_done("test_contract");

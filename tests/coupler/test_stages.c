@@ -1,7 +1,8 @@
 /* The coupler's stages without a run (no sockets, no processes): the
  * schedule of each scheme on a stub set of peers; the exchange's
  * bookkeeping (the sub-stepped impulse / dt of two dem processes summed
- * exactly, the fem's surface copied); the load rig, the road body and the
+ * exactly, the fem's surface copied); the load rig, the dbp rig (carriage,
+ * resistance, running means), the road body and the
  * traction on numbers worked out by hand from their formulas (README
  * "Scenario keys"; seed 000 §5); liveness on a fake clock. */
 #include <math.h>
@@ -125,6 +126,12 @@ static void exchange_bookkeeping(void) {
   memset(&r, 0, sizeof r);
 }
 
+/* The rim advanced with a vertical load alone (N). */
+static int advance_z(cpl_rim *rim, const cpl_scenario *s, double dt, double fz, proto_err *err) {
+  const double force[3] = {0, 0, fz};
+  return cpl_rim_advance(rim, s, dt, force, err);
+}
+
 /* Load rig (README "Scenario keys"): dt = 1e-3 s, sinking at 0.01 m/s; the
  * loads 0, 40 (= W/2: the fit starts), 80 (= W: travel) give two fit points
  * dz = 0 and dz = -1e-5 m at F = 40, 80 N, so k = 40 / 1e-5 = 4e6 N/m. Then
@@ -145,16 +152,16 @@ static void load_rig(void) {
   cpl_rim rim;
   proto_err err = {0};
   cpl_rim_init(&rim, &s);
-  OK(cpl_rim_advance(&rim, &s, dt, 0, &err));
+  OK(advance_z(&rim, &s, dt, 0, &err));
   CHECK_REL("sinking", rim.c[2], 1 - 1e-5, 1e-14);
-  OK(cpl_rim_advance(&rim, &s, dt, 40, &err));
-  OK(cpl_rim_advance(&rim, &s, dt, 80, &err));
+  OK(advance_z(&rim, &s, dt, 40, &err));
+  OK(advance_z(&rim, &s, dt, 80, &err));
   CHECK(rim.travelling, "travel starts at the load");
   CHECK_REL("soil stiffness k", rim.stiffness, 4e6, 1e-9);
   CHECK_REL("travel speed omega R (1 - s)", rim.v[0], 2 * 0.5 * 0.9, 1e-15);
   CHECK_REL("rim height frozen at release", rim.c[2], 1 - 2e-5, 1e-14);
   CHECK_REL("x after one travel step", rim.c[0], 0.9e-3, 1e-14);
-  OK(cpl_rim_advance(&rim, &s, dt, 88, &err));
+  OK(advance_z(&rim, &s, dt, 88, &err));
   const double vz = 1e-3 / 1.00125;
   CHECK_REL("rig velocity", rim.v[2], vz, 1e-14);
   CHECK_REL("rig height", rim.c[2], 1 - 2e-5 + vz * dt, 1e-14);
@@ -162,9 +169,176 @@ static void load_rig(void) {
   /* m = 0.1 kg: omega dt = sqrt(4e6 / 0.1) 1e-3 = 6.3 > 1: refused */
   s.rig_mass = 0.1;
   cpl_rim_init(&rim, &s);
-  OK(cpl_rim_advance(&rim, &s, dt, 0, &err));
-  OK(cpl_rim_advance(&rim, &s, dt, 40, &err));
-  FAILS_WITH(cpl_rim_advance(&rim, &s, dt, 80, &err), "scenario.rig_mass");
+  OK(advance_z(&rim, &s, dt, 0, &err));
+  OK(advance_z(&rim, &s, dt, 40, &err));
+  FAILS_WITH(advance_z(&rim, &s, dt, 80, &err), "scenario.rig_mass");
+}
+
+/* ----------------------------------------------------------- the dbp rig */
+
+/* A dbp scene: omega R = 1 m/s, W = 80 N carried from the first step,
+ * carriage 8 kg starting at slip 0.1; resistance F0 = -5 N (a push) held
+ * for 0.25 s, then rising at 40 N/s. dt = 1/1024 s: the hold ends between
+ * steps 256 and 257 (0.25 = 256/1024 exactly: on a step), so the kink is
+ * moved to 0.2505 s to fall inside a step. */
+static cpl_scenario dbp_scene(void) {
+  cpl_scenario s = {0};
+  s.kind = CPL_SCN_TIRE_TRAVEL;
+  s.rim_center[2] = 1;
+  s.sinkage_velocity = 0.01;
+  s.sinkage_force = 80;
+  s.omega = 2;
+  s.radius = 0.5;
+  s.slip = 0.1;
+  s.rig = CPL_RIG_DBP;
+  s.rig_mass = 8;
+  s.carriage_mass = 8;
+  s.dbp_hold = 0.2505;
+  s.dbp_force_start = -5;
+  s.dbp_force_rate = 40;
+  s.dbp_window = 2.0 * CPL_DBP_BINS / 1024; /* 2 steps per bin */
+  return s;
+}
+
+/* Round-off of a sum of ~1000 terms of size ~1 (double, 2.2e-16 each):
+ * well below 1e-12 relative. */
+#define DBP_ROUNDOFF 1e-12
+
+/* The resistance law: means over steps inside the hold, inside the ramp
+ * and across the kink, from the integral worked by hand. */
+static void dbp_resistance(void) {
+  const cpl_scenario s = dbp_scene();
+  CHECK_REL("hold", cpl_dbp_resistance(&s, 0.1, 0.2), -5, 1e-15);
+  /* ramp [0.3, 0.4]: the midpoint 0.35: -5 + 40 (0.35 - 0.2505) = -1.02 */
+  CHECK_REL("ramp", cpl_dbp_resistance(&s, 0.3, 0.4), -1.02, 1e-13);
+  /* across the kink [0.25, 0.26]: -5 + 40 (0.26 - 0.2505)^2 / 2 / 0.01 = -4.8195 */
+  CHECK_REL("kink", cpl_dbp_resistance(&s, 0.25, 0.26), -4.8195, 1e-13);
+}
+
+/* The stub soil's horizontal force of step k (N): a constant 3 N (the
+ * analytic part) or, with wobble, 3 N + 2 sin(0.37 k) (any history: the
+ * impulse balance must hold whatever the force). */
+static double stub_fx(int64_t k, int wobble) { return 3 + (wobble ? 2 * sin(0.37 * (double)k) : 0); }
+
+/* Constant F_x = 3 N: the carriage from v0 = omega R (1 - s) = 0.9 m/s is
+ * v(tau) = v0 + (F_x tau - int_0^tau F_res) / m exactly (the midpoint rule
+ * is exact for a piecewise linear F_res integrated piece by piece), so the
+ * discrete speed equals it to round-off at every step; the slip is
+ * 1 - v / (omega R); the load carried at W keeps the height. With the
+ * wobbling force: m (v_N - v_0) = sum dt F_x - int_0^T F_res to round-off,
+ * and sum dt F_res (the rows' mean forces) = int_0^T F_res. */
+static void dbp_carriage(void) {
+  const cpl_scenario s = dbp_scene();
+  const double dt = 1.0 / 1024, m = s.carriage_mass, v0 = 0.9;
+  proto_err err = {0};
+  for (int wobble = 0; wobble < 2; wobble++) {
+    cpl_rim rim;
+    cpl_rim_init(&rim, &s);
+    OK(advance_z(&rim, &s, dt, 80, &err)); /* the load at once: travel */
+    CHECK(rim.travelling && rim.v[0] == v0, "travel from the first step at v0 (%g)", rim.v[0]);
+    const double z0 = rim.c[2];
+    double impulse = 0, resisted = 0, worst = 0, worst_slip = 0;
+    const int64_t n = 600; /* 0.586 s: hold and 0.33 s of ramp */
+    for (int64_t k = 1; k <= n; k++) {
+      const double force[3] = {stub_fx(k, wobble), 0, 80};
+      OK(cpl_rim_advance(&rim, &s, dt, force, &err));
+      impulse += dt * force[0];
+      resisted += dt * rim.resistive_force;
+      if (wobble) continue;
+      const double tau = (double)k * dt, ramp = fmax(tau - s.dbp_hold, 0);
+      const double v = v0 + (3 * tau - (-5 * tau + 0.5 * 40 * ramp * ramp)) / m;
+      worst = fmax(worst, fabs(rim.v[0] / v - 1));
+      worst_slip = fmax(worst_slip, fabs(cpl_rim_slip(&rim, &s) - (1 - v / 1.0)));
+    }
+    const double T = (double)n * dt, ramp = T - s.dbp_hold;
+    const double exact = -5 * T + 0.5 * 40 * ramp * ramp;
+    if (!wobble) {
+      CHECK(worst < DBP_ROUNDOFF, "carriage speed = analytic to round-off (worst %.3g)", worst);
+      CHECK(worst_slip < DBP_ROUNDOFF, "slip = 1 - v / (omega R) (worst %.3g)", worst_slip);
+    }
+    CHECK_REL("resistance's impulse = int F_res", resisted, exact, DBP_ROUNDOFF);
+    CHECK_REL("impulse balance m (v_N - v_0)", m * (rim.v[0] - v0), impulse - exact,
+              DBP_ROUNDOFF);
+    CHECK(rim.c[2] == z0 && rim.v[2] == 0, "the load carried: height kept");
+    CHECK_REL("travel clock", rim.travel_time, T, 1e-15);
+  }
+}
+
+/* Running means: T_H of step j = j (j = 0 at the travel start), 2 steps a
+ * bin, 32 bins. After the rows 0..99 (100 steps, 50 bins: the ring full,
+ * no partial bin) the mean is over the last 64 steps, 36..99: 67.5; after
+ * 0..100 (a partial bin of 1) over 31 bins + 1 = 63 steps, 38..100: 69. The
+ * phase: 1 in the hold, 2 in the ramp. */
+static void dbp_means(void) {
+  const cpl_scenario s = dbp_scene();
+  const double dt = 1.0 / 1024;
+  proto_err err = {0};
+  cpl_rim rim;
+  cpl_rim_init(&rim, &s);
+  double tr[CPL_N_TRACTION] = {0}, row[CPL_N_DBP];
+  cpl_dbp_row(&rim, &s, dt, tr, row);
+  CHECK(row[CPL_DBP_PHASE] == 0 && row[CPL_DBP_TH_AVG] == 0, "sinkage: phase 0, no means");
+  OK(advance_z(&rim, &s, dt, 80, &err));
+  for (int j = 0; j <= 100; j++) {
+    if (j) OK(advance_z(&rim, &s, dt, 80, &err));
+    tr[CPL_TR_TH] = j;
+    tr[CPL_TR_TP] = 2.0 * j;
+    cpl_dbp_row(&rim, &s, dt, tr, row);
+    if (j == 99) {
+      CHECK(row[CPL_DBP_TH_AVG] == 67.5, "mean over 64 steps: %.17g", row[CPL_DBP_TH_AVG]);
+      CHECK(row[CPL_DBP_TP_AVG] == 135, "T_P mean: %.17g", row[CPL_DBP_TP_AVG]);
+    }
+    if (j == 3) CHECK(row[CPL_DBP_TH_AVG] == 1.5, "before the ring fills: all steps");
+  }
+  CHECK(row[CPL_DBP_TH_AVG] == 69, "mean over 63 steps: %.17g", row[CPL_DBP_TH_AVG]);
+  CHECK(row[CPL_DBP_PHASE] == 1 && row[CPL_DBP_SLIP] == 1 - row[CPL_DBP_SPEED],
+        "hold at step 100 (tau = %g), slip from the speed", rim.travel_time);
+  while (rim.travel_time <= s.dbp_hold) OK(advance_z(&rim, &s, dt, 80, &err));
+  cpl_dbp_row(&rim, &s, dt, tr, row);
+  CHECK(row[CPL_DBP_PHASE] == 2, "ramp after the hold");
+}
+
+/* A known force-slip law recovered: the stub soil pulls with
+ * F_x(s) = 60 (1 - exp(-s / 0.1)) - 10 N (a Janosi-Hanamoto-like rise from
+ * a running resistance of 10 N), and the resistance rises slowly (4 N/s
+ * from -8 N after 0.5 s). Quasi-steady, F_res = F_x(s) - m a with
+ * m a = -m omega R ds/dt and ds/dt = rate / F_x'(s): the curve of the
+ * resistive force over the slip lags the law by m omega R rate / F_x'(s)
+ * (1.07 N at s = 0.3 where F_x' = 30 N; less below). Checked: over the
+ * ramp, |F_res - F_x(s)| is within 1.5 times that lag (the start of the
+ * ramp's transient decays as exp(-t F_x' / (m omega R)), fast against the
+ * ramp), and the slip covers 0.05..0.3. */
+static double stub_law(double slip) { return 60 * (1 - exp(-slip / 0.1)) - 10; }
+
+static void dbp_law(void) {
+  cpl_scenario s = dbp_scene();
+  s.dbp_hold = 0.5;
+  s.dbp_force_start = -8;
+  s.dbp_force_rate = 4;
+  s.slip = 0;
+  const double dt = 1.0 / 1024;
+  proto_err err = {0};
+  cpl_rim rim;
+  cpl_rim_init(&rim, &s);
+  OK(advance_z(&rim, &s, dt, 80, &err));
+  double lo = 1, hi = 0, worst = 0;
+  for (int64_t k = 1; k <= 20 * 1024; k++) {
+    const double slip = cpl_rim_slip(&rim, &s);
+    const double force[3] = {stub_law(slip), 0, 80};
+    OK(cpl_rim_advance(&rim, &s, dt, force, &err));
+    if (rim.travel_time < s.dbp_hold + 1) continue; /* the hold's approach settled */
+    const double now = cpl_rim_slip(&rim, &s);
+    if (now > 0.3) break;
+    const double slope = 600 * exp(-now / 0.1); /* F_x'(s), N */
+    const double lag = s.carriage_mass * 1.0 * s.dbp_force_rate / slope;
+    worst = fmax(worst, fabs(rim.resistive_force - stub_law(now)) / lag);
+    lo = fmin(lo, now);
+    hi = fmax(hi, now);
+  }
+  printf("dbp law: slip %.3g..%.3g, |F_res - F_x(s)| at most %.3g quasi-steady lags\n", lo, hi,
+         worst);
+  CHECK(lo < 0.05 && hi > 0.29, "the ramp sweeps the slip %.3g..%.3g", lo, hi);
+  CHECK(worst < 1.5, "F_res(s) on the law within 1.5 quasi-steady lags (worst %.3g)", worst);
 }
 
 /* Road body: road_force 10 N, road_mass 2 kg, dt 0.5 s. Explicit with the
@@ -237,6 +411,10 @@ int main(void) {
   schedules();
   exchange_bookkeeping();
   load_rig();
+  dbp_resistance();
+  dbp_carriage();
+  dbp_means();
+  dbp_law();
   road_body();
   traction();
   return cosim_test_done("test_stages");

@@ -15,7 +15,7 @@ static char *scene_json(int threads) {
   const double s = 2 * R + 2e-4, h = sqrt(4 * R * R - 0.5 * s * s), L = NL * s + 0.01;
   int len = snprintf(json, sizeof json,
       "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.3,\"friction\":0.6}],"
-      "\"threads\":%d,\"dt\":5e-5,\"sleep\":{\"velocity\":0.005,\"time\":0.01,\"distance\":0.02},"
+      "\"threads\":%d,\"dt\":5e-5,\"sleep\":{\"velocity\":0.005,\"time\":0.01,\"distance\":0.005},"
       "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,1],\"open_top\":true},"
       /* a plate across the box coming in along +x from x = -0.07: arrives at t = 0.175 s */
       "{\"type\":\"mesh\",\"nodes\":[[-0.07,0.002,0.001],[-0.07,%.17g,0.001],[-0.07,%.17g,0.03],[-0.07,0.002,0.03]],"

@@ -1,5 +1,6 @@
-/* Sleeping grains under a growing load ("sleep"): a column of three grains
- * on the floor falls asleep; a plate then presses the top grain down slower
+/* Sleeping grains under a growing load ("sleep"): a column of seven grains
+ * on the floor, the lowest two outside the region around the plate, falls
+ * asleep there; the plate then presses the top grain down slower
  * than the sleep velocity. A sleeping grain is a fixed one, so the grains
  * below must wake once pressed (sleep.overlap), or the whole compression
  * would go into one contact (Hertz in series: ~8x the force). Checked against
@@ -16,21 +17,26 @@
 #define SPEED 1e-3     /* m/s, below the sleep velocity */
 #define DT 5e-5
 #define REST_STEPS 4000 /* 0.2 s: the column at rest and asleep before the plate arrives */
-#define PRESS_STEPS 10000 /* then 0.3 mm more: ~0.1 R of compression in all */
+#define PRESS_STEPS 20000 /* then 0.6 mm more: ~0.2 R of compression in all */
+/* Grains in the column: the region around the moving plate (dem_sleep.c:
+ * margin r + 2 skin + c 5 dt, and half that again) keeps the upper ones awake;
+ * the two lowest lie outside it and fall asleep. */
+#define NG 7
 
 static const char *column(int sleep) {
   static char json[4096];
-  const double zp = 6 * R + 3e-6 + GAP + SPEED * REST_STEPS * DT;
-  snprintf(json, sizeof json,
+  const double zp = 2 * NG * R + NG * 1e-6 + GAP + SPEED * REST_STEPS * DT;
+  int len = snprintf(json, sizeof json,
            "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.3,\"friction\":0.6}],"
            "\"dt\":%g,\"threads\":1,\"sleep\":%s,"
            "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[0.02,0.02,1],\"open_top\":true},"
            "{\"type\":\"mesh\",\"nodes\":[[0.0,0.0,%.17g],[0.02,0.0,%.17g],[0.02,0.02,%.17g],[0.0,0.02,%.17g]],"
-           "\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[0,0,%g]}],"
-           "\"particles\":[{\"x\":[0.01,0.01,%.17g],\"r\":%g},{\"x\":[0.01,0.01,%.17g],\"r\":%g},"
-           "{\"x\":[0.01,0.01,%.17g],\"r\":%g}]}",
-           DT, sleep ? "{\"velocity\":0.005,\"time\":0.01,\"distance\":0}" : "false", zp, zp, zp, zp,
-           -SPEED, R + 1e-6, R, 3 * R + 2e-6, R, 5 * R + 3e-6, R);
+           "\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[0,0,%g]}],\"particles\":[",
+           DT, sleep ? "{\"velocity\":0.005,\"time\":0.01,\"distance\":0}" : "false", zp, zp, zp, zp, -SPEED);
+  for (int g = 0; g < NG; g++)
+    len += snprintf(json + len, sizeof json - (size_t)len, "%s{\"x\":[0.01,0.01,%.17g],\"r\":%g}", g ? "," : "",
+                    (2 * g + 1) * R + (g + 1) * 1e-6, R);
+  snprintf(json + len, sizeof json - (size_t)len, "]}");
   return json;
 }
 

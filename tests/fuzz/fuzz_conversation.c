@@ -21,11 +21,17 @@ static double read_checked(proto_role role, proto_msg_kind kind, const proto_msg
   for (int i = 0; i < n; i++) {
     if (t[i].role != role || t[i].msg != kind) continue;
     const unsigned char *p = proto_msg_data(m, t[i].name);
-    if (!p) continue; /* a WHEN_SURFACE array without a surface */
+    if (!p) continue; /* a WHEN_SURFACE array without a surface, an index not sent */
+    /* the sparse form (PROTOCOL.md "Sparse exchange"): k rows, k indices < n */
+    const int32_t *idx;
+    const int64_t k_rows = t[i].when == PROTO_WHEN_INDEX ? -1 : proto_msg_sparse(m, t[i].name, &idx);
+    for (int64_t j = 0; j < k_rows; j++)
+      if (idx[j] < 0 || idx[j] >= d->nodes) __builtin_trap(); /* checked, so in range */
     int64_t count = 1;
     for (int k = 0; k < t[i].ndim; k++)
       count *= t[i].dims[k] > 0 ? t[i].dims[k]
-               : t[i].dims[k] == PROTO_DIM_NODES ? d->nodes : d->tris;
+               : t[i].dims[k] == PROTO_DIM_ROWS ? proto_msg_find(m, t[i].name)->shape[0]
+               : t[i].dims[k] == PROTO_DIM_NODES ? (k_rows >= 0 ? k_rows : d->nodes) : d->tris;
     for (int64_t b = 0; b < count * (int64_t)proto_dtype_size(t[i].dtype); b++) sum += p[b];
   }
   if (kind == PROTO_MSG_DONE)

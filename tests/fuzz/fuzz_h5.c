@@ -1,6 +1,6 @@
 /* fuzz_h5 — the HDF5 readers (road heights, Green's functions, springs,
- * saved beds, checkpoints), structure-aware: the input is a small text that describes a
- * file; the harness writes that file with the HDF5 library and runs the
+ * saved beds with their saved state, checkpoints), structure-aware: the
+ * input is a small text that describes a file; the harness writes that file with the HDF5 library and runs the
  * reader on it. Mutating the description reaches every shape, type,
  * attribute and value case of our readers (raw-byte mutations of an HDF5
  * file mostly exercise the HDF5 library's own parser instead).
@@ -205,6 +205,28 @@ static int build(const char *path, char *text, grid *g) {
   return reader;
 }
 
+/* A scene that reads the bed, then its saved state into the fresh state
+ * (any overlap accepted: the fuzzed positions must reach the state). */
+static void bed_continue(const char *path, proto_err *err) {
+  char json[512];
+  snprintf(json, sizeof json,
+           "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,"
+           "\"friction\":0.6}],\"dt\":1e-6,\"overlap_tolerance\":1,\"threads\":1,"
+           "\"particles\":{\"file\":\"%s\"}}", path);
+  cJSON *j = cJSON_Parse(json);
+  dem_model m;
+  dem_state s;
+  dem_bed_info info;
+  if (j && dem_model_from_json(&m, j, "processes.dem", err) == 0) {
+    if (dem_state_init(&m, &s, 0, err) == 0) {
+      dem_bed_continue(&m, &s, &info, err);
+      dem_state_free(&s);
+    }
+    dem_model_free(&m);
+  }
+  cJSON_Delete(j);
+}
+
 static void run(int reader, const char *path, const grid *g) {
   proto_err err = {{0}};
   if (reader == R_ROAD) {
@@ -225,8 +247,9 @@ static void run(int reader, const char *path, const grid *g) {
   } else if (reader == R_BED) {
     dem_model m;
     memset(&m, 0, sizeof m);
-    dem_bed_load(&m, path, &err);
+    const int loaded = dem_bed_load(&m, path, &err) == 0;
     dem_model_free(&m);
+    if (loaded) bed_continue(path, &err); /* its saved state: /state (dem_bed_continue) */
   } else if (reader == R_CHECKPOINT) {
     const cpl_scene *sc = checkpoint_scene();
     cpl_ckpt *c = sc ? cpl_checkpoint_read(path, sc, &err) : NULL;

@@ -4,7 +4,7 @@ The default scene (a small three-layer bed generated and settled in the run),
 cut to a few coupled steps: `--repeat 2` runs seeds s0 and s0 + 1 of the bed
 generator (s0 from the scene: 1). Checked:
 1. runs.csv has one row per (value, seed), each run in its own directory,
-   whose results.h5 used that seed;
+   whose results.h5 used the bed settled with that seed;
 2. the two realisations differ (the settled grains are not where the other
    bed's are): different beds, not one bed twice;
 3. a realisation is reproducible: seed 2 run again on its own with `cosim run`
@@ -49,8 +49,12 @@ for r, seed in zip(rows, (1, 2)):
     h5 = os.path.join(out, r["dir"], "results.h5")
     check(os.path.isfile(h5), f"seed {seed}: {h5}")
     with h5py.File(h5, "r") as f:
-        used = json.loads(f.attrs["config"])
-    check(used["processes"]["dem"]["particles"]["seed"] == seed, f"run {r['dir']} used seed {seed}")
+        used = json.loads(f.attrs["config"])["processes"]["dem"]["particles"]
+    # the bed of that seed, settled once into DIR/beds (cosim/sweep_beds.py)
+    rec = [json.load(open(os.path.join(out, "beds", b))) for b in os.listdir(os.path.join(out, "beds"))
+           if b.endswith(".json")]
+    bed = [os.path.join(out, "beds", x["beds"]["dem"]) for x in rec if x["point"][SEED_KEY] == seed]
+    check(len(bed) == 1 and used == {"file": os.path.abspath(bed[0])}, f"run {r['dir']} used the bed of seed {seed}")
     h5s.append(h5)
 a, b = positions(h5s[0]), positions(h5s[1])
 check(a.shape != b.shape or np.max(np.abs(a - b)) > 1e-3, "the two beds differ (grains moved > 1 mm)")

@@ -85,6 +85,8 @@ def main():
     json.dump({"soil": dict(sand, kphi=3)}, open(bad_soil, "w"))
     no_dem = os.path.join(d, "no_dem.json")
     json.dump({"processes": {"fem": {"exec": "fem_server"}}}, open(no_dem, "w"))
+    file_bed = os.path.join(d, "file_bed.json")
+    json.dump({"processes": {"soil": {"exec": "dem_server", "particles": {"file": "x.h5"}}}}, open(file_bed, "w"))
     broken = os.path.join(d, "broken.json")
     open(broken, "w").write('{"soil": {"n": 1,,}}')
     cases = [
@@ -106,6 +108,13 @@ def main():
         (["plate", files[0], "--wdith", "0.1", "--out", ref], "unknown option '--wdith'"),
         (["shear", no_dem, "--sigma", "1000", "--out", ref], "dem_server"),
         (["dig"], "unknown command"),
+        # the preparation options (terra/README.md, "Preparation") and the prepared bed
+        (["shear", no_dem, "--sigma", "1000", "--prep-rolling", "0.1", "--out", ref], "needs --prep-friction"),
+        (["plate", no_dem, "--width", "0.1", "--prep-friction", "-1", "--out", ref], "--prep-friction -1"),
+        (["bed", no_dem, "--out", ref], "dem_server"),
+        (["bed", file_bed, "--out", ref], "must be a generated bed"),
+        (["bed", file_bed, "--particles", "[1, 2]", "--out", ref], "--particles: expected a JSON object"),
+        (["bed", files[0]], "--out"),
     ]
     for args, needle in cases:
         rc, out = run(tool, *args)

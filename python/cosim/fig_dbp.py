@@ -1,0 +1,132 @@
+"""The figure and table of a dbp-rig run (scenario.rig = "dbp", coupler/README.md).
+
+    python3 -m cosim.fig_dbp RUN_DIR [--png PATH] [--csv PATH] [--bin-width W]
+                             [--slip-points SLIPS.csv]
+
+results.h5 (/coupler/traction, /coupler/dbp) -> RUN_DIR/dbp_curve.csv (the
+curve binned by the measured slip, 95 % batch-means intervals:
+cosim.traction.dbp_curve) and RUN_DIR/dbp.png: left, T_H, |T_R|, T_P and the
+resistive force against the slip (the bins with their intervals; the running
+averages of /coupler/dbp as thin lines), right, the carriage speed, the
+resistive force and the slip against time. --slip-points draws slip-controlled
+runs' points for the cross-check (a CSV with columns slip, T_H_mean, T_H_ci95,
+T_R_mean, T_R_ci95, T_P_mean, T_P_ci95: e.g. a `cosim sweep` summary.csv over
+scenario.slip). Exit codes: 0 ok, 1 bad usage or a run that is not a dbp run.
+"""
+import argparse
+import csv
+import math
+import os
+import sys
+
+import numpy as np
+
+from .errors import CosimError
+from .results import Results
+from . import traction
+
+CURVE_FILE, PLOT_FILE = "dbp_curve.csv", "dbp.png"
+# T_H, |T_R|, T_P drawn as seed 000 fig. 15 draws them; the force the rig measured
+COLORS = {"T_H": "tab:blue", "T_R": "tab:red", "T_P": "tab:green", "resistive_force": "0.35"}
+LABELS = {"T_H": "T_H", "T_R": "|T_R|", "T_P": "T_P", "resistive_force": "resistive force"}
+
+
+def read_points(path):
+    """Slip-controlled points: {slip, q_mean, q_ci95} rows of a CSV (# lines skipped)."""
+    with open(path) as f:
+        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    out = []
+    for r in rows:
+        slip = r.get("slip", r.get("scenario.slip"))
+        if slip is None:
+            raise CosimError(f"{path}: no column 'slip' or 'scenario.slip'")
+        out.append({k: float(v) for k, v in r.items() if k and v not in (None, "")
+                    and k.endswith(("_mean", "_ci95"))} | {"slip": float(slip)})
+    return out
+
+
+def plot(path, results, curve, points=None):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    d = traction.dbp_series(results)
+    sc = results.scene["scenario"]
+    ramp = d["phase"] == traction.DBP_PHASE_RAMP
+    fig, (ax, at) = plt.subplots(1, 2, figsize=(12, 4.8))
+    for q in ("T_H", "T_R", "T_P", "resistive_force"):
+        sign = -1 if q == "T_R" else 1
+        x = np.array([r["slip_mean"] for r in curve])
+        y = sign * np.array([r[f"{q}_mean"] for r in curve])
+        e = np.array([r[f"{q}_ci95"] for r in curve])
+        ax.errorbar(x, y, yerr=np.where(np.isnan(e), 0, e), fmt="o", ms=4, capsize=3,
+                    color=COLORS[q], label=f"{LABELS[q]} (bins; bars: 95 % where a bin is long enough)")
+        avg = f"{q}_avg"
+        if avg in d:
+            ax.plot(d["slip_avg"][ramp], sign * d[avg][ramp], "-", lw=0.7, alpha=0.6,
+                    color=COLORS[q])
+    for p in points or []:
+        for q in ("T_H", "T_R", "T_P"):
+            if f"{q}_mean" in p:
+                sign = -1 if q == "T_R" else 1
+                ax.errorbar([p["slip"]], [sign * p[f"{q}_mean"]],
+                            yerr=[p.get(f"{q}_ci95", 0) if not math.isnan(
+                                p.get(f"{q}_ci95", math.nan)) else 0],
+                            fmt="s", mfc="none", ms=8, capsize=4, color=COLORS[q])
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xlabel("slip (measured)")
+    ax.set_ylabel("force (N)")
+    ax.set_title(f"dbp rig: load {sc['sinkage_force']} N; lines: running averages over "
+                 f"{sc.get('dbp_window', 0.1)} s" + ("; squares: slip-controlled" if points else ""),
+                 fontsize=9)
+    ax.legend(fontsize=8)
+    travel = d["phase"] > 0
+    travel[np.argmax(travel)] = False  # the release step: the carriage not yet driven
+    t = d["t"][travel]
+    at.plot(t, d["carriage_speed"][travel], color="tab:purple", label="carriage speed (m/s)")
+    at.plot(t, d["slip"][travel], color="tab:orange", label="slip")
+    at.set_xlabel("t (s)")
+    at.set_ylabel("carriage speed (m/s), slip")
+    af = at.twinx()
+    af.plot(t, d["resistive_force"][travel], color="0.35", label="resistive force (N)")
+    af.set_ylabel("resistive force (N)")
+    h1, l1 = at.get_legend_handles_labels()
+    h2, l2 = af.get_legend_handles_labels()
+    at.legend(h1 + h2, l1 + l2, fontsize=8, loc="upper left")
+    at.set_title("the rig against time (from the travel start)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv):
+    ap = argparse.ArgumentParser(prog="python3 -m cosim.fig_dbp", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("run", help="the run's output dir or its results.h5")
+    ap.add_argument("--png", help=f"default RUN_DIR/{PLOT_FILE}")
+    ap.add_argument("--csv", help=f"default RUN_DIR/{CURVE_FILE}")
+    ap.add_argument("--bin-width", type=float, default=traction.DBP_BIN_WIDTH)
+    ap.add_argument("--slip-points", help="CSV of slip-controlled runs' means to draw")
+    a = ap.parse_args(argv)
+    if not a.bin_width > 0:
+        ap.error(f"--bin-width: must be > 0, got {a.bin_width}")
+    base = a.run if os.path.isdir(a.run) else os.path.dirname(a.run) or "."
+    try:
+        with Results(a.run) as r:
+            curve = traction.dbp_curve(r, a.bin_width)
+            if not curve:
+                raise CosimError(f"{a.run}: no rows in the ramp (phase 2): the run ended in "
+                                 "the hold or before the travel")
+            csv_path = a.csv or os.path.join(base, CURVE_FILE)
+            traction.write_dbp_curve(csv_path, curve, r.scene)
+            points = read_points(a.slip_points) if a.slip_points else None
+            png = a.png or os.path.join(base, PLOT_FILE)
+            plot(png, r, curve, points)
+    except (CosimError, KeyError, OSError) as e:
+        print(f"cosim.fig_dbp: {e}", file=sys.stderr)
+        return 1
+    print(f"cosim.fig_dbp: {len(curve)} slip bins -> {csv_path}, {png}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

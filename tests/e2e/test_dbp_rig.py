@@ -1,0 +1,232 @@
+"""The drawbar-pull rig, scenario.rig = "dbp" (coupler/README.md "Scenario keys"),
+end to end with stubs (fem_stub, dem_stub: a constant force per node, ramped in
+over 0.1 s).
+
+1. stub: serial, parallel and implicit runs reach the end; /coupler/dbp has a
+   row per step. Serial (the rim moves with the step's own force): every
+   travel step's carriage momentum change equals the soil's impulse minus the
+   resistance's, m_c (v_k - v_{k-1}) = dt (F_x,k - F_res,k), to round-off; the
+   resistive force of each row is the law's exact mean over its step (hold,
+   then the ramp); slip = 1 - v / (omega radius); the running means are the
+   mean of the last dbp_window of rows (to the bins' 1/32). Parallel: the same
+   balance with the last step's force. Python: Results.traction_summary()
+   carries the curve, cosim.fig_dbp writes dbp_curve.csv (one row per slip
+   bin) and dbp.png.
+2. restart: 2N steps straight equal N steps, a checkpoint in the ramp and a
+   restart for N more, row for row in /coupler/dbp and /coupler/traction (the
+   carriage, the ramp's clock and the running sums are in the checkpoint).
+3. bad: each dbp key's bad value refused by `cosim run` and `cosim check`,
+   naming the key."""
+import csv
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+from common import HERE, check, columns, done, h5, no_orphans, run, scene
+
+ROOT = os.path.dirname(os.path.dirname(HERE))
+sys.path.insert(0, os.path.join(ROOT, "python"))
+import cosim  # noqa: E402
+from cosim import traction  # noqa: E402
+
+W, FZ, FX, RAMP, N_NODES = 20.0, 24.0, 2.5, 0.1, 25  # a 4 x 4 cell plane: 5 x 5 nodes
+C_STUB = 70.0  # N s/m: the vertical rig damped (the stub's load does not fall as it rises)
+OMEGA, RADIUS, SLIP0 = 1.8, 0.272, 0.05
+M_C, HOLD, F0, RATE, WINDOW = 3.0, 0.05, -1.0, 40.0, 0.032
+BALANCE_TOL = 1e-9  # relative to the step impulse: round-off of sums of ~25 forces, h5 f8 rows
+
+
+def stub_scene(name, scheme, dt=1e-3):
+    s = scene(name, {
+        "fem": {"exec": "fem_stub",
+                "surface": {"plane": {"size": [0.2, 0.16], "n": [4, 4], "z": -0.27}}},
+        "dem": {"exec": "dem_stub", "force_per_node": [FX / N_NODES, 0.0, FZ / N_NODES],
+                "ramp_time": RAMP}},
+        scenario={"kind": "tire_travel", "rim_center": [0, 0, 0.3], "sinkage_velocity": 0.1,
+                  "sinkage_force": W, "slip": SLIP0, "omega": OMEGA, "radius": RADIUS,
+                  "rig": "dbp", "rig_damping": C_STUB, "carriage_mass": M_C,
+                  "dbp_hold": HOLD, "dbp_force_start": F0, "dbp_force_rate": RATE,
+                  "dbp_window": WINDOW})
+    s["time"] = {"dt": dt, "end": 0.3}
+    s["output"]["every"] = 100
+    s["coupling"]["scheme"] = scheme
+    return s
+
+
+def table(s, name):
+    t = h5(s)[f"/coupler/{name}"]
+    return {c: t[:, i] for i, c in enumerate(columns(t))}
+
+
+def law_mean(a, b):
+    """The resistance law's mean over [a, b] of the travel clock."""
+    integral = lambda tau: F0 * tau + 0.5 * RATE * np.maximum(tau - HOLD, 0) ** 2
+    return (integral(b) - integral(a)) / (b - a)
+
+
+def stub_part():
+    for scheme in ("serial", "parallel", "implicit"):
+        s = stub_scene(f"dbp_{scheme}", scheme)
+        dt = s["time"]["dt"]
+        rc, out, err = run(s, timeout=120)
+        check(rc == 0, f"dbp {scheme}: run ok ({err[-300:]})")
+        no_orphans(s, f"dbp {scheme}")
+        if rc:
+            continue
+        check("dbp rig: carriage" in err, f"dbp {scheme}: the rig's parameters are logged")
+        tr, db = table(s, "traction"), table(s, "dbp")
+        n = round(s["time"]["end"] / dt)
+        check(len(db["t"]) == n and len(tr["t"]) == n,
+              f"dbp {scheme}: a row per step to the end ({len(db['t'])} of {n})")
+        travel = np.nonzero(db["phase"] > 0)[0]
+        check(len(travel) > 0 and db["phase"][-1] == 2, f"dbp {scheme}: the ramp reached")
+        if not len(travel):
+            continue
+        k0 = int(travel[0])  # the release: the carriage at omega R (1 - slip)
+        v = db["carriage_speed"]
+        check(abs(v[k0] / (OMEGA * RADIUS * (1 - SLIP0)) - 1) < 1e-12,
+              f"dbp {scheme}: released at omega R (1 - slip)")
+        if scheme == "implicit":
+            continue  # the rig is outside the iteration: its force is the last step's
+        k = np.arange(k0 + 1, n)
+        fx = tr["T_P"][k] if scheme == "serial" else tr["T_P"][k - 1]
+        dv = M_C * (v[k] - v[k - 1])
+        want = dt * (fx - db["resistive_force"][k])
+        dev = np.abs(dv - want).max() / (dt * (np.abs(fx).max() + np.abs(db["resistive_force"]).max()))
+        print(f"dbp {scheme}: {len(k)} carriage steps, impulse balance rel. dev {dev:.2g}; "
+              f"slip {db['slip'][k0]:.4g} -> {db['slip'][-1]:.4g}, resistance "
+              f"{db['resistive_force'][-1]:.4g} N")
+        check(dev < BALANCE_TOL, f"dbp {scheme}: m_c dv = dt (F_x - F_res) each step ({dev:.2g})")
+        if scheme != "serial":
+            continue
+        tau = (k - k0) * dt
+        fr = law_mean(tau - dt, tau)
+        check(np.allclose(db["resistive_force"][k], fr, rtol=1e-9, atol=1e-9 * RATE),
+              "serial: F_res is the law's mean over each step (hold, then the ramp)")
+        check(np.allclose(db["slip"][k], 1 - v[k] / (OMEGA * RADIUS), rtol=0, atol=1e-12),
+              "serial: slip = 1 - v / (omega radius)")
+        # running means: 32 bins of round(WINDOW / (dt 32)) = 1 step; the
+        # window is 31 or 32 steps (1/32 of it); here bins of one step: 32
+        j = n - 1
+        win = db["T_P"][j - 31:j + 1] if "T_P" in db else tr["T_P"][j - 31:j + 1]
+        check(abs(db["T_P_avg"][j] - win.mean()) < 1e-9 * np.abs(win).max(),
+              f"serial: T_P_avg = the mean of the last dbp_window ({db['T_P_avg'][j]:.9g} "
+              f"vs {win.mean():.9g})")
+        check(abs(db["slip_avg"][j] - db["slip"][j - 31:j + 1].mean()) < 1e-12,
+              "serial: slip_avg over the window")
+        python_part(s)
+
+
+def python_part(s):
+    """The summary and the figure carry the curve."""
+    d = s["output"]["dir"]
+    with cosim.Results(d) as r:
+        summ = r.traction_summary()
+        curve = r.dbp_curve()
+    check(isinstance(summ.get("dbp_curve"), list) and len(summ["dbp_curve"]) == len(curve) > 0,
+          f"traction_summary of a dbp run carries the curve ({len(curve)} bins)")
+    db = table(s, "dbp")
+    ramp = db["phase"] == traction.DBP_PHASE_RAMP
+    check(sum(c["rows"] for c in curve) == int(ramp.sum()),
+          "the curve's bins hold every ramp row once")
+    widths = {round(c["slip_hi"] - c["slip_lo"], 12) for c in curve}
+    check(widths == {traction.DBP_BIN_WIDTH}, f"bins of {traction.DBP_BIN_WIDTH} in slip")
+    batch = round(WINDOW / s["time"]["dt"])  # rows per batch: one dbp_window
+    for c in curve:
+        check(c["slip_lo"] <= c["slip_mean"] < c["slip_hi"], f"bin {c['slip_lo']:.3g}: its mean "
+              "slip inside it")
+        if c["rows"] < cosim.stats.MIN_BATCHES * batch:
+            check(np.isnan(c["T_P_ci95"]), f"bin {c['slip_lo']:.3g}: {c['rows']} rows, fewer "
+                  f"than {cosim.stats.MIN_BATCHES} windows: no interval")
+        check(abs(c["T_P_mean"] - FX) < 1e-9, f"bin {c['slip_lo']:.3g}: T_P = the stub's {FX} N")
+    rc = subprocess.run([sys.executable, "-m", "cosim.fig_dbp", d], capture_output=True,
+                        text=True, cwd=os.path.join(ROOT, "python"), timeout=120)
+    check(rc.returncode == 0, f"cosim.fig_dbp ran ({rc.stderr[-300:]})")
+    png, csvp = os.path.join(d, "dbp.png"), os.path.join(d, "dbp_curve.csv")
+    check(os.path.getsize(png) > 10000 if os.path.exists(png) else False, "dbp.png written")
+    if os.path.exists(csvp):
+        with open(csvp) as f:
+            rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+        check(len(rows) == len(curve) and "T_P_ci95" in rows[0] and "T_P_W_mean" in rows[0],
+              f"dbp_curve.csv: a row per bin with intervals and ratios to the load ({len(rows)})")
+    else:
+        check(False, "dbp_curve.csv written")
+    bad = subprocess.run([sys.executable, "-m", "cosim.fig_dbp", d, "--bin-width", "0"],
+                         capture_output=True, text=True, cwd=os.path.join(ROOT, "python"))
+    check(bad.returncode != 0 and "--bin-width" in bad.stderr, "fig_dbp: a bad --bin-width named")
+
+
+def restart_part():
+    n = 151  # the travel starts near step 84, the ramp near 134: the checkpoint is in it
+    a = stub_scene("dbp_straight", "serial")
+    a["scenario"]["dbp_window"] = 0.1  # bins of 3 steps: the checkpoint falls inside one
+    b = json.loads(json.dumps(a))
+    b["output"]["dir"] += "_restarted"
+    b["checkpoint"] = {"every": n}
+    rc, out, err = run(a, timeout=120)
+    check(rc == 0, f"restart: 2N straight ({err[-300:]})")
+    half = json.loads(json.dumps(b))
+    half["time"]["end"] = n * 1e-3
+    rc, out, err = run(half, timeout=120)
+    check(rc == 0 and os.path.exists(os.path.join(b["output"]["dir"], f"checkpoint_{n}.h5")),
+          f"restart: N steps and checkpoint_{n}.h5 ({err[-300:]})")
+    rc, out, err = run(b, "--restart", "latest", timeout=120)
+    check(rc == 0, f"restart: N more from the checkpoint ({err[-300:]})")
+    no_orphans(b, "dbp restart")
+    if rc:
+        return
+    for name in ("dbp", "traction"):
+        x, y = h5(a)[f"/coupler/{name}"][()], h5(b)[f"/coupler/{name}"][()]
+        check(x.shape == y.shape and np.array_equal(x, y),
+              f"restart: /coupler/{name} bit for bit ({x.shape} vs {y.shape})")
+    db = table(a, "dbp")
+    check(db["phase"][n - 1] == 2 and db["T_P_avg"][n - 1] != 0,
+          "restart: the checkpoint falls in the ramp with running sums (the test bites)")
+
+
+def bad_part():
+    base = stub_scene("dbp_bad", "serial")
+    cases = [({"dbp_force_rate": None}, "scenario.dbp_force_rate"),
+             ({"dbp_force_rate": "fast"}, "scenario.dbp_force_rate"),
+             ({"carriage_mass": -1}, "scenario.carriage_mass"),
+             ({"carriage_mass": 0}, "scenario.carriage_mass"),
+             ({"dbp_hold": -0.1}, "scenario.dbp_hold"),
+             ({"dbp_force_start": "push"}, "scenario.dbp_force_start"),
+             ({"dbp_window": 0}, "scenario.dbp_window"),
+             ({"dbp_window": 1e-4}, "scenario.dbp_window"),  # < dt
+             ({"omega": 0}, "scenario.omega"),
+             ({"rig": "drawbar"}, "scenario.rig"),
+             ({"dbp_windw": 0.1}, "dbp_windw")]
+    for change, named in cases:
+        s = json.loads(json.dumps(base))
+        for key, value in change.items():
+            if value is None:
+                del s["scenario"][key]
+            else:
+                s["scenario"][key] = value
+        for cmd in ("run", "check"):
+            rc, out, err = run(s, cmd=cmd, timeout=60)
+            check(rc != 0 and named in err, f"cosim {cmd}: {change} refused naming {named} "
+                  f"(rc {rc}: {err.strip()[-200:]})")
+    # the dbp keys are read (and checked) in the other rigs too
+    s = json.loads(json.dumps(base))
+    s["scenario"].update(rig="load", dbp_window=-1)
+    rc, out, err = run(s, cmd="check", timeout=60)
+    check(rc != 0 and "scenario.dbp_window" in err, "load rig: a bad dbp key still refused")
+    s["scenario"].update(dbp_window=0.1)
+    del s["scenario"]["dbp_force_rate"]
+    rc, out, err = run(s, cmd="check", timeout=60)
+    check(rc == 0, f"load rig: dbp_force_rate not needed ({err.strip()[-200:]})")
+
+
+parts = sys.argv[1:] or ["stub", "restart", "bad"]
+if "stub" in parts:
+    stub_part()
+if "restart" in parts:
+    restart_part()
+if "bad" in parts:
+    bad_part()
+done()

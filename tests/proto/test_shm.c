@@ -1,0 +1,237 @@
+/* The shared-memory data plane (proto_shm.h): arrays sent through a writer's
+ * segment arrive bit-exact over a real socket pair, as descriptors and empty
+ * frames; the two buffers alternate (the previous message stays readable
+ * while the next arrives); an array computed in the next buffer is sent
+ * without a copy; a message too large for the segment announces a larger
+ * one; and every malformed or oversized descriptor is refused with a
+ * message that names the defect. Segments are memfds: no name in /dev/shm. */
+#include <dirent.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <zmq.h>
+
+#include "cosim_test.h"
+#include "proto/proto.h"
+
+#define N_NODES 1000 /* 24 000 bytes per [n,3] array: above PROTO_SHM_MIN_BYTES */
+
+static proto_shm *the_reader(void *ctx, const char *identity) {
+  (void)identity;
+  return ctx;
+}
+
+static int send_x(void *s, proto_shm *w, const double *x, int64_t rows, int announce,
+                  proto_err *err) {
+  proto_msg m = {0};
+  /* static: proto_send_via sends arrays zero-copy (they must outlive the send) */
+  static const double rim[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  proto_msg_reset(&m, "tyre", "done", 1, 0);
+  proto_msg_add_f8(&m, "x", rows, 3, x);
+  proto_msg_add_f8(&m, "rim_R", 3, 3, rim);
+  if (announce) proto_shm_announce(w, proto_msg_header(&m));
+  int rc = proto_send_via(s, NULL, &m, 0, w, err);
+  proto_msg_free(&m);
+  return rc;
+}
+
+static int same_bits(const void *a, const void *b, size_t n) { return memcmp(a, b, n) == 0; }
+
+/* How many entries of /dev/shm name a cosim segment. */
+static int dev_shm_entries(void) {
+  DIR *d = opendir("/dev/shm");
+  int n = 0;
+  if (!d) return 0;
+  for (struct dirent *e; (e = readdir(d));) n += strstr(e->d_name, "cosim") != NULL;
+  closedir(d);
+  return n;
+}
+
+static int mapped_memfds(void) {
+  FILE *f = fopen("/proc/self/maps", "r");
+  char line[512];
+  int n = 0;
+  while (f && fgets(line, sizeof line, f)) n += strstr(line, "memfd:cosim-shm") != NULL;
+  if (f) fclose(f);
+  return n;
+}
+
+static void test_round_trip(void) {
+  proto_err err = {{0}};
+  void *ctx = zmq_ctx_new();
+  void *a = zmq_socket(ctx, ZMQ_PAIR), *b = zmq_socket(ctx, ZMQ_PAIR);
+  CHECK(zmq_bind(a, "inproc://shm") == 0 && zmq_connect(b, "inproc://shm") == 0);
+  int shm_before = dev_shm_entries();
+  proto_shm *w = proto_shm_writer(PROTO_SHM_INITIAL_BYTES, &err);
+  proto_shm *rd = proto_shm_reader();
+  CHECK(w && rd, "writer and reader: %s", err.msg);
+  static double x1[3 * N_NODES], x2[3 * N_NODES];
+  for (int i = 0; i < 3 * N_NODES; i++) x1[i] = 0.1 * i, x2[i] = -1.0 / (i + 1);
+
+  /* 1: the first message announces the segment; x by shm, rim_R as a frame */
+  proto_msg m1 = {0}, m2 = {0}, m3 = {0};
+  CHECK(send_x(a, w, x1, N_NODES, 1, &err) == 0, "%s", err.msg);
+  CHECK(proto_recv_via(b, &m1, NULL, the_reader, rd, &err) == 0, "%s", err.msg);
+  CHECK(proto_shm_attached(rd));
+  const proto_array *ax = proto_msg_find(&m1, "x");
+  CHECK(ax && ax->nbytes == sizeof x1 && same_bits(ax->data, x1, sizeof x1));
+  CHECK(ax && ax->data != (const void *)x1);
+  const double *rim = proto_msg_get_f8(&m1, "rim_R", 3, 3, &err);
+  CHECK(rim && rim[0] == 1 && rim[4] == 1);
+  uint64_t copied, in_place;
+  proto_shm_counts(w, &copied, &in_place);
+  CHECK(copied == sizeof x1 && in_place == 0, "copied %llu", (unsigned long long)copied);
+  CHECK(mapped_memfds() >= 2, "the writer's and the reader's mappings are memfds");
+
+  /* 2: the other buffer; message 1 is still intact while 2 is read */
+  CHECK(send_x(a, w, x2, N_NODES, 0, &err) == 0, "%s", err.msg);
+  CHECK(proto_recv_via(b, &m2, NULL, the_reader, rd, &err) == 0, "%s", err.msg);
+  const proto_array *ax2 = proto_msg_find(&m2, "x");
+  CHECK(ax2 && same_bits(ax2->data, x2, sizeof x2));
+  CHECK(same_bits(proto_msg_find(&m1, "x")->data, x1, sizeof x1), "double buffered");
+  CHECK(ax2 && ax2->data != proto_msg_find(&m1, "x")->data);
+
+  /* 3: zero copy: computed in the next buffer, sent without a copy */
+  double *next = proto_shm_next(w, sizeof x1);
+  CHECK(next != NULL);
+  for (int i = 0; i < 3 * N_NODES; i++) next[i] = x1[i] + 1;
+  CHECK(send_x(a, w, next, N_NODES, 0, &err) == 0, "%s", err.msg);
+  CHECK(proto_recv_via(b, &m3, NULL, the_reader, rd, &err) == 0, "%s", err.msg);
+  proto_shm_counts(w, &copied, &in_place);
+  CHECK(copied == 2 * sizeof x1 && in_place == 1, "in place: %llu", (unsigned long long)in_place);
+  const double *got = proto_msg_get_f8(&m3, "x", N_NODES, 3, &err);
+  CHECK(got && got[3] == x1[3] + 1 && got == proto_msg_find(&m1, "x")->data);
+
+  /* 4: a message larger than the segment: a new one, announced in it; the
+   * message before (old segment) stays readable */
+  const int64_t big = 40000; /* 960 000 bytes */
+  double *xb = malloc(sizeof(double) * 3 * (size_t)big);
+  for (int64_t i = 0; i < 3 * big; i++) xb[i] = (double)i * 1e-3;
+  proto_msg m4 = {0};
+  CHECK(send_x(a, w, xb, big, 0, &err) == 0, "%s", err.msg);
+  CHECK(proto_recv_via(b, &m4, NULL, the_reader, rd, &err) == 0, "%s", err.msg);
+  const double *g4 = proto_msg_get_f8(&m4, "x", big, 3, &err);
+  CHECK(g4 && same_bits(g4, xb, sizeof(double) * 3 * (size_t)big));
+  CHECK(proto_msg_get_f8(&m3, "x", N_NODES, 3, &err)[3] == x1[3] + 1);
+
+  /* 5: without a reader a descriptor is refused */
+  CHECK(send_x(a, w, x1, N_NODES, 0, &err) == 0, "%s", err.msg);
+  proto_msg m5 = {0};
+  CHECK(proto_recv(b, &m5, NULL, &err) < 0);
+  CHECK_MSG(err, "in shared memory, but this sender announced no segment");
+  CHECK(dev_shm_entries() == shm_before, "nothing in /dev/shm");
+  proto_msg_free(&m1), proto_msg_free(&m2), proto_msg_free(&m3), proto_msg_free(&m4);
+  proto_msg_free(&m5);
+  free(xb);
+  proto_shm_free(w);
+  proto_shm_free(rd);
+  zmq_close(a), zmq_close(b);
+  zmq_ctx_term(ctx);
+}
+
+/* One crafted message through proto_decode_via; 0 or -1 with err. */
+static int decode(proto_shm *rd, const char *header, size_t frame_bytes, proto_err *err) {
+  static double payload[8];
+  const void *frames[3] = {"tyre", header, payload};
+  size_t sizes[3] = {4, strlen(header), frame_bytes};
+  proto_msg m = {0};
+  int rc = proto_decode_via(&m, 3, frames, sizes, rd, err);
+  if (rc == 0) { /* what a consumer does: read it all */
+    volatile unsigned char sum = 0;
+    for (size_t i = 0; i < m.arrays[0].nbytes; i++) sum += ((const unsigned char *)m.arrays[0].data)[i];
+  }
+  proto_msg_free(&m);
+  return rc;
+}
+
+static void test_descriptors_refused(void) {
+  proto_err err = {{0}};
+  proto_shm *w = proto_shm_writer(PROTO_SHM_INITIAL_BYTES, &err);
+  proto_shm *rd = proto_shm_reader();
+  char *desc = proto_shm_descriptor_json(w);
+  cJSON *d = cJSON_Parse(desc);
+  CHECK(proto_shm_attach(rd, d, &err) == 0, "%s", err.msg);
+  /* message 1 in buffer 1: a real one to point at */
+  static double x[3 * N_NODES];
+  proto_msg m = {0};
+  proto_msg_reset(&m, "tyre", "done", 1, 0);
+  proto_msg_add_f8(&m, "x", N_NODES, 3, x);
+  proto_shm_place pl;
+  CHECK(proto_shm_place_msg(w, &m, &pl, &err) == 0 && pl.seq == 1 && pl.offset[0] == 0);
+  proto_msg_free(&m);
+  char h[512];
+#define HDR(shape, shm) \
+  (snprintf(h, sizeof h, "{\"v\":1,\"type\":\"done\",\"arrays\":[{\"name\":\"x\"," \
+            "\"dtype\":\"f8\",\"shape\":" shape ",\"shm\":" shm "}]}"), h)
+  CHECK(decode(rd, HDR("[1000,3]", "[1,0]"), 0, &err) == 0, "%s", err.msg);
+  CHECK(decode(NULL, HDR("[1000,3]", "[1,0]"), 0, &err) < 0);
+  CHECK_MSG(err, "announced no segment");
+  CHECK(decode(rd, HDR("[1000,3]", "[1,0]"), 8, &err) < 0);
+  CHECK_MSG(err, "its frame has 8 bytes (expected none)");
+  CHECK(decode(rd, HDR("[1000,3]", "[1,4]"), 0, &err) < 0);
+  CHECK_MSG(err, "offset 4 is not a multiple of 8");
+  CHECK(decode(rd, HDR("[1000,3]", "[1,65536]"), 0, &err) < 0);
+  CHECK_MSG(err, "exceed the segment's buffer of 65536 bytes");
+  CHECK(decode(rd, HDR("[3000,3]", "[1,0]"), 0, &err) < 0); /* 72 000 > 65 536 */
+  CHECK_MSG(err, "72000 bytes at offset 0 exceed");
+  CHECK(decode(rd, HDR("[1000,3]", "[1,1e300]"), 0, &err) < 0);
+  CHECK_MSG(err, "expected [message number >= 1, byte offset >= 0]");
+  CHECK(decode(rd, HDR("[1000,3]", "[2,0]"), 0, &err) < 0);
+  CHECK_MSG(err, "buffer 0 holds message 0, the descriptor names message 2");
+  CHECK(decode(rd, HDR("[1000,3]", "[3,0]"), 0, &err) < 0);
+  CHECK_MSG(err, "buffer 1 holds message 1, the descriptor names message 3");
+  CHECK(decode(rd, HDR("[1000,3]", "[0,0]"), 0, &err) < 0);
+  CHECK(decode(rd, HDR("[1000,3]", "\"0\""), 0, &err) < 0);
+  CHECK(decode(rd, HDR("[1000,3]", "[1,0,0]"), 0, &err) < 0);
+  CHECK_MSG(err, "shm: expected [message number");
+
+  /* segment descriptors: each field checked before anything is opened */
+  struct { const char *key; double value; const char *msg; } bad[] = {
+      {"pid", 0, "shm_segment.pid: expected an integer"},
+      {"fd", -1, "shm_segment.fd: expected an integer"},
+      {"fd", 999999, "cannot open the peer's segment"},
+      {"bytes", 1e18, "shm_segment.bytes: expected an integer"},
+      {"buffer_bytes", 8192, "is not a header page and two buffers"},
+      {"buffer_bytes", 4097, "is not a header page and two buffers"},
+      {"buffer_bytes", 1e15, "shm_segment.buffer_bytes: expected an integer"},
+  };
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    cJSON *c = cJSON_Duplicate(d, 1);
+    cJSON_ReplaceItemInObjectCaseSensitive(c, bad[i].key, cJSON_CreateNumber(bad[i].value));
+    CHECK(proto_shm_attach(rd, c, &err) < 0, "%s = %g", bad[i].key, bad[i].value);
+    CHECK_MSG(err, bad[i].msg);
+    cJSON_Delete(c);
+  }
+  cJSON *c = cJSON_Duplicate(d, 1);
+  cJSON_ReplaceItemInObjectCaseSensitive(c, "nonce", cJSON_CreateString("00112233445566778899aabbccddeeff"));
+  CHECK(proto_shm_attach(rd, c, &err) < 0);
+  CHECK_MSG(err, "is not the one its descriptor names");
+  cJSON_ReplaceItemInObjectCaseSensitive(c, "nonce", cJSON_CreateString("xyz"));
+  CHECK(proto_shm_attach(rd, c, &err) < 0);
+  CHECK_MSG(err, "shm_segment.nonce: expected 32 hex digits");
+  cJSON_Delete(c);
+  /* a descriptor naming another file of ours (stdin: not a sealed memfd) */
+  c = cJSON_Duplicate(d, 1);
+  cJSON_ReplaceItemInObjectCaseSensitive(c, "fd", cJSON_CreateNumber(0));
+  CHECK(proto_shm_attach(rd, c, &err) < 0);
+  cJSON_Delete(c);
+  CHECK(proto_shm_attach(rd, cJSON_GetObjectItem(d, "pid"), &err) < 0);
+  CHECK_MSG(err, "shm_segment: expected an object");
+  /* after all the refusals the reader still reads the segment it had */
+  CHECK(decode(rd, HDR("[1000,3]", "[1,0]"), 0, &err) == 0, "%s", err.msg);
+  /* a header announcing a bad segment fails the message */
+  snprintf(h, sizeof h, "{\"v\":1,\"type\":\"done\",\"shm_segment\":{\"pid\":1},\"arrays\":"
+           "[{\"name\":\"x\",\"dtype\":\"f8\",\"shape\":[1]}]}");
+  CHECK(decode(rd, h, 8, &err) < 0);
+  CHECK_MSG(err, "shm_segment.fd");
+#undef HDR
+  cJSON_Delete(d);
+  free(desc);
+  proto_shm_free(w);
+  proto_shm_free(rd);
+}
+
+int main(void) {
+  test_round_trip();
+  test_descriptors_refused();
+  return cosim_test_done("test_shm");
+}
