@@ -127,6 +127,8 @@ struct dem_work {
   double jump_box[6], jump_dt; /* dem_sleep_jump_box: the filter of the next mesh set's jump */
   int jump_on;
   int32_t *jump_pos;           /* [largest mesh's nodes] scratch: a node's row in a sparse set */
+  double asleep_box[6];        /* dem_reach_box: the asleep grains' sphere boxes (they stand still) */
+  int asleep_box_ok;           /* valid: cleared when the asleep set changes (dem_sleep.c) */
   double io_active[20];   /* dem_state_io.c: the active block's state (region, grid, guard) */
   /* meshes: far from every grain (dem_mesh.c) */
   uint8_t *chunk_mesh;    /* [nchunk] a grain of the chunk has mesh candidates or contacts */

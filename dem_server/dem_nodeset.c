@@ -34,7 +34,12 @@
  *   delta = skin + 2 v_max dt.
  * The margin decides only how often the check could fail, not whether the
  * result is exact: a grain that leaves R stops the step with an error naming
- * it (and coupling.sparse false as the way round). */
+ * it (and coupling.sparse false as the way round).
+ *
+ * With sleep the active region (dem_sleep.c) also looks at the surface: R
+ * grows to cover it and the coupler sends the fastest node (dem_sleep_reach,
+ * reach_speed); the grains are then checked against their own box, computed
+ * again at the start of the step (the state the done reported it from). */
 #include "dem_server/dem_internal.h"
 
 #include <string.h>
@@ -63,18 +68,35 @@ void dem_mesh_set_nodes_sparse(const dem_model *m, dem_state *s, int mesh, int64
   dem_mesh_nodes_set(m, s, mesh); /* as dem_mesh_set_nodes */
 }
 
-void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box[6]) {
+/* Sphere boxes of slots lo..hi−1 into box; returns the largest |v|². */
+static double sphere_boxes(const dem_state *s, int lo, int hi, double box[6]) {
   double v2 = 0;
-  for (int d = 0; d < 3; d++) box[d] = INFINITY, box[3 + d] = -INFINITY;
-  for (int i = 0; i < s->n; i++) { /* comparisons, not fmin/fmax: no NaN here (dem_step) */
+  for (int i = lo; i < hi; i++) { /* comparisons, not fmin/fmax: no NaN here (dem_step) */
     const double *x = &s->x[3 * i], *v = &s->v[3 * i], r = s->radius[i], w2 = dem_dot(v, v);
     for (int d = 0; d < 3; d++) {
-      const double lo = x[d] - r, hi = x[d] + r;
-      box[d] = lo < box[d] ? lo : box[d];
-      box[3 + d] = hi > box[3 + d] ? hi : box[3 + d];
+      const double l = x[d] - r, h = x[d] + r;
+      box[d] = l < box[d] ? l : box[d];
+      box[3 + d] = h > box[3 + d] ? h : box[3 + d];
     }
     v2 = w2 > v2 ? w2 : v2;
   }
+  return v2;
+}
+
+void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box[6]) {
+  struct dem_work *w = s->work;
+  for (int d = 0; d < 3; d++) box[d] = INFINITY, box[3 + d] = -INFINITY;
+  int awake = s->n;
+  if (w->asleep) { /* sleep: the asleep grains' box is kept until the asleep set changes (exact: min/max) */
+    awake = w->n_active;
+    if (!w->asleep_box_ok) {
+      for (int d = 0; d < 3; d++) w->asleep_box[d] = INFINITY, w->asleep_box[3 + d] = -INFINITY;
+      sphere_boxes(s, awake, s->n, w->asleep_box);
+      w->asleep_box_ok = 1;
+    }
+    memcpy(box, w->asleep_box, sizeof w->asleep_box);
+  }
+  const double v2 = sphere_boxes(s, 0, awake, box); /* the asleep ones stand still */
   const double delta = m->skin + 2 * sqrt(v2) * dt; /* the margin derived above */
   for (int d = 0; d < 3; d++) {
     if (s->n == 0) box[d] = box[3 + d] = 0; /* no grain: a point box, reached by nothing */

@@ -4,7 +4,8 @@
  *
  * Data flow: the force sweep (dem_force.c) counts each awake grain's steps at
  * rest (dem_sleep_chunk) and marks asleep grains listed with a fast awake one
- * (dem_wake); at the end of dem_step, dem_sleep_update wakes those, every
+ * (dem_wake); before the forces the guard moves the region early if a mesh
+ * moved farther than its margin allows; at the end of dem_step, dem_sleep_update wakes those, every
  * DEM_REGION_STEPS steps moves the region with the meshes (wakes the asleep
  * grains it reaches, marks the awake ones in it `near`) and puts to sleep the
  * grains at rest outside it, then asks dem_neigh.c for a full rebuild when the
@@ -42,7 +43,25 @@
  * displacement reaches the next grain's force one step later, and the wake
  * reaches every grain listed with a fast one in the same step. The region is
  * kept with a hysteresis of half a margin (moved only when the required box
- * leaves it), so that asleep grains wake in batches, not one at a time. */
+ * leaves it), so that asleep grains wake in batches, not one at a time.
+ * v_mesh is the largest node speed |v| (dem_mesh_velocities_changed).
+ *
+ * The guard (dem_sleep_guard, in dem_step before the forces): v_mesh is the
+ * speed at the update; a mesh that speeds up or is set somewhere else
+ * (dem_mesh_set_nodes) between two updates could meet an asleep grain, which
+ * has no mesh candidates. So a bound on any node's move since the update
+ * accumulates (dem_mesh_move: largest speed x dt; dem_sleep_mesh_jump: the
+ * jumps of a set) and the region follows at once when it exceeds the mesh
+ * term v_mesh (N + 1) dt of the update, or a mesh that stood still then
+ * moves now.
+ *
+ * Sparse exchange (dem_nodeset.c): region_update skips the triangles not
+ * live (not sent); dem_sleep_reach grows the reach box to the grains' box
+ * plus the margin without its mesh term and asks the coupler for that term
+ * (reach_speed) and the fastest node, so the triangles it looks at and
+ * v_mesh are those of the dense exchange; the guard's jumps count only the
+ * nodes of triangles whose path meets the grains' reach box
+ * (dem_sleep_jump_box), which are sent. */
 #include "dem_server/dem_internal.h"
 
 #include <math.h>
@@ -134,6 +153,7 @@ int dem_sleep_partners(const dem_model *m, dem_state *s, proto_err *err) {
                       "movers %g)", w->region_moved, w->region_budget, a[ACT_MOVERS]);
   w->region_movers = (int)a[ACT_MOVERS];
   w->grid_ok = 0;
+  w->asleep_box_ok = 0;
   for (int k = 0; k < 3; k++) {
     w->region_lo[k] = a[ACT_REGION_LO + k];
     w->region_hi[k] = a[ACT_REGION_HI + k];
@@ -331,6 +351,7 @@ static int wake_woken(const dem_model *m, dem_state *s, proto_err *err) {
   }
   w->n_wake = 0;
   if (!w->compact) return 0;
+  w->asleep_box_ok = 0; /* dem_reach_box */
   return dem_neigh_rebuild(m, s, err); /* a wake or full rebuild: clears compact */
 }
 

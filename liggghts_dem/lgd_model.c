@@ -45,6 +45,11 @@ int lgd_model_from_json(dem_model *m, const cJSON *section, const char *path, MP
                       "contact's force, not its moment: liggghts_dem's nodal forces are eq. 42's)",
                       path);
   }
+  if (m->cfg.prep.on) { /* the same section on every rank: all refuse */
+    dem_model_free(m);
+    return proto_fail(err, "%s.particles.prepare: dem_server's only (liggghts_dem settles with the "
+                      "scene's laws; load a bed prepared by dem_server with particles.file)", path);
+  }
   /* what the grains decide: the smallest Rayleigh time (hence dt), the default
    * skin, and the settling and saving settings of a generated bed */
   MPI_Bcast(&m->rayleigh_time, 1, MPI_DOUBLE, 0, comm);

@@ -371,7 +371,188 @@ static void mesh_starts(int jump) {
   CHECK(dx < TOL_X && dv < TOL_V, "sleep differs from all awake beyond round-off: x %.3g m, v %.3g m/s", dx, dv);
 }
 
+/* ---- sparse x, v with sleep: the same bits as dense ----
+ * Two copies of a 16 x 4 x 3 lattice at rest in zero gravity with sleep on;
+ * a coupled plate (x in [-0.4, 0.03] m, over the first grains) sinks into
+ * them, its far tail (no grain near) faster than the rest: node speed
+ * 0.2 m/s + 2 |x| for x < 0, so the surface's fastest node is far from every
+ * grain. A gets every node each step (dense), B what the coupler sends with
+ * sleep: the nodes of the triangles that meet the box dem_reach_box +
+ * dem_sleep_reach grown by reach_speed times the largest node speed, and the
+ * fastest node (coupler/schedule.c reach_nodes). Both count the jumps of the
+ * nodes near the grains (dem_sleep_jump_box), as dem_server does. At every
+ * step: the grains, the region and the asleep count the same bits, no grain of
+ * B outside its box. Not vacuous: B gets a part of the surface, grains sleep
+ * and wake; and without the fastest node B's region differs. In A and B at
+ * every step (asleep_invariants): no asleep grain within r + skin of the plate
+ * and no touching awake–asleep pair missing from the list (fails with the
+ * region's margin cut to a tenth: ~21 000 violations). */
+#define SP_NX 16
+#define SP_NY 4
+#define SP_NZ 3
+#define SP_N (SP_NX * SP_NY * SP_NZ)
+#define SP_NA 44 /* plate nodes along x */
+#define SP_NW 4  /* across */
+#define SP_NN (SP_NA * SP_NW)
+#define SP_NT ((SP_NA - 1) * (SP_NW - 1) * 2)
+#define SP_STEPS 1500
+
+static void sp_surface(int k, double *x, double *v, int32_t *tri) {
+  const double top = (SP_NZ - 1) * (2 * R + GAP) + R;
+  for (int a = 0; a < SP_NA; a++)
+    for (int b = 0; b < SP_NW; b++) {
+      const int q = a * SP_NW + b;
+      const double x0 = -0.4 + 0.43 * a / (SP_NA - 1), vz = -0.2 - 2.0 * (x0 < 0 ? -x0 : 0);
+      v[3 * q] = 0; v[3 * q + 1] = 0; v[3 * q + 2] = vz;
+      x[3 * q] = x0; x[3 * q + 1] = -0.01 + 0.06 * b / (SP_NW - 1); x[3 * q + 2] = top + 0.001 + vz * k * DT;
+    }
+  for (int a = 0; tri && a < SP_NA - 1; a++)
+    for (int b = 0; b < SP_NW - 1; b++) {
+      int32_t *t = &tri[6 * (a * (SP_NW - 1) + b)], n0 = a * SP_NW + b;
+      t[0] = n0; t[1] = n0 + SP_NW; t[2] = n0 + SP_NW + 1;
+      t[3] = n0; t[4] = n0 + SP_NW + 1; t[5] = n0 + 1;
+    }
+}
+
+static void sp_scene(dem_model *m, dem_state *s) {
+  static char json[100000];
+  int len = snprintf(json, sizeof json,
+                     "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.5}],"
+                     "\"gravity\":[0,0,0],\"dt\":%g,\"skin\":0.001,\"threads\":1,"
+                     "\"sleep\":{\"velocity\":1e-4,\"time\":0.002},\"particles\":[", DT);
+  for (int a = 0; a < SP_NX; a++)
+    for (int b = 0; b < SP_NY; b++)
+      for (int c = 0; c < SP_NZ; c++)
+        len += snprintf(json + len, sizeof json - (size_t)len, "%s{\"x\":[%.17g,%.17g,%.17g],\"r\":%g}",
+                        a + b + c ? "," : "", (2 * R + GAP) * a, (2 * R + GAP) * b, (2 * R + GAP) * c, R);
+  snprintf(json + len, sizeof json - (size_t)len, "]}");
+  static double x[3 * SP_NN], v[3 * SP_NN];
+  static int32_t tri[3 * SP_NT];
+  sp_surface(0, x, v, tri);
+  proto_err err;
+  cJSON *j = cJSON_Parse(json);
+  if (!j || dem_model_from_json(m, j, "processes.dem", &err) || dem_model_set_surface(m, SP_NN, x, SP_NT, tri, &err) ||
+      dem_state_init(m, s, 0, &err)) {
+    fprintf(stderr, "setup: %s\n", err.msg);
+    exit(2);
+  }
+  cJSON_Delete(j);
+}
+
+/* The active block's two invariants, by brute force: no asleep grain lies
+ * within r + skin of a triangle of the mesh (asleep grains have no mesh
+ * candidates: dem_sleep.c's margin keeps r_max + 2 skin between), and every
+ * touching awake–asleep pair is in the awake grain's row (evaluated there,
+ * as with a fixed grain). Returns the violations of this step. */
+static int asleep_invariants(const dem_model *m, const dem_state *s) {
+  const struct dem_work *w = s->work;
+  int bad = 0;
+  for (int i = w->n_active; i < s->n; i++)
+    for (int mi = 0; mi < m->n_meshes; mi++)
+      for (int t = 0; t < m->meshes[mi].n_tri; t++) {
+        const int32_t *tn = &m->meshes[mi].tri[3 * t];
+        const double *x = s->mesh_x[mi], *p = &s->x[3 * i];
+        double q[3], z[3], dd = 0;
+        dem_closest_on_triangle(p, &x[3 * tn[0]], &x[3 * tn[1]], &x[3 * tn[2]], q, z);
+        for (int a = 0; a < 3; a++) dd += (p[a] - q[a]) * (p[a] - q[a]);
+        const double reach = s->radius[i] + m->skin;
+        bad += dd < reach * reach;
+      }
+  for (int i = 0; i < w->n_active; i++)
+    for (int j = w->n_active; j < s->n; j++) {
+      double dd = 0;
+      for (int a = 0; a < 3; a++) dd += (s->x[3 * i + a] - s->x[3 * j + a]) * (s->x[3 * i + a] - s->x[3 * j + a]);
+      const double rs = s->radius[i] + s->radius[j];
+      if (dd >= rs * rs) continue;
+      int listed = 0;
+      for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) listed |= w->nl_j[k] == j;
+      bad += !listed;
+    }
+  return bad;
+}
+
+/* Steps where B differed (grains or region); *sparse_steps, *least_awake, *escaped of B. */
+static int sparse_sleep_run(int with_fastest, int *sparse_steps, int64_t *most_asleep, int *escapes,
+                            int64_t *wakes, int *broken) {
+  static double x[3 * SP_NN], v[3 * SP_NN], rx[3 * SP_NN], rv[3 * SP_NN];
+  static int32_t tri[3 * SP_NT], idx[SP_NN];
+  static uint8_t mark[SP_NN], seen[SP_NN], live[SP_NT];
+  dem_model ma, mb;
+  dem_state a, b;
+  proto_err err;
+  sp_scene(&ma, &a);
+  sp_scene(&mb, &b);
+  sp_surface(0, x, v, tri);
+  int differ = 0;
+  *sparse_steps = *escapes = *broken = 0;
+  *most_asleep = 0;
+  for (int k = 0; k < SP_STEPS; k++) {
+    sp_surface(k, x, v, NULL);
+    double box[6], jb[6], per_speed, v2 = 0;
+    dem_reach_box(&ma, &a, DT, box);
+    dem_sleep_jump_box(&a, box, DT);
+    dem_mesh_set_nodes(&ma, &a, 0, x, v);
+    dem_reach_box(&mb, &b, DT, jb);
+    memcpy(box, jb, sizeof box);
+    dem_sleep_reach(&mb, &b, box, &per_speed);
+    int fast = -1;
+    for (int q = 0; q < SP_NN; q++) {
+      const double *u = &v[3 * q], w2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+      if (w2 > v2) v2 = w2, fast = q;
+    }
+    for (int d = 0; d < 3; d++) box[d] -= per_speed * sqrt(v2), box[3 + d] += per_speed * sqrt(v2);
+    int64_t n = proto_reach_nodes(x, v, DT, tri, SP_NT, SP_NN, box, mark, idx);
+    if (with_fastest && !mark[fast]) {
+      int64_t j = n++;
+      for (; j > 0 && idx[j - 1] > fast; j--) idx[j] = idx[j - 1];
+      idx[j] = fast;
+    }
+    for (int64_t q = 0; q < n; q++) {
+      memcpy(&rx[3 * q], &x[3 * idx[q]], 3 * sizeof(double));
+      memcpy(&rv[3 * q], &v[3 * idx[q]], 3 * sizeof(double));
+    }
+    *sparse_steps += n < SP_NN;
+    dem_sleep_jump_box(&b, jb, DT);
+    dem_mesh_set_nodes_sparse(&mb, &b, 0, n, idx, rx, rv, seen, live);
+    if (dem_step(&ma, &a, &err) || dem_step(&mb, &b, &err)) { fprintf(stderr, "step %d: %s\n", k, err.msg); exit(1); }
+    *escapes += dem_reach_escaped(&b, jb) >= 0;
+    *broken += asleep_invariants(&mb, &b) + asleep_invariants(&ma, &a);
+    const struct dem_work *wa = a.work, *wb = b.work;
+    differ += memcmp(a.x, b.x, sizeof(double) * 3 * SP_N) || memcmp(a.v, b.v, sizeof(double) * 3 * SP_N) ||
+              memcmp(wa->region_lo, wb->region_lo, sizeof wa->region_lo) ||
+              memcmp(wa->region_hi, wb->region_hi, sizeof wa->region_hi) || a.sleeping != b.sleeping ||
+              memcmp(a.mesh_force[0], b.mesh_force[0], sizeof(double) * 3 * SP_NN);
+    *most_asleep = b.sleeping > *most_asleep ? b.sleeping : *most_asleep;
+  }
+  *wakes = b.work->wake_rebuilds;
+  dem_state_free(&a);
+  dem_state_free(&b);
+  dem_model_free(&ma);
+  dem_model_free(&mb);
+  return differ;
+}
+
+static void sparse_with_sleep(void) {
+  int sparse_steps, escapes, broken;
+  int64_t most_asleep, wakes;
+  const int differ = sparse_sleep_run(1, &sparse_steps, &most_asleep, &escapes, &wakes, &broken);
+  printf("sparse x, v with sleep: %d of %d steps differ from dense; %d steps sparse; up to %lld of %d grains "
+         "asleep, %lld wake rebuilds; %d steps with a grain outside its box\n", differ, SP_STEPS, sparse_steps,
+         (long long)most_asleep, SP_N, (long long)wakes, escapes);
+  CHECK(sparse_steps == SP_STEPS && most_asleep > SP_N / 4 && wakes > 0,
+        "the case tests nothing: %d sparse steps, up to %lld asleep, %lld wakes", sparse_steps,
+        (long long)most_asleep, (long long)wakes);
+  CHECK(differ == 0 && escapes == 0, "sparse with sleep differs from dense at %d steps (%d escapes)", differ, escapes);
+  printf("  asleep grains within r + skin of the plate, or touching an awake one unlisted: %d\n", broken);
+  CHECK(broken == 0, "%d times an asleep grain was within r + skin of the plate or touched an awake grain unlisted",
+        broken);
+  const int differ_nofast = sparse_sleep_run(0, &sparse_steps, &most_asleep, &escapes, &wakes, &broken);
+  printf("  without the fastest node: %d of %d steps differ\n", differ_nofast, SP_STEPS);
+  CHECK(differ_nofast > 0, "the fastest node is not needed here: the case does not test it");
+}
+
 int main(void) {
+  sparse_with_sleep();
   asleep_springs();
   for (int v = 0; v < 3; v++) mesh_starts(v);
   CHECK(far_plate(0), "a rigid plate coming from far missed or invented contacts");

@@ -16,6 +16,7 @@
  * 3. The keys are checked, errors naming them. */
 #include "dem_test.h"
 
+#include <math.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -159,6 +160,29 @@ static void keys(void) {
   }
 }
 
+/* A stiff bed (E = 200 MPa, as the sand scene's: dt about 6.5 us) placed at
+ * rest has almost no kinetic energy for its first steps: the KE test must
+ * not end its settling before DEM_SETTLE_MIN_TIME (it did at step 101). */
+static void not_in_free_fall(void) {
+  static const char J[] =
+      "{\"materials\":[{\"density\":2600,\"E\":2e8,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.8}],"
+      "\"threads\":1,\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[0.1414213562,0.1414213562,1],"
+      "\"open_top\":true}],\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":1,"
+      "\"settle_ke_per_grain\":1e-7,\"settle_max_steps\":30000}}";
+  dem_model m;
+  dem_state s;
+  proto_err err;
+  int64_t n = 0;
+  scene(J, &m, &s);
+  OK(dem_bed_settle(&m, &s, NULL, NULL, &n, &err));
+  const int64_t n_min = (int64_t)ceil(DEM_SETTLE_MIN_TIME / s.dt);
+  printf("stiff bed: dt %.3g s, settled %lld steps (at least %lld)\n", s.dt, (long long)n, (long long)n_min);
+  CHECK(n >= n_min, "settling ended after %lld steps, before %g s (%lld steps)", (long long)n, DEM_SETTLE_MIN_TIME,
+        (long long)n_min);
+  dem_state_free(&s);
+  dem_model_free(&m);
+}
+
 int main(void) {
   char path[] = "/tmp/test_dem_prepare_XXXXXX";
   close(mkstemp(path));
@@ -223,5 +247,6 @@ int main(void) {
 
   /* 3. the keys */
   keys();
+  not_in_free_fall();
   return cosim_test_done("test_dem_prepare");
 }

@@ -7,7 +7,7 @@ sparse run did send less: its end-of-run summary gives shares below 100 %.
            below it carry force: sparse nodal_force both ways), serial and
            implicit (with checkpoints).
   default  configs/default.json to t = 0.16 s: the tread reaches the grains at
-           t = 0.142 s. As shipped (dem sleep on) and with sleep off, dem_server
+           t = 0.142 s. With dem sleep on and off (as shipped), dem_server
            sends (index, force) rows and gets x, v of the nodes near its grains
            only (with sleep: near the box its active region looks at, grown by
            reach_speed times the surface's speed, and the fastest node); the
@@ -80,7 +80,8 @@ def dem_rows(out):
 
 def default():
     short = ["--set", "time.end=0.16", "--set", "output.every=400"]
-    a, _ = same("default.json", "default", short, want_less_to=("dem",))
+    a, _ = same("default.json", "default", short + ["--set", "processes.dem.sleep=true"],
+                want_less_to=("dem",))
     rows = dem_rows(a)
     check(rows and rows[-1][2] > 0 and rows[-1][0] < rows[-1][1],
           f"default (sleep): the tread is in the bed, a part of it travels to the dem ({rows[-2:]})")
