@@ -19,6 +19,8 @@ import threading
 from .errors import EXIT_ERRORS, RunError
 from .results import Results
 from .roles import cosim_executable
+from .scene_sets import apply_sets
+from .sweep_beds import Beds
 
 STOP_WAIT_S = 60  # after SIGINT, cosim stops every participant and closes the file
 FAILED_RE = re.compile(r"^cosim: run '.*?' failed: (.*?)(?=^cosim: |\Z)", re.S | re.M)
@@ -146,7 +148,6 @@ def settle(scene, beds, set=None, output_dir=None, **run_args):
     the step, so the file holds the bed exactly as the full run would start
     from it). Loading it (``particles = {"file": path}``) then continues that
     run bit for bit. Returns the short run's :class:`Results`."""
-    from .sweep_beds import apply_sets  # it imports this module
     sets = dict(set or {})
     path, data = _scene_file(scene)
     eff = apply_sets(data or {}, sets)  # time.dt may come from --set
@@ -208,9 +209,8 @@ def sweep(scene, values, out, set=None, jobs=1, keep_going=False, beds=None, res
     points = grid_points(values)
     shared = None
     if beds:
-        from .sweep_beds import Beds
         shared = Beds(scene, points, set, beds)
-        shared.settle(points, jobs=jobs, **run_args)
+        shared.settle(points, settle, jobs=jobs, **run_args)
 
     def one(index):
         point = points[index]

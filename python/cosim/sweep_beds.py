@@ -34,7 +34,7 @@ import os
 import re
 import time
 
-from .errors import CosimError
+from .scene_sets import apply_sets
 
 BEDS_DIR = "beds"
 LOG_FILE = "settle.log"
@@ -44,33 +44,6 @@ IGNORED = ("name", "output", "bus", "checkpoint", "security")
 KEPT_SCENARIO = ("rim_center",)  # the tread's place while the bed settles
 SETTLED_RE = re.compile(r"dem_server: bed of (\d+) grains settled in (\d+) steps \(([0-9.]+) s\)")
 ID_LEN = 12
-
-
-def _path_tokens(key):
-    """'a.b[1].c' -> ['a', 'b', 1, 'c'] (the --set key paths of cosim run)."""
-    out = []
-    for part in key.split("."):
-        m = re.fullmatch(r"([^\[\]]*)((?:\[\d+\])*)", part)
-        if not m or not m.group(1):
-            raise CosimError(f"--set {key}: bad key path")
-        out.append(m.group(1))
-        out += [int(i) for i in re.findall(r"\[(\d+)\]", m.group(2))]
-    return out
-
-
-def apply_sets(scene, sets):
-    """A copy of the scene dict with each {key.path: value} set (objects made
-    on the way, as cosim run's --set)."""
-    s = copy.deepcopy(scene)
-    for key, value in sets.items():
-        node, toks = s, _path_tokens(key)
-        for t, nxt in zip(toks, toks[1:]):
-            if isinstance(t, int):
-                node = node[t]
-            else:
-                node = node.setdefault(t, [] if isinstance(nxt, int) else {})
-        node[toks[-1]] = copy.deepcopy(value)
-    return s
 
 
 def settled_beds(scene):
@@ -125,10 +98,11 @@ class Beds:
     def have(self, bid, names):
         return all(os.path.isfile(self.file(bid, n)) for n in names)
 
-    def settle(self, points, jobs=1, **run_args):
+    def settle(self, points, settle, jobs=1, **run_args):
         """Settles each bed not yet there (the first point that needs it
-        stands for it); returns the number of settle runs."""
-        from .runner import settle  # runner imports this module
+        stands for it) by ``settle`` (:func:`cosim.runner.settle`, given by
+        the caller: this module sits below the runner); returns the number of
+        settle runs."""
         todo, seen = [], set()
         for p, plan in zip(points, self.plan):
             if plan and plan[0] not in seen:
