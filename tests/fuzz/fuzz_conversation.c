@@ -13,6 +13,20 @@
 #define MAX_MSGS 16
 #define MAX_FRAMES (PROTO_MAX_ARRAYS + 4)
 
+/* Whether the table gives row t its sparse form ("<name>_index" of the same
+ * role and message): only then is an index array of that name checked, and
+ * only then does a consumer read one (an extra array of that name beside a
+ * dense row is not the row's). */
+static int has_index_row(const proto_array_spec *tab, int n, const proto_array_spec *t) {
+  char iname[PROTO_NAME_LEN + 8];
+  snprintf(iname, sizeof iname, "%s%s", t->name, PROTO_SUFFIX_INDEX);
+  for (int i = 0; i < n; i++)
+    if (tab[i].role == t->role && tab[i].msg == t->msg && tab[i].when == PROTO_WHEN_INDEX &&
+        strcmp(tab[i].name, iname) == 0)
+      return 1;
+  return 0;
+}
+
 static double read_checked(proto_role role, proto_msg_kind kind, const proto_msg *m,
                            const proto_dims *d) {
   int n;
@@ -20,11 +34,15 @@ static double read_checked(proto_role role, proto_msg_kind kind, const proto_msg
   double sum = 0;
   for (int i = 0; i < n; i++) {
     if (t[i].role != role || t[i].msg != kind) continue;
+    /* a WHEN_SURFACE row without a surface is not checked (nor read by a
+     * participant), even if the message holds an array of that name */
+    if (t[i].when == PROTO_WHEN_SURFACE && !d->surface) continue;
     const unsigned char *p = proto_msg_data(m, t[i].name);
-    if (!p) continue; /* a WHEN_SURFACE array without a surface, an index not sent */
+    if (!p) continue; /* an optional array (an index) not sent */
     /* the sparse form (PROTOCOL.md "Sparse exchange"): k rows, k indices < n */
     const int32_t *idx;
-    const int64_t k_rows = t[i].when == PROTO_WHEN_INDEX ? -1 : proto_msg_sparse(m, t[i].name, &idx);
+    const int64_t k_rows = t[i].when == PROTO_WHEN_INDEX || !has_index_row(t, n, &t[i])
+                               ? -1 : proto_msg_sparse(m, t[i].name, &idx);
     for (int64_t j = 0; j < k_rows; j++)
       if (idx[j] < 0 || idx[j] >= d->nodes) __builtin_trap(); /* checked, so in range */
     int64_t count = 1;
