@@ -89,28 +89,6 @@ static void run(const dem_model *m, dem_state *s, int foot_on, int k0, int k1) {
   }
 }
 
-/* Every exported array of a and b equal, bit for bit; names the first that is not. */
-static int same_state(const dem_model *ma, const dem_state *a, const dem_model *mb, const dem_state *b,
-                      char *what, size_t cap) {
-  proto_msg ea = {0}, eb = {0};
-  proto_err err;
-  proto_msg_reset(&ea, "a", "state", 0, 0);
-  proto_msg_reset(&eb, "b", "state", 0, 0);
-  int same = dem_state_export(ma, a, &ea, &err) == 0 && dem_state_export(mb, b, &eb, &err) == 0 &&
-             ea.narrays == eb.narrays;
-  snprintf(what, cap, same ? "" : "the array sets");
-  for (int k = 0; k < ea.narrays && same; k++) {
-    const proto_array *x = &ea.arrays[k], *y = &eb.arrays[k];
-    same = !strcmp(x->name, y->name) && x->nbytes == y->nbytes && x->ndim == y->ndim &&
-           !memcmp(x->shape, y->shape, sizeof x->shape) && !memcmp(x->data, y->data, x->nbytes);
-    if (!same) snprintf(what, cap, "%s", x->name);
-  }
-  if (same) snprintf(what, cap, "%d arrays", ea.narrays);
-  proto_msg_free(&ea);
-  proto_msg_free(&eb);
-  return same;
-}
-
 /* Grain pairs with a non-zero tangential spring, mesh contact slots in use. */
 static void springs(const dem_state *s, int *pairs, int *mesh) {
   const struct dem_work *w = s->work;
@@ -162,7 +140,7 @@ static void continues(const char *sleep, int foot_on, int N, int M, const char *
     CHECK(b.step == N, "continued at step %lld, expected %d", (long long)b.step, N);
     run(&mb, &b, foot_on, N, N + M);
     char what[64];
-    const int same = same_state(&ma, &a, &mb, &b, what, sizeof what);
+    const int same = dem_test_same_state(&ma, &a, &mb, &b, what, sizeof what);
     printf("  %d thread(s): %d steps from the bed == the saving run: %s (%s)\n", threads, M, same ? "yes" : "NO", what);
     CHECK(same, "sleep %s, %d threads: state differs after continuing from the bed at '%s'", sleep, threads, what);
     dem_state_free(&b);

@@ -89,25 +89,6 @@ static void press(const dem_model *m, dem_state *s) {
   }
 }
 
-/* Every exported array of a and b equal, bit for bit; names the first that is not. */
-static int same_state(const dem_model *ma, const dem_state *a, const dem_model *mb, const dem_state *b,
-                      char *what, size_t cap) {
-  proto_msg ea = {0}, eb = {0};
-  proto_err err;
-  proto_msg_reset(&ea, "a", "state", 0, 0);
-  proto_msg_reset(&eb, "b", "state", 0, 0);
-  int same = !dem_state_export(ma, a, &ea, &err) && !dem_state_export(mb, b, &eb, &err) && ea.narrays == eb.narrays;
-  snprintf(what, cap, same ? "%d arrays" : "the array sets", ea.narrays);
-  for (int k = 0; k < ea.narrays && same; k++) {
-    const proto_array *x = &ea.arrays[k], *y = &eb.arrays[k];
-    same = !strcmp(x->name, y->name) && x->nbytes == y->nbytes && !memcmp(x->data, y->data, x->nbytes);
-    if (!same) snprintf(what, cap, "%s", x->name);
-  }
-  proto_msg_free(&ea);
-  proto_msg_free(&eb);
-  return same;
-}
-
 /* Positions, velocities and spins of a and b equal, bit for bit. */
 static int same_motion(const dem_state *a, const dem_state *b) {
   const size_t k = 3 * sizeof(double) * (size_t)a->n;
@@ -224,7 +205,7 @@ int main(void) {
   char what[64];
   OK(load(path, &mb, &b, &err));
   press(&mb, &b);
-  const int same = same_state(&m1, &s1, &mb, &b, what, sizeof what);
+  const int same = dem_test_same_state(&m1, &s1, &mb, &b, what, sizeof what);
   printf("the saved prepared bed, continued by a scene without prepare: %s (%s)\n", same ? "equal" : "DIFFERS", what);
   CHECK(same, "the saved prepared bed does not continue bit for bit: '%s' differs", what);
   dem_state_free(&b);

@@ -58,4 +58,24 @@ static inline int fuzz_split(const uint8_t *data, size_t size, const char *sep,
   return k;
 }
 
+#define FUZZ_MAX_FRAMES 256 /* more than any harness asks for (PROTO_MAX_ARRAYS + 4) */
+
+/* The frames of a message: data split at sep (fuzz_split), each piece copied
+ * into a buffer of its exact size (at least 1 byte), so that a read past a
+ * frame is an ASan error; returns their count. Free with fuzz_frames_free. */
+static inline int fuzz_frames(const uint8_t *data, size_t size, const char *sep, int max,
+                              void **frame, size_t *len) {
+  const uint8_t *piece[FUZZ_MAX_FRAMES];
+  int n = fuzz_split(data, size, sep, max < FUZZ_MAX_FRAMES ? max : FUZZ_MAX_FRAMES, piece, len);
+  for (int i = 0; i < n; i++) {
+    frame[i] = malloc(len[i] ? len[i] : 1);
+    if (len[i]) memcpy(frame[i], piece[i], len[i]);
+  }
+  return n;
+}
+
+static inline void fuzz_frames_free(void **frame, int n) {
+  for (int i = 0; i < n; i++) free(frame[i]);
+}
+
 #endif

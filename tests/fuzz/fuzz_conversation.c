@@ -75,14 +75,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   proto_err err = {{0}};
   proto_msg m = {0};
   for (int k = 0; k < nm; k++) {
-    const uint8_t *piece[MAX_FRAMES];
-    size_t len[MAX_FRAMES];
-    int n = fuzz_split(msg[k], mlen[k], SEP, MAX_FRAMES, piece, len);
     void *frame[MAX_FRAMES];
-    for (int i = 0; i < n; i++) {
-      frame[i] = malloc(len[i] ? len[i] : 1);
-      if (len[i]) memcpy(frame[i], piece[i], len[i]);
-    }
+    size_t len[MAX_FRAMES];
+    int n = fuzz_frames(msg[k], mlen[k], SEP, MAX_FRAMES, frame, len);
     if (proto_decode(&m, n, (const void *const *)frame, len, &err) == 0) {
       int kind = proto_msg_kind_parse(m.type);
       if (kind >= 0 && proto_role_check(role, (proto_msg_kind)kind, &m, &d, &err) == 0) {
@@ -91,7 +86,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
       }
     }
     proto_msg_free(&m);
-    for (int i = 0; i < n; i++) free(frame[i]);
+    fuzz_frames_free(frame, n);
   }
   return 0;
 }

@@ -19,14 +19,9 @@ static double touch(const proto_msg *m) {
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
-  const uint8_t *piece[MAX_FRAMES];
-  size_t len[MAX_FRAMES];
-  int n = fuzz_split(data, size, SEP, MAX_FRAMES, piece, len);
   void *frame[MAX_FRAMES];
-  for (int i = 0; i < n; i++) {
-    frame[i] = malloc(len[i] ? len[i] : 1);
-    if (len[i]) memcpy(frame[i], piece[i], len[i]);
-  }
+  size_t len[MAX_FRAMES];
+  int n = fuzz_frames(data, size, SEP, MAX_FRAMES, frame, len);
   proto_msg m = {0};
   proto_err err = {{0}};
   if (proto_decode(&m, n, (const void *const *)frame, len, &err) == 0) {
@@ -50,6 +45,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   for (const char *c = err.msg; *c; c++)
     if (*c == 0x1b) __builtin_trap();
   proto_msg_free(&m);
-  for (int i = 0; i < n; i++) free(frame[i]);
+  fuzz_frames_free(frame, n);
   return 0;
 }
