@@ -78,33 +78,33 @@ static int coupler_state(cpl_runner *r, int64_t *step, double *wall, int64_t *un
   v[n++] = (cpl_stateval){"wall_s", PROTO_F8, wall, 1};
   v[n++] = (cpl_stateval){"steps_unconverged", PROTO_I8, unconv, 1};
   for (int f = 0; f < CPL_N_FIELDS; f++)
-    v[n++] = (cpl_stateval){field_keys[f], PROTO_F8, r->fields[f].cur, r->fields[f].len};
+    v[n++] = (cpl_stateval){field_keys[f], PROTO_F8, r->data.fields[f].cur, r->data.fields[f].len};
   _Static_assert(sizeof(int) == 4, "int flags are stored as i4");
-  v[n++] = (cpl_stateval){"rim.travelling", PROTO_I4, &r->rim.travelling, 1};
-  v[n++] = (cpl_stateval){"rim.angle", PROTO_F8, &r->rim.angle, 1};
-  v[n++] = (cpl_stateval){"rim.c", PROTO_F8, r->rim.c, 3};
-  v[n++] = (cpl_stateval){"rim.v", PROTO_F8, r->rim.v, 3};
-  v[n++] = (cpl_stateval){"rim.w", PROTO_F8, r->rim.w, 3};
-  v[n++] = (cpl_stateval){"rim.R", PROTO_F8, r->rim.R, 9};
-  v[n++] = (cpl_stateval){"rim.c0", PROTO_F8, r->rim.c0, 3};
-  v[n++] = (cpl_stateval){"rim.z_touch", PROTO_F8, &r->rim.z_touch, 1};
-  v[n++] = (cpl_stateval){"rim.z_fit", PROTO_F8, &r->rim.z_fit, 1};
-  v[n++] = (cpl_stateval){"rim.fit", PROTO_F8, r->rim.fit, 5};
-  v[n++] = (cpl_stateval){"rim.stiffness", PROTO_F8, &r->rim.stiffness, 1};
-  v[n++] = (cpl_stateval){"rim.mass", PROTO_F8, &r->rim.mass, 1};
-  v[n++] = (cpl_stateval){"rim.damping", PROTO_F8, &r->rim.damping, 1};
-  v[n++] = (cpl_stateval){"rim.travel_time", PROTO_F8, &r->rim.travel_time, 1};
-  v[n++] = (cpl_stateval){"rim.resistive_force", PROTO_F8, &r->rim.resistive_force, 1};
-  v[n++] = (cpl_stateval){"rim.avg_bins", PROTO_F8, &r->rim.avg_bins[0][0],
+  v[n++] = (cpl_stateval){"rim.travelling", PROTO_I4, &r->data.rim.travelling, 1};
+  v[n++] = (cpl_stateval){"rim.angle", PROTO_F8, &r->data.rim.angle, 1};
+  v[n++] = (cpl_stateval){"rim.c", PROTO_F8, r->data.rim.c, 3};
+  v[n++] = (cpl_stateval){"rim.v", PROTO_F8, r->data.rim.v, 3};
+  v[n++] = (cpl_stateval){"rim.w", PROTO_F8, r->data.rim.w, 3};
+  v[n++] = (cpl_stateval){"rim.R", PROTO_F8, r->data.rim.R, 9};
+  v[n++] = (cpl_stateval){"rim.c0", PROTO_F8, r->data.rim.c0, 3};
+  v[n++] = (cpl_stateval){"rim.z_touch", PROTO_F8, &r->data.rim.z_touch, 1};
+  v[n++] = (cpl_stateval){"rim.z_fit", PROTO_F8, &r->data.rim.z_fit, 1};
+  v[n++] = (cpl_stateval){"rim.fit", PROTO_F8, r->data.rim.fit, 5};
+  v[n++] = (cpl_stateval){"rim.stiffness", PROTO_F8, &r->data.rim.stiffness, 1};
+  v[n++] = (cpl_stateval){"rim.mass", PROTO_F8, &r->data.rim.mass, 1};
+  v[n++] = (cpl_stateval){"rim.damping", PROTO_F8, &r->data.rim.damping, 1};
+  v[n++] = (cpl_stateval){"rim.travel_time", PROTO_F8, &r->data.rim.travel_time, 1};
+  v[n++] = (cpl_stateval){"rim.resistive_force", PROTO_F8, &r->data.rim.resistive_force, 1};
+  v[n++] = (cpl_stateval){"rim.avg_bins", PROTO_F8, &r->data.rim.avg_bins[0][0],
                           CPL_DBP_BINS * CPL_DBP_NAVG};
-  v[n++] = (cpl_stateval){"rim.avg_part", PROTO_F8, r->rim.avg_part, CPL_DBP_NAVG};
-  v[n++] = (cpl_stateval){"rim.avg_n", PROTO_I8, r->rim.avg_n, 4};
-  v[n++] = (cpl_stateval){"road.d", PROTO_F8, &r->road.d, 1};
-  v[n++] = (cpl_stateval){"road.v", PROTO_F8, &r->road.v, 1};
-  v[n++] = (cpl_stateval){"road.a", PROTO_F8, &r->road.a, 1};
-  v[n++] = (cpl_stateval){"road.force_last", PROTO_F8, &r->road.force_last, 1};
-  if (r->carry) /* implicit: the impulse defect carried into the next step */
-    v[n++] = (cpl_stateval){"implicit.carry", PROTO_F8, r->carry, 3 * r->plan.surf.n_nodes};
+  v[n++] = (cpl_stateval){"rim.avg_part", PROTO_F8, r->data.rim.avg_part, CPL_DBP_NAVG};
+  v[n++] = (cpl_stateval){"rim.avg_n", PROTO_I8, r->data.rim.avg_n, 4};
+  v[n++] = (cpl_stateval){"road.d", PROTO_F8, &r->data.road.d, 1};
+  v[n++] = (cpl_stateval){"road.v", PROTO_F8, &r->data.road.v, 1};
+  v[n++] = (cpl_stateval){"road.a", PROTO_F8, &r->data.road.a, 1};
+  v[n++] = (cpl_stateval){"road.force_last", PROTO_F8, &r->data.road.force_last, 1};
+  if (r->data.carry) /* implicit: the impulse defect carried into the next step */
+    v[n++] = (cpl_stateval){"implicit.carry", PROTO_F8, r->data.carry, 3 * r->plan->surf.n_nodes};
   return n + cpl_accel_state(r->accel, v + n, MAX_VALS - n);
 }
 
@@ -218,7 +218,7 @@ static int write_file(cpl_runner *r, int64_t k, const char *path) {
     for (int a = 0; a < m->narrays && rc == 0; a++)
       rc = proto_h5_write_array(f, group, &m->arrays[a], err);
   }
-  int64_t step = k, unconv = r->steps_unconverged;
+  int64_t step = k, unconv = r->data.steps_unconverged;
   double wall = proto_now() - r->wall_start;
   cpl_stateval v[MAX_VALS];
   int nv = coupler_state(r, &step, &wall, &unconv, v);
@@ -525,7 +525,7 @@ static int coupler_values(cpl_runner *r, int apply) {
     if (apply && want) memcpy(v[i].data, a->data, want);
   }
   if (apply) {
-    r->steps_unconverged = unconv;
+    r->data.steps_unconverged = unconv;
     r->wall_start = proto_now() - wall;
   }
   return 0;

@@ -4,19 +4,19 @@
  * runner.h. A row that names no field, an unknown field, or a field of another
  * shape or dtype stops the run before any process starts, with a message
  * that names the row (PROTOCOL.md "Roles"). An index row ("<name>_index",
- * the sparse form of an [n, ...] row) goes with the row it indexes.
+ * the sparse form of an [n, ...] row) goes with the row it indexes. The
+ * contract also holds the fields themselves (the shipped ones, and those a
+ * new role's contract declares) and the order of the step (which role or
+ * coupler action runs in which stage): a new role is its rows here, its
+ * field, and its row in the order (CONTRIBUTING.md "Adding a role").
  * Pure: no sockets, no run. */
 #include "runner.h"
 
 #include <stdio.h>
 #include <string.h>
 
-/* Each field's name and shape, as the table must declare it. */
-static const struct {
-  const char *name;
-  int ndim;
-  int64_t dims[2];
-} field_shape[CPL_N_FIELDS] = {
+/* The shipped fields' names and shapes, as the role table must declare them. */
+static const cpl_field_spec shipped_fields[CPL_N_FIELDS] = {
     [CPL_F_SURF_X] = {"surface.x", 2, {PROTO_DIM_NODES, 3}},
     [CPL_F_SURF_V] = {"surface.v", 2, {PROTO_DIM_NODES, 3}},
     [CPL_F_SURF_FORCE] = {"surface.force", 2, {PROTO_DIM_NODES, 3}},
@@ -28,13 +28,28 @@ static const struct {
     [CPL_F_ROAD_FORCE] = {"road.force", 1, {1}},
 };
 
-const char *cpl_field_name(cpl_field_id id) {
-  return (unsigned)id < CPL_N_FIELDS ? field_shape[id].name : "?";
+/* The serial step (seed 000's staggered scheme, PROTOCOL.md "Schedule"): the
+ * grains on the surface of t_{k-1}; the rim moved with their load; the tread
+ * with their forces; the blocks on the road of t_k. */
+static const cpl_stage_row shipped_stages[] = {
+    {0, PROTO_ROLE_DEM, CPL_ACT_NONE}, {1, -1, CPL_ACT_RIM},
+    {1, PROTO_ROLE_FEM, CPL_ACT_NONE}, {2, -1, CPL_ACT_ROAD},
+    {2, PROTO_ROLE_BLOCK, CPL_ACT_NONE}};
+
+const cpl_stage_row *cpl_contract_stages(int *n) {
+  *n = (int)(sizeof shipped_stages / sizeof shipped_stages[0]);
+  return shipped_stages;
 }
 
 int cpl_field_parse(const char *name) {
   for (int f = 0; name && f < CPL_N_FIELDS; f++)
-    if (strcmp(name, field_shape[f].name) == 0) return f;
+    if (strcmp(name, shipped_fields[f].name) == 0) return f;
+  return -1;
+}
+
+static int field_of(const cpl_contract *c, const char *name) {
+  for (int f = 0; name && f < c->nfields; f++)
+    if (strcmp(name, c->field[f].name) == 0) return f;
   return -1;
 }
 
@@ -46,22 +61,23 @@ static const char *row_name(const proto_array_spec *s, char *out, size_t cap) {
 }
 
 /* One step/done row against its field. */
-static int bind_row(const proto_array_spec *s, cpl_binding *b, proto_err *err) {
+static int bind_row(const cpl_contract *c, const proto_array_spec *s, cpl_binding *b,
+                    proto_err *err) {
   char what[96];
   row_name(s, what, sizeof what);
   if (!s->field)
     return proto_fail(err, "%s: names no coupler field (every step and done array "
                       "reads or fills one)", what);
-  const int f = cpl_field_parse(s->field);
+  const int f = field_of(c, s->field);
   if (f < 0) return proto_fail(err, "%s: unknown coupler field '%s'", what, s->field);
-  int same = s->dtype == PROTO_F8 && s->ndim == field_shape[f].ndim;
-  for (int d = 0; same && d < s->ndim; d++) same = s->dims[d] == field_shape[f].dims[d];
+  int same = s->dtype == PROTO_F8 && s->ndim == c->field[f].ndim;
+  for (int d = 0; same && d < s->ndim; d++) same = s->dims[d] == c->field[f].dims[d];
   if (!same)
     return proto_fail(err, "%s: its dtype/shape does not match the coupler field '%s' "
-                      "(f8, %d dims)", what, s->field, field_shape[f].ndim);
+                      "(f8, %d dims)", what, s->field, c->field[f].ndim);
   if (s->sum && s->msg != PROTO_MSG_DONE)
     return proto_fail(err, "%s: only replies (done) can be summed", what);
-  *b = (cpl_binding){s->role, s->msg, s->name, (cpl_field_id)f, s->sum, s, NULL};
+  *b = (cpl_binding){s->role, s->msg, s->name, f, s->sum, s, NULL};
   return 0;
 }
 
@@ -77,10 +93,10 @@ static int bind_index(const proto_array_spec *s, cpl_contract *c, proto_err *err
     cpl_binding *bd = &c->b[b];
     snprintf(want, sizeof want, "%s%s", bd->array, PROTO_SUFFIX_INDEX);
     if (bd->role != s->role || bd->msg != s->msg || strcmp(want, s->name) != 0) continue;
-    if (!s->field || strcmp(s->field, cpl_field_name(bd->field)) != 0 ||
+    if (!s->field || strcmp(s->field, c->field[bd->field].name) != 0 ||
         bd->spec->dims[0] != PROTO_DIM_NODES)
       return proto_fail(err, "%s: must name the field of its [n, ...] row '%s' ('%s')",
-                        what, bd->array, cpl_field_name(bd->field));
+                        what, bd->array, c->field[bd->field].name);
     bd->index = s;
     return 0;
   }
@@ -88,11 +104,54 @@ static int bind_index(const proto_array_spec *s, cpl_contract *c, proto_err *err
                     what);
 }
 
-/* (role table rows) -> (bindings row -> field) */
-int cpl_contract_build(cpl_contract *c, const proto_array_spec *t, int n, proto_err *err) {
+/* The order of the step: each row a coupler action or a role the
+ * contract knows (it has rows), stages from 0 in order. */
+static int take_stages(cpl_contract *c, const cpl_stage_row *st, int n, proto_err *err) {
+  if (n < 1 || n > CPL_MAX_STAGE_ROWS)
+    return proto_fail(err, "the step's order: %d rows (1 to %d)", n, CPL_MAX_STAGE_ROWS);
+  for (int i = 0; i < n; i++) {
+    int known = st[i].role < 0 ? st[i].action != CPL_ACT_NONE : 0;
+    for (int b = 0; b < c->n && !known; b++) known = (int)c->b[b].role == st[i].role;
+    if (!known || st[i].role >= CPL_MAX_ROLES || st[i].stage < (i ? st[i - 1].stage : 0) ||
+        st[i].stage > (i ? st[i - 1].stage + 1 : 0))
+      return proto_fail(err, "the step's order, row %d (stage %d, role %d): a role with "
+                        "rows in the table or a coupler action, stages 0, 1, ... in order",
+                        i, st[i].stage, st[i].role);
+    c->stage[i] = st[i];
+  }
+  c->nstages = n;
+  for (int b = 0; b < c->n; b++) { /* a role with rows runs somewhere in the step */
+    int placed = 0;
+    for (int i = 0; i < n && !placed; i++) placed = st[i].role == (int)c->b[b].role;
+    if (!placed)
+      return proto_fail(err, "role table row %s/%s '%s': its role (%d) has no place in the "
+                        "step's order", proto_role_name(c->b[b].role),
+                        proto_msg_type(c->b[b].msg), c->b[b].array, (int)c->b[b].role);
+  }
+  return 0;
+}
+
+/* (role table rows, fields, the step's order) -> (bindings row -> field) */
+int cpl_contract_build_with(cpl_contract *c, const proto_array_spec *t, int n,
+                            const cpl_field_spec *more, int nmore,
+                            const cpl_stage_row *stages, int nstages, proto_err *err) {
   char what[96];
-  int used[CPL_N_FIELDS] = {0};
+  int used[CPL_MAX_FIELDS] = {0};
   c->n = 0;
+  if (nmore < 0 || nmore > CPL_MAX_FIELDS - CPL_N_FIELDS)
+    return proto_fail(err, "%d further coupler fields (at most %d)", nmore,
+                      CPL_MAX_FIELDS - CPL_N_FIELDS);
+  c->nfields = CPL_N_FIELDS;
+  memcpy(c->field, shipped_fields, sizeof shipped_fields);
+  for (int f = 0; f < nmore; f++) {
+    const cpl_field_spec *m = &more[f];
+    int ok = m->name && field_of(c, m->name) < 0 && (m->ndim == 1 || m->ndim == 2);
+    for (int d = 0; ok && d < m->ndim; d++) ok = m->dims[d] > 0 || m->dims[d] == PROTO_DIM_NODES;
+    if (!ok)
+      return proto_fail(err, "coupler field '%s': a new name, 1 or 2 dims, each > 0 or the "
+                        "surface's n", m->name ? m->name : "(null)");
+    c->field[c->nfields++] = *m;
+  }
   for (int i = 0; i < n; i++) {
     const proto_array_spec *s = &t[i];
     if (s->msg != PROTO_MSG_STEP && s->msg != PROTO_MSG_DONE) {
@@ -105,15 +164,24 @@ int cpl_contract_build(cpl_contract *c, const proto_array_spec *t, int n, proto_
       if (bind_index(s, c, err) < 0) return -1;
       continue;
     }
+    if ((unsigned)s->role >= CPL_MAX_ROLES)
+      return proto_fail(err, "%s: role %d (at most %d roles)", row_name(s, what, sizeof what),
+                        (int)s->role, CPL_MAX_ROLES);
     if (c->n == CPL_MAX_BINDINGS)
       return proto_fail(err, "%s: more than %d step/done rows",
                         row_name(s, what, sizeof what), CPL_MAX_BINDINGS);
-    if (bind_row(s, &c->b[c->n], err) < 0) return -1;
+    if (bind_row(c, s, &c->b[c->n], err) < 0) return -1;
     used[c->b[c->n++].field] = 1;
   }
-  for (int f = 0; f < CPL_N_FIELDS; f++)
+  for (int f = 0; f < c->nfields; f++)
     if (!used[f])
       return proto_fail(err, "coupler field '%s': no role table row reads or fills it",
-                        field_shape[f].name);
-  return 0;
+                        c->field[f].name);
+  return take_stages(c, stages, nstages, err);
+}
+
+int cpl_contract_build(cpl_contract *c, const proto_array_spec *t, int n, proto_err *err) {
+  int ns;
+  const cpl_stage_row *st = cpl_contract_stages(&ns);
+  return cpl_contract_build_with(c, t, n, NULL, 0, st, ns, err);
 }

@@ -207,6 +207,11 @@ typedef struct cpl_rim {
   int64_t avg_n[4];
 } cpl_rim;
 void cpl_rim_init(cpl_rim *rim, const cpl_scenario *s);
+/* Puts the rim (its frame the identity, at t = 0) at the height where the
+ * lowest of the n surface nodes x0 (rim frame) is at z (m); n = 0: the rim
+ * centre at z. rim_center [x, y, "auto"] (README "Scenario keys"): z is the
+ * highest settled bed top + scenario.auto_gap. */
+void cpl_rim_place(cpl_rim *rim, const double *x0, int64_t n, double z);
 /* Advances the rim by dt given the grains' force on the tread (N, the sum
  * over its nodes of the step's impulse / dt; force[2] the vertical load).
  * Fails (err names the key) when the load rig would not be stable. */

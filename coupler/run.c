@@ -187,11 +187,11 @@ static int wait_hellos(cpl_runner *r) {
   }
   proto_msg_free(&m);
   proto_role roles[CPL_MAX_PROCS];
-  r->plan.fem = -1;
+  r->draft->fem = -1;
   for (int i = 0; i < r->n; i++) {
     roles[i] = r->peers[i].role;
-    r->plan.n_of_role[roles[i]]++;
-    if (roles[i] == PROTO_ROLE_FEM) r->plan.fem = i;
+    r->draft->n_of_role[roles[i]]++;
+    if (roles[i] == PROTO_ROLE_FEM) r->draft->fem = i;
   }
   return cpl_check_roles(r->scene, roles, &r->err);
 }
@@ -225,7 +225,7 @@ static void fill_run_header(cpl_runner *r, proto_msg *w, const cpl_process *p) {
 static int take_surface(cpl_runner *r, const proto_msg *ready) {
   const proto_array *x0 = proto_msg_find(ready, PROTO_A_SURFACE_X0);
   const proto_array *tri = proto_msg_find(ready, PROTO_A_SURFACE_TRI);
-  cpl_surface *s = &r->plan.surf;
+  cpl_surface *s = &r->draft->surf;
   s->n_nodes = x0->shape[0];
   s->n_tris = tri->shape[0];
   size_t nb = (size_t)s->n_nodes * 3 * sizeof(double);
@@ -238,25 +238,9 @@ static int take_surface(cpl_runner *r, const proto_msg *ready) {
   for (int64_t i = 0; i < 3 * s->n_tris; i++)
     if (t[i] < 0 || t[i] >= s->n_nodes)
       return proto_fail(&r->err, "participant '%s': surface_tri refers to node %d "
-                        "of %lld", r->peers[r->plan.fem].proc->name, t[i],
+                        "of %lld", r->peers[r->plan->fem].proc->name, t[i],
                         (long long)s->n_nodes);
   return 0;
-}
-
-/* World positions at t = 0 and the rim frame into the fields. */
-static void init_fields(cpl_runner *r) {
-  const cpl_surface *s = &r->plan.surf;
-  double *x = r->fields[CPL_F_SURF_X].cur;
-  for (int64_t i = 0; i < s->n_nodes; i++)
-    for (int a = 0; a < 3; a++) {
-      double acc = r->rim.c[a];
-      for (int b = 0; b < 3; b++) acc += r->rim.R[3 * a + b] * s->x0[3 * i + b];
-      x[3 * i + a] = acc;
-    }
-  memcpy(r->fields[CPL_F_RIM_R].cur, r->rim.R, sizeof r->rim.R);
-  memcpy(r->fields[CPL_F_RIM_C].cur, r->rim.c, sizeof r->rim.c);
-  memcpy(r->fields[CPL_F_RIM_OMEGA].cur, r->rim.w, sizeof r->rim.w);
-  memcpy(r->fields[CPL_F_RIM_V].cur, r->rim.v, sizeof r->rim.v);
 }
 
 /* The transport (PROTOCOL.md "Shared memory"): a participant on this host
@@ -309,10 +293,10 @@ static int welcome_one(cpl_runner *r, int i) {
   proto_msg_reset(&w, p->proc->name, proto_msg_type(PROTO_MSG_WELCOME), 0, 0);
   fill_run_header(r, &w, p->proc);
   shm_offer(r, p, &w);
-  if (p->role == PROTO_ROLE_DEM && r->plan.surf.n_nodes > 0) {
-    proto_msg_add_f8(&w, PROTO_A_SURFACE_X0, r->plan.surf.n_nodes, 3,
-                     r->fields[CPL_F_SURF_X].cur);
-    proto_msg_add_i4(&w, PROTO_A_SURFACE_TRI, r->plan.surf.n_tris, 3, r->plan.surf.tri);
+  if (p->role == PROTO_ROLE_DEM && r->plan->surf.n_nodes > 0) {
+    proto_msg_add_f8(&w, PROTO_A_SURFACE_X0, r->plan->surf.n_nodes, 3,
+                     r->data.fields[CPL_F_SURF_X].cur);
+    proto_msg_add_i4(&w, PROTO_A_SURFACE_TRI, r->plan->surf.n_tris, 3, r->plan->surf.tri);
   }
   /* the coupler's copy of the conversation's dims (n, m; surface or not) */
   int rc = proto_role_check(p->role, PROTO_MSG_WELCOME, &w, &p->dims, &r->err);
@@ -334,17 +318,9 @@ static int welcome_one(cpl_runner *r, int i) {
   p->rollback = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(p->reply.header,
                                                               PROTO_H_ROLLBACK));
   if (rc == 0) shm_settle(p);
-  if (rc == 0 && i == r->plan.fem) rc = take_surface(r, &p->reply);
+  if (rc == 0 && i == r->plan->fem) rc = take_surface(r, &p->reply);
   if (rc < 0 && r->failed_peer < 0) r->failed_peer = i;
   return rc;
-}
-
-/* The rim height that puts the lowest surface node at z (the rim frame is
- * the identity at t = 0). */
-static void rim_height_for(cpl_runner *r, double z) {
-  double lowest = INFINITY;
-  for (int64_t i = 0; i < r->plan.surf.n_nodes; i++) lowest = fmin(lowest, r->plan.surf.x0[3 * i + 2]);
-  r->rim.c[2] = r->rim.c0[2] = z - (r->plan.surf.n_nodes ? lowest : 0);
 }
 
 /* rim_center [x, y, "auto"]: the lowest tread node auto_gap above the
@@ -365,11 +341,11 @@ static int place_rim(cpl_runner *r) {
     }
     top = fmax(top, t->valuedouble);
   }
-  rim_height_for(r, top + sc->auto_gap);
+  cpl_rim_place(&r->data.rim, r->plan->surf.x0, r->plan->surf.n_nodes, top + sc->auto_gap);
   if (!r->opts->quiet)
     fprintf(stderr, "cosim: rim_center \"auto\": bed top %.10g m, rim height %.10g m (lowest "
-            "tread node %g m above the bed)\n", top, r->rim.c[2], sc->auto_gap);
-  init_fields(r);
+            "tread node %g m above the bed)\n", top, r->data.rim.c[2], sc->auto_gap);
+  cpl_fields_from_rim(r);
   return 0;
 }
 
@@ -377,13 +353,14 @@ static int place_rim(cpl_runner *r) {
  * an "auto" rim waits parked above everything until the beds are settled. */
 static int welcome_all(cpl_runner *r) {
   const int rim_auto = r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL &&
-                       r->scene->scenario.rim_auto && r->plan.fem >= 0;
-  if (r->plan.fem >= 0 && welcome_one(r, r->plan.fem) < 0) return -1;
-  if (cpl_fields_init(r, r->plan.surf.n_nodes, &r->err) < 0) return -1;
-  if (rim_auto) rim_height_for(r, CPL_AUTO_PARK_Z); /* out of the way while beds settle */
-  init_fields(r);
+                       r->scene->scenario.rim_auto && r->plan->fem >= 0;
+  if (r->plan->fem >= 0 && welcome_one(r, r->plan->fem) < 0) return -1;
+  if (cpl_fields_init(r, r->plan->surf.n_nodes, &r->err) < 0) return -1;
+  if (rim_auto) /* out of the way while the beds settle */
+    cpl_rim_place(&r->data.rim, r->plan->surf.x0, r->plan->surf.n_nodes, CPL_AUTO_PARK_Z);
+  cpl_fields_from_rim(r);
   for (int i = 0; i < r->n; i++)
-    if (i != r->plan.fem && welcome_one(r, i) < 0) return -1;
+    if (i != r->plan->fem && welcome_one(r, i) < 0) return -1;
   return rim_auto ? place_rim(r) : 0;
 }
 
@@ -495,12 +472,12 @@ static void teardown(cpl_runner *r, int ok) {
   cpl_zap_stop(r->zap); /* removes the key files */
   if (r->ctx) zmq_ctx_term(r->ctx);
   remove_run_dir(r);
-  free(r->plan.surf.x0);
-  free(r->plan.surf.tri);
+  free(r->plan->surf.x0);
+  free(r->plan->surf.tri);
   cpl_fields_free(r);
   cpl_accel_free(r->accel);
-  free(r->xi), free(r->xt), free(r->x_start), free(r->v_dem), free(r->f_fem),
-      free(r->carry);
+  free(r->data.xi), free(r->data.xt), free(r->data.x_start), free(r->data.v_dem), free(r->data.f_fem),
+      free(r->data.carry);
   cpl_checkpoint_free(r->ckpt);
 }
 
@@ -536,7 +513,7 @@ static int claim_output_dir(cpl_runner *r) {
 static int prepare(cpl_runner *r) {
   int nrows;
   const proto_array_spec *table = proto_role_table(&nrows);
-  int rc = cpl_contract_build(&r->plan.contract, table, nrows, &r->err);
+  int rc = cpl_contract_build(&r->draft->contract, table, nrows, &r->err);
   if (rc == 0 && !r->opts->attach)
     for (int i = 0; i < r->n && rc == 0; i++)
       rc = cpl_resolve_exec(&r->scene->procs[i], &r->err);
@@ -551,7 +528,8 @@ static int prepare(cpl_runner *r) {
   if (rc == 0) rc = restore(r);
   if (rc == 0) rc = open_output(r);
   if (rc == 0) {
-    cpl_schedule_build(r);
+    cpl_schedule_build(r->draft, r->peers, r->n, r->scene->scheme);
+    r->draft = NULL; /* sealed: from here on the plan is read-only */
     if (!r->opts->quiet) cpl_schedule_print(r, stdout);
     fflush(stdout);
     r->timing = cpl_timing_create(r);
@@ -579,18 +557,24 @@ static int close_output(cpl_runner *r, int *exit_code) {
 
 int cpl_run(cpl_scene *s, const cpl_run_opts *opts) {
   cpl_runner *r = calloc(1, sizeof *r);
-  if (!r) return CPL_EXIT_OUTPUT;
+  cpl_plan *plan = calloc(1, sizeof *plan);
+  if (!r || !plan) {
+    free(r);
+    free(plan);
+    return CPL_EXIT_OUTPUT;
+  }
+  r->plan = r->draft = plan;
   r->scene = s;
   r->opts = opts;
   r->failed_peer = -1;
-  r->plan.fem = -1;
+  plan->fem = -1;
   r->lock_fd = -1;
   r->n = s->nprocs;
   r->watch_wall = proto_now();
   for (int i = 0; i < r->n; i++) r->peers[i].proc = &s->procs[i];
   install_signals();
-  cpl_rim_init(&r->rim, &s->scenario);
-  r->road.a = s->scenario.kind == CPL_SCN_INDENTATION && s->scenario.profile == CPL_PROFILE_FORCE
+  cpl_rim_init(&r->data.rim, &s->scenario);
+  r->data.road.a = s->scenario.kind == CPL_SCN_INDENTATION && s->scenario.profile == CPL_PROFILE_FORCE
                   ? s->scenario.road_force / s->scenario.road_mass
                   : 0;
   r->wall_start = proto_now();
@@ -631,5 +615,6 @@ int cpl_run(cpl_scene *s, const cpl_run_opts *opts) {
   }
   cpl_timing_free(r->timing);
   free(r);
+  free(plan);
   return exit_code;
 }

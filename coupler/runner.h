@@ -1,9 +1,10 @@
-/* runner.h — the state of one coupled run (cpl_runner) and the functions of
- * the files that share it: run.c (setup, handshake, teardown), contract.c
- * (the role table bound to the fields), schedule.c (the exchanges of a step,
- * walked as data), scenario_step.c (the scenario's stage), loop.c (the
- * schemes), accel.c (implicit acceleration), liveness.c, checkpoint.c and
- * timing.c. Internal to the coupler. */
+/* runner.h — the state of one coupled run (cpl_runner: its const plan, its
+ * per-step data, its session) and the functions of the files that share it:
+ * run.c (setup, handshake, teardown), contract.c (the fields, the order of
+ * the step, the role table bound to the fields), loop.c (the orchestrator)
+ * and its stages: schedule.c (exchange), scenario_step.c (scenario),
+ * implicit.c with accel.c (the implicit scheme's repeats), record.c,
+ * liveness.c, timing.c and checkpoint.c. Internal to the coupler. */
 #ifndef COSIM_COUPLER_RUNNER_H
 #define COSIM_COUPLER_RUNNER_H
 
@@ -38,6 +39,17 @@ typedef struct cpl_field {
   int given;        /* outputs of this step: number of processes that gave it */
 } cpl_field;
 
+/* A field as the contract declares it: its name and shape (dims as the role
+ * table's: PROTO_DIM_NODES for the surface's n). The shipped fields are those
+ * of cpl_field_id; a contract may declare more (a new role's), up to
+ * CPL_MAX_FIELDS, with ids from CPL_N_FIELDS on. */
+#define CPL_MAX_FIELDS (CPL_N_FIELDS + 4)
+typedef struct cpl_field_spec {
+  const char *name;
+  int ndim;
+  int64_t dims[2];
+} cpl_field_spec;
+
 /* A role-table row bound to a field (contract.c): requests read in[field];
  * replies are summed (several processes of one role: forces add) or copied
  * into out. */
@@ -45,35 +57,57 @@ typedef struct cpl_binding {
   proto_role role;
   proto_msg_kind msg; /* PROTO_MSG_STEP (request) or PROTO_MSG_DONE (reply) */
   const char *array;
-  cpl_field_id field;
+  int field;          /* a cpl_field_id, or a further field of the contract */
   int sum;
   const proto_array_spec *spec; /* its row */
   const proto_array_spec *index; /* its sparse form's "<array>_index" row, or NULL */
 } cpl_binding;
 
-/* Every step/done row of the role table, bound once before the run starts. */
-#define CPL_MAX_BINDINGS 32
-typedef struct cpl_contract {
-  int n;
-  cpl_binding b[CPL_MAX_BINDINGS];
-} cpl_contract;
-
-/* contract.c: binds the table's step/done rows t[0..n) to the fields; -1
- * with a message naming the row (or the field no row binds). */
-int cpl_contract_build(cpl_contract *c, const proto_array_spec *t, int n, proto_err *err);
-const char *cpl_field_name(cpl_field_id id); /* "surface.x", ... */
-int cpl_field_parse(const char *name);       /* -1 if unknown */
-
-/* ------------------------------------------------------------ schedule
- * The step as data: exchanges in order. All requests of one stage are sent
- * before any reply is awaited (processes of a stage compute at the same
- * time); a coupler action runs before the stage's requests. */
+/* The serial scheme's step as the contract orders it: a stage runs a
+ * coupler action (role < 0) or every process of a role; parallel and
+ * implicit take the same rows, actions first, in one stage (schedule.c). */
 typedef enum cpl_action {
   CPL_ACT_NONE,
   CPL_ACT_RIM,  /* advance the rim frame by the scenario (uses the vertical load) */
   CPL_ACT_ROAD  /* road displacement of t_k: profile, or the road body */
 } cpl_action;
+typedef struct cpl_stage_row {
+  int stage;
+  int role;           /* a proto_role, or -1: the coupler's action */
+  cpl_action action;
+} cpl_stage_row;
 
+/* The coupling contract: the fields, every step/done row of the role table
+ * bound to one, and the order of the step — built once before the run starts. */
+#define CPL_MAX_BINDINGS 32
+#define CPL_MAX_STAGE_ROWS 12
+#define CPL_MAX_ROLES 8 /* the shipped roles (PROTO_N_ROLES) and a newcomer's */
+typedef struct cpl_contract {
+  int n;
+  cpl_binding b[CPL_MAX_BINDINGS];
+  int nfields;
+  cpl_field_spec field[CPL_MAX_FIELDS];
+  int nstages;
+  cpl_stage_row stage[CPL_MAX_STAGE_ROWS];
+} cpl_contract;
+
+/* contract.c: binds the table's step/done rows t[0..n) to the shipped fields
+ * and takes the shipped order of the step; -1 with a message naming the row
+ * (or the field no row binds). */
+int cpl_contract_build(cpl_contract *c, const proto_array_spec *t, int n, proto_err *err);
+/* The same with further fields (ids CPL_N_FIELDS, ...) and the step's order
+ * given: a new role's contract (tests/coupler/test_contract.c). */
+int cpl_contract_build_with(cpl_contract *c, const proto_array_spec *t, int n,
+                            const cpl_field_spec *more, int nmore,
+                            const cpl_stage_row *stages, int nstages, proto_err *err);
+/* The shipped order of the serial step (cpl_contract_build's). */
+const cpl_stage_row *cpl_contract_stages(int *n);
+int cpl_field_parse(const char *name); /* a shipped field, -1 if unknown */
+
+/* ------------------------------------------------------------ schedule
+ * The step as data: exchanges in order. All requests of one stage are sent
+ * before any reply is awaited (processes of a stage compute at the same
+ * time); a coupler action runs before the stage's requests. */
 typedef struct cpl_exchange {
   int stage;
   int peer;          /* process index, or -1: a coupler action */
@@ -142,12 +176,32 @@ typedef struct cpl_surface {
  * ready); read-only from the first step on. */
 typedef struct cpl_plan {
   cpl_contract contract; /* the role table bound to the fields (contract.c) */
-  int n_of_role[PROTO_N_ROLES];
+  int n_of_role[CPL_MAX_ROLES];
   int fem;               /* the process giving the surface, or -1 */
   cpl_surface surf;
   int nex;               /* the step's exchanges in order (schedule.c) */
   cpl_exchange ex[CPL_MAX_EXCHANGES];
 } cpl_plan;
+
+/* The data of a run (as MuJoCo's mjData beside mjModel): what the steps
+ * change — the fields and what requests read, the scenario's rim and road,
+ * the implicit scheme's iterate and its counters. */
+typedef struct cpl_data {
+  cpl_field fields[CPL_MAX_FIELDS];
+  const double *in[CPL_MAX_FIELDS]; /* what requests send (set by the scheme) */
+  cpl_rim rim;
+  cpl_road road;
+  /* implicit scheme (implicit.c) */
+  double *xi, *xt;        /* interface vector: iterate and H(iterate) */
+  double *x_start;        /* surface positions at t_{k-1} */
+  double *v_dem;          /* secant velocity (d - x_start)/dt the DEM moves at */
+  double *f_fem;          /* force the FEM gets: iterate + carried defect */
+  double *carry;          /* impulse defect of the last step / dt */
+  double road_iter;       /* road force iterate */
+  int iterations, converged;
+  double residual[3];     /* relative residual per interface field at exit */
+  int64_t steps_unconverged;
+} cpl_data;
 
 typedef struct cpl_timing cpl_timing;
 typedef struct cpl_accel cpl_accel;
@@ -166,23 +220,14 @@ typedef struct cpl_runner {
   cpl_peer peers[CPL_MAX_PROCS];
   cpl_child children[CPL_MAX_PROCS];
   int nchildren;
-  cpl_plan plan;     /* fixed once the handshake is done */
-  /* the data of the step: fields, scenario state, implicit iterate, counters */
-  cpl_field fields[CPL_N_FIELDS];
-  const double *in[CPL_N_FIELDS]; /* what requests send (set by the scheme) */
-  cpl_rim rim;
-  cpl_road road;
-  /* implicit scheme (loop.c) */
+  /* the plan: run.c builds it through `draft` during the handshake and
+   * seals it (draft = NULL) before the first step; every stage reads it
+   * through `plan`, which the compiler keeps read-only */
+  const cpl_plan *plan;
+  cpl_plan *draft;
+  cpl_data data;     /* what changes from step to step */
+  /* implicit scheme (implicit.c): the accelerator's history */
   cpl_accel *accel;
-  double *xi, *xt;        /* interface vector: iterate and H(iterate) */
-  double *x_start;        /* surface positions at t_{k-1} */
-  double *v_dem;          /* secant velocity (d - x_start)/dt the DEM moves at */
-  double *f_fem;          /* force the FEM gets: iterate + carried defect */
-  double *carry;          /* impulse defect of the last step / dt */
-  double road_iter;       /* road force iterate */
-  int iterations, converged;
-  double residual[3];     /* relative residual per interface field at exit */
-  int64_t steps_unconverged;
   /* timing */
   cpl_timing *timing;
   double wall_start, t_blocked; /* t_blocked: time in receive this step */
@@ -198,7 +243,7 @@ typedef struct cpl_runner {
   cpl_zap *zap;
   cpl_ckpt *ckpt;  /* the checkpoint a restart continues from */
   int64_t k0;      /* the last step done before this run (restart), else 0 */
-  int progress_shown; /* tenths of the run shown in a batch log (loop.c) */
+  int progress_shown; /* tenths of the run shown in a batch log (record.c) */
 } cpl_runner;
 
 /* liveness.c: receives the next message from `expect` (a peer index, or -1
@@ -247,11 +292,13 @@ void cpl_checkpoint_free(cpl_ckpt *c);
 int cpl_checkpoint_clear(const char *dir, proto_err *err);
 
 /* schedule.c */
-/* Allocates the fields for a surface of n nodes (n may be 0). */
+/* The fields of the plan's contract for a surface of n nodes (n may be 0),
+ * their buffers allocated. */
 int cpl_fields_init(cpl_runner *r, int64_t n, proto_err *err);
 void cpl_fields_free(cpl_runner *r);
-/* Builds the exchange list of the scheme from the processes' roles. */
-void cpl_schedule_build(cpl_runner *r);
+/* (the contract's order of the step, the processes' roles, scheme) -> (the
+ * plan's exchanges in order) */
+void cpl_schedule_build(cpl_plan *p, const cpl_peer *peers, int n, cpl_scheme scheme);
 /* Prints the schedule ("who gives what to whom"), one line per stage. */
 void cpl_schedule_print(const cpl_runner *r, FILE *f);
 /* The end-of-run lines of the sparse exchange: per process, the bytes of its
@@ -264,23 +311,46 @@ void cpl_sparse_print(const cpl_runner *r, FILE *f);
 int cpl_run_stages(cpl_runner *r, int first, int last, int64_t k, int iteration,
                    int output, int commit, int actions);
 int cpl_last_stage(const cpl_runner *r);
+/* Peer i's step request of step k into m (reset first; m's buffers are
+ * reused): the arrays of its role's step rows from the fields data.in
+ * points at, dense or in their sparse form. */
+void cpl_request_build(cpl_runner *r, int i, int64_t k, int iteration, int output,
+                       proto_msg *m);
 /* The replies already in the peers' reply slots of a stage into the fields'
  * out buffers (summed or copied in exchange order), swapped in if commit. */
 void cpl_stage_take(cpl_runner *r, int stage, int commit);
 /* Sets r->in to the fields' current values (serial, parallel). */
 void cpl_inputs_current(cpl_runner *r);
-void cpl_field_commit(cpl_runner *r, cpl_field_id id);
+void cpl_field_commit(cpl_runner *r, int id);
 
 /* scenario_step.c: the scenario's stage. Runs a coupler action for step k
  * (rim frame; road profile or body) into the fields; -1 with r->err. */
 int cpl_do_action(cpl_runner *r, cpl_action a, int64_t k);
+/* (rim frame at t = 0, surface x0) -> (surface x, rim fields) */
+void cpl_fields_from_rim(cpl_runner *r);
 /* The sum of the z components of the current surface force (N). */
 double cpl_vertical_load(const cpl_runner *r);
 
-/* loop.c: the scheme's set-up (implicit: its vectors and accelerator),
- * after the handshake; then the loop over all steps. */
+/* loop.c, the orchestrator: the scheme's set-up after the handshake; then
+ * per step the stages in order — exchange and scenario (schedule.c,
+ * scenario_step.c; implicit.c repeats them), record (record.c), timing
+ * (timing.c), checkpoint (checkpoint.c); liveness (liveness.c) runs inside
+ * every receive. */
 int cpl_scheme_init(cpl_runner *r);
 int cpl_step_loop(cpl_runner *r);
+
+/* implicit.c: the interface vector [surface x at t_k | surface force | road
+ * force (force-driven road only)], and the step that iterates on it. */
+enum { CPL_IF_X, CPL_IF_F, CPL_IF_ROAD, CPL_N_IF };
+int cpl_implicit_init(cpl_runner *r);
+/* (fields at t_{k-1}) -> (fields at t_k; data.iterations, converged, residual) */
+int cpl_implicit_step(cpl_runner *r, int64_t k, int output);
+
+/* record.c: (fields, replies of step k, rim) -> (results.h5 rows and
+ * snapshots, the bus); at output steps results.h5 is flushed. */
+int cpl_record(cpl_runner *r, int64_t k, int output);
+/* (step k, steps per second) -> (the terminal's progress line, coupler.progress) */
+void cpl_progress(cpl_runner *r, int64_t k, double rate, int final);
 
 /* accel.c: acceleration of the implicit scheme on a vector of nf fields
  * (lengths len[f]). One time step: cpl_accel_begin; then per iteration

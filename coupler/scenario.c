@@ -31,6 +31,12 @@ void cpl_rim_init(cpl_rim *rim, const cpl_scenario *s) {
   if (s->kind == CPL_SCN_TIRE_TRAVEL) rim->v[2] = -s->sinkage_velocity;
 }
 
+void cpl_rim_place(cpl_rim *rim, const double *x0, int64_t n, double z) {
+  double lowest = INFINITY;
+  for (int64_t i = 0; i < n; i++) lowest = fmin(lowest, x0[3 * i + 2]);
+  rim->c[2] = rim->c0[2] = z - (n ? lowest : 0);
+}
+
 /* Sinkage phase of the load rig: the first touch, and the least-squares
  * sums of the load over the height once the load has reached W/2. */
 static void rig_observe(cpl_rim *rim, const cpl_scenario *s, double load) {

@@ -37,20 +37,22 @@ static int sparse_init(cpl_runner *r, int64_t n, proto_err *err) {
     if (!sp->index || !sp->rows[0] || !sp->rows[1] || !sp->dense || !sp->mark)
       return proto_fail(err, "out of memory for the sparse exchange");
   }
-  if (r->plan.fem >= 0)
-    r->peers[r->plan.fem].sp.takes_force = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(
-        r->peers[r->plan.fem].reply.header, PROTO_H_SPARSE));
+  if (r->plan->fem >= 0)
+    r->peers[r->plan->fem].sp.takes_force = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(
+        r->peers[r->plan->fem].reply.header, PROTO_H_SPARSE));
   return 0;
 }
 
 int cpl_fields_init(cpl_runner *r, int64_t n, proto_err *err) {
   if (sparse_init(r, n, err) < 0) return -1;
-  const int64_t len[CPL_N_FIELDS] = {3 * n, 3 * n, 3 * n, 9, 3, 3, 3, 1, 1};
-  for (int f = 0; f < CPL_N_FIELDS; f++) {
-    cpl_field *fd = &r->fields[f];
-    fd->name = cpl_field_name((cpl_field_id)f);
-    fd->len = len[f];
-    size_t bytes = sizeof(double) * (size_t)(len[f] > 0 ? len[f] : 1);
+  const cpl_contract *c = &r->plan->contract;
+  for (int f = 0; f < c->nfields; f++) {
+    cpl_field *fd = &r->data.fields[f];
+    fd->name = c->field[f].name;
+    fd->len = 1;
+    for (int d = 0; d < c->field[f].ndim; d++)
+      fd->len *= c->field[f].dims[d] == PROTO_DIM_NODES ? n : c->field[f].dims[d];
+    size_t bytes = sizeof(double) * (size_t)(fd->len > 0 ? fd->len : 1);
     fd->cur = calloc(1, bytes);
     fd->out = calloc(1, bytes);
     if (!fd->cur || !fd->out) return proto_fail(err, "out of memory for the fields");
@@ -65,58 +67,55 @@ void cpl_fields_free(cpl_runner *r) {
     free(sp->index); free(sp->rows[0]); free(sp->rows[1]); free(sp->dense); free(sp->mark);
     sp->index = NULL, sp->rows[0] = sp->rows[1] = sp->dense = NULL, sp->mark = NULL;
   }
-  for (int f = 0; f < CPL_N_FIELDS; f++) {
-    free(r->fields[f].cur);
-    free(r->fields[f].out);
-    r->fields[f].cur = r->fields[f].out = NULL;
+  for (int f = 0; f < CPL_MAX_FIELDS; f++) {
+    free(r->data.fields[f].cur);
+    free(r->data.fields[f].out);
+    r->data.fields[f].cur = r->data.fields[f].out = NULL;
   }
 }
 
 void cpl_inputs_current(cpl_runner *r) {
-  for (int f = 0; f < CPL_N_FIELDS; f++) r->in[f] = r->fields[f].cur;
+  for (int f = 0; f < r->plan->contract.nfields; f++) r->data.in[f] = r->data.fields[f].cur;
 }
 
-void cpl_field_commit(cpl_runner *r, cpl_field_id id) {
-  cpl_field *f = &r->fields[id];
+void cpl_field_commit(cpl_runner *r, int id) {
+  cpl_field *f = &r->data.fields[id];
   double *t = f->cur;
   f->cur = f->out;
   f->out = t;
-  if (r->in[id] == t) r->in[id] = f->cur; /* requests follow the current value */
+  if (r->data.in[id] == t) r->data.in[id] = f->cur; /* requests follow the current value */
 }
 
 /* ------------------------------------------------------------- building */
 
-static void add(cpl_runner *r, int stage, int peer, cpl_action a) {
-  if (r->plan.nex < CPL_MAX_EXCHANGES)
-    r->plan.ex[r->plan.nex++] = (cpl_exchange){stage, peer, a};
+static void add(cpl_plan *p, int stage, int peer, cpl_action a) {
+  if (p->nex < CPL_MAX_EXCHANGES) p->ex[p->nex++] = (cpl_exchange){stage, peer, a};
 }
 
-static void add_role(cpl_runner *r, int stage, proto_role role) {
-  for (int i = 0; i < r->n; i++)
-    if (r->peers[i].role == role) add(r, stage, i, CPL_ACT_NONE);
+static void add_role(cpl_plan *p, const cpl_peer *peers, int n, int stage, int role) {
+  for (int i = 0; i < n; i++)
+    if ((int)peers[i].role == role) add(p, stage, i, CPL_ACT_NONE);
 }
 
-/* serial (Gauss–Seidel, the paper's staggered scheme): the grains on the
- * surface of t_{k-1}; the rim moved with their load; the tread with their
- * forces; the blocks on the road of t_k. parallel and implicit: actions
- * first (with the last step's load), then every process at once. */
-void cpl_schedule_build(cpl_runner *r) {
-  r->plan.nex = 0;
-  if (r->scene->scheme == CPL_SCHEME_SERIAL) {
-    add_role(r, 0, PROTO_ROLE_DEM);
-    add(r, 1, -1, CPL_ACT_RIM);
-    add_role(r, 1, PROTO_ROLE_FEM);
-    add(r, 2, -1, CPL_ACT_ROAD);
-    add_role(r, 2, PROTO_ROLE_BLOCK);
-    return;
-  }
-  add(r, 0, -1, CPL_ACT_RIM);
-  add(r, 0, -1, CPL_ACT_ROAD);
-  for (int role = 0; role < PROTO_N_ROLES; role++) add_role(r, 0, (proto_role)role);
+/* serial (Gauss–Seidel): the contract's order of the step (contract.c), a
+ * role's processes in their order. parallel and implicit: the order's
+ * actions first (with the last step's load), then every process of its
+ * roles, in the order's order, all in one stage. */
+void cpl_schedule_build(cpl_plan *p, const cpl_peer *peers, int n, cpl_scheme scheme) {
+  const cpl_contract *c = &p->contract;
+  p->nex = 0;
+  for (int pass = 0; pass < 2; pass++)
+    for (int s = 0; s < c->nstages; s++) {
+      const cpl_stage_row *o = &c->stage[s];
+      const int stage = scheme == CPL_SCHEME_SERIAL ? o->stage : 0;
+      if (scheme == CPL_SCHEME_SERIAL ? pass : (pass == 0) != (o->role < 0)) continue;
+      if (o->role < 0) add(p, stage, -1, o->action);
+      else add_role(p, peers, n, stage, o->role);
+    }
 }
 
 void cpl_sparse_print(const cpl_runner *r, FILE *f) {
-  if (!r->scene->sparse || !r->plan.surf.n_nodes) return;
+  if (!r->scene->sparse || !r->plan->surf.n_nodes) return;
   fprintf(f, "sparse exchange (coupling.sparse; surface arrays, bytes as a share of dense):\n");
   for (int i = 0; i < r->n; i++) {
     const cpl_sparse *sp = &r->peers[i].sp;
@@ -129,7 +128,7 @@ void cpl_sparse_print(const cpl_runner *r, FILE *f) {
 }
 
 int cpl_last_stage(const cpl_runner *r) {
-  return r->plan.nex ? r->plan.ex[r->plan.nex - 1].stage : 0;
+  return r->plan->nex ? r->plan->ex[r->plan->nex - 1].stage : 0;
 }
 
 void cpl_schedule_print(const cpl_runner *r, FILE *f) {
@@ -138,12 +137,12 @@ void cpl_schedule_print(const cpl_runner *r, FILE *f) {
   fprintf(f, "schedule (%s):\n", cpl_scheme_name(r->scene->scheme));
   for (int s = 0; s <= cpl_last_stage(r); s++) {
     int any = 0;
-    for (int e = 0; e < r->plan.nex; e++) {
-      const cpl_exchange *x = &r->plan.ex[e];
+    for (int e = 0; e < r->plan->nex; e++) {
+      const cpl_exchange *x = &r->plan->ex[e];
       if (x->stage != s) continue;
       if (x->peer < 0) {
         if ((x->action == CPL_ACT_RIM && r->scene->scenario.kind != CPL_SCN_TIRE_TRAVEL) ||
-            (x->action == CPL_ACT_ROAD && !r->plan.n_of_role[PROTO_ROLE_BLOCK]))
+            (x->action == CPL_ACT_ROAD && !r->plan->n_of_role[PROTO_ROLE_BLOCK]))
           continue;
         fprintf(f, "  %d. coupler: %s\n", s + 1, actions[x->action]);
         continue;
@@ -153,8 +152,8 @@ void cpl_schedule_print(const cpl_runner *r, FILE *f) {
               proto_role_name(p->role), p->shm_on ? "shm" : "tcp/ipc");
       for (int pass = 0; pass < 2; pass++) {
         fprintf(f, "%s", pass ? " ->" : "");
-        for (int b = 0; b < r->plan.contract.n; b++) {
-          const cpl_binding *bd = &r->plan.contract.b[b];
+        for (int b = 0; b < r->plan->contract.n; b++) {
+          const cpl_binding *bd = &r->plan->contract.b[b];
           if (bd->role != p->role || bd->msg != (pass ? PROTO_MSG_DONE : PROTO_MSG_STEP) ||
               !due(p, bd->spec))
             continue;
@@ -182,8 +181,8 @@ void cpl_schedule_print(const cpl_runner *r, FILE *f) {
  * times the largest node speed |v| of the step, and that node goes too (the
  * dem takes the speed from the nodes it gets: the same as dense). */
 static int64_t reach_nodes(const cpl_runner *r, cpl_sparse *sp) {
-  const double *v = r->in[CPL_F_SURF_V];
-  const int64_t n = r->plan.surf.n_nodes;
+  const double *v = r->data.in[CPL_F_SURF_V];
+  const int64_t n = r->plan->surf.n_nodes;
   double box[6], v2 = 0;
   int64_t fast = -1;
   memcpy(box, sp->reach_use, sizeof box);
@@ -193,8 +192,8 @@ static int64_t reach_nodes(const cpl_runner *r, cpl_sparse *sp) {
   }
   const double grow = sp->speed_use * sqrt(v2);
   for (int d = 0; d < 3; d++) box[d] -= grow, box[3 + d] += grow;
-  int64_t k = proto_reach_nodes(r->in[CPL_F_SURF_X], v, r->scene->dt, r->plan.surf.tri,
-                                r->plan.surf.n_tris, n, box, sp->mark, sp->index);
+  int64_t k = proto_reach_nodes(r->data.in[CPL_F_SURF_X], v, r->scene->dt, r->plan->surf.tri,
+                                r->plan->surf.n_tris, n, box, sp->mark, sp->index);
   if (fast >= 0 && !sp->mark[fast]) { /* into its place: the index ascends */
     int64_t j = k++;
     for (; j > 0 && sp->index[j - 1] > fast; j--) sp->index[j] = sp->index[j - 1];
@@ -212,28 +211,29 @@ static void gather(const double *f, const int32_t *idx, int64_t k, double *rows)
 /* Rows of the sparse form of this request (k of n), or -1: dense. Sets
  * sp->rows for x/v (dem) or the force (fem). */
 static int64_t sparse_rows(cpl_runner *r, cpl_peer *p) {
-  const int64_t n = r->plan.surf.n_nodes;
+  const int64_t n = r->plan->surf.n_nodes;
   cpl_sparse *sp = &p->sp;
   int64_t k = -1;
   if (!r->scene->sparse || n == 0) return -1;
   if (p->role == PROTO_ROLE_DEM && sp->use_reach && p->dims.surface) {
     k = reach_nodes(r, sp);
     if ((double)k <= CPL_SPARSE_MAX_FRACTION * (double)n) {
-      gather(r->in[CPL_F_SURF_X], sp->index, k, sp->rows[0]);
-      gather(r->in[CPL_F_SURF_V], sp->index, k, sp->rows[1]);
+      gather(r->data.in[CPL_F_SURF_X], sp->index, k, sp->rows[0]);
+      gather(r->data.in[CPL_F_SURF_V], sp->index, k, sp->rows[1]);
     }
   } else if (p->role == PROTO_ROLE_FEM && sp->takes_force) {
-    k = proto_sparse_rows(r->in[CPL_F_SURF_FORCE], n, sp->index, sp->rows[0]);
+    k = proto_sparse_rows(r->data.in[CPL_F_SURF_FORCE], n, sp->index, sp->rows[0]);
   }
   return (double)k <= CPL_SPARSE_MAX_FRACTION * (double)n ? k : -1;
 }
 
-static int send_request(cpl_runner *r, int i, int64_t k, int iteration, int output) {
+/* (fields the scheme points requests at: data.in) -> (peer i's step request) */
+void cpl_request_build(cpl_runner *r, int i, int64_t k, int iteration, int output,
+                       proto_msg *m) {
   cpl_peer *p = &r->peers[i];
-  proto_msg req = {0};
-  proto_msg_reset(&req, p->proc->name, proto_msg_type(PROTO_MSG_STEP), k,
+  proto_msg_reset(m, p->proc->name, proto_msg_type(PROTO_MSG_STEP), k,
                   (double)(k - 1) * r->scene->dt);
-  cJSON *h = proto_msg_header(&req);
+  cJSON *h = proto_msg_header(m);
   cJSON_AddNumberToObject(h, PROTO_H_DT, r->scene->dt);
   cJSON_AddBoolToObject(h, PROTO_H_OUTPUT, output);
   if (iteration > 0) cJSON_AddNumberToObject(h, PROTO_H_ITERATION, iteration);
@@ -248,15 +248,15 @@ static int send_request(cpl_runner *r, int i, int64_t k, int iteration, int outp
   if (p->role == PROTO_ROLE_DEM && r->scene->sparse) cJSON_AddBoolToObject(h, PROTO_H_SPARSE, 1);
   if (p->role == PROTO_ROLE_DEM && rows >= 0)
     cJSON_AddItemToObject(h, PROTO_H_REACH, cJSON_CreateDoubleArray(p->sp.reach_use, 6));
-  for (int b = 0; b < r->plan.contract.n; b++) {
-    const cpl_binding *bd = &r->plan.contract.b[b];
+  for (int b = 0; b < r->plan->contract.n; b++) {
+    const cpl_binding *bd = &r->plan->contract.b[b];
     const proto_array_spec *s = bd->spec;
     if (bd->role != p->role || bd->msg != PROTO_MSG_STEP || !due(p, s)) continue;
     int64_t shape[PROTO_MAX_NDIM];
     for (int d = 0; d < s->ndim; d++)
       shape[d] = s->dims[d] > 0 ? s->dims[d]
                  : s->dims[d] == PROTO_DIM_NODES ? p->dims.nodes : p->dims.tris;
-    const void *data = r->in[bd->field];
+    const void *data = r->data.in[bd->field];
     if (s->dims[0] == PROTO_DIM_NODES) {
       p->sp.out_dense += 24.0 * (double)p->dims.nodes;
       p->sp.out_bytes += bd->index && rows >= 0 ? 28.0 * (double)rows : 24.0 * (double)p->dims.nodes;
@@ -264,11 +264,16 @@ static int send_request(cpl_runner *r, int i, int64_t k, int iteration, int outp
     if (bd->index && rows >= 0) { /* its sparse form: k rows and their nodes */
       shape[0] = rows;
       data = p->sp.rows[bd->field == CPL_F_SURF_V ? 1 : 0];
-      proto_msg_add(&req, bd->index->name, PROTO_I4, 1, &rows, p->sp.index);
+      proto_msg_add(m, bd->index->name, PROTO_I4, 1, &rows, p->sp.index);
     }
-    proto_msg_add(&req, bd->array, s->dtype, s->ndim, shape, data);
+    proto_msg_add(m, bd->array, s->dtype, s->ndim, shape, data);
   }
-  p->t_sent = proto_now();
+}
+
+static int send_request(cpl_runner *r, int i, int64_t k, int iteration, int output) {
+  proto_msg req = {0};
+  cpl_request_build(r, i, k, iteration, output, &req);
+  r->peers[i].t_sent = proto_now();
   int rc = cpl_send(r, i, &req);
   proto_msg_free(&req);
   return rc;
@@ -318,8 +323,8 @@ static int check_reply(cpl_runner *r, int i, int64_t k, int iteration) {
                       (long long)m->step, (int)got_it);
   if (proto_role_check(p->role, PROTO_MSG_DONE, m, &p->dims, &r->err) < 0)
     return proto_wrap(&r->err, "participant '%s'", p->proc->name);
-  for (int b = 0; b < r->plan.contract.n; b++) {
-    const cpl_binding *bd = &r->plan.contract.b[b];
+  for (int b = 0; b < r->plan->contract.n; b++) {
+    const cpl_binding *bd = &r->plan->contract.b[b];
     if (bd->role != p->role || bd->msg != PROTO_MSG_DONE || !due(p, bd->spec)) continue;
     const proto_array *arr = proto_msg_find(m, bd->array);
     const double *a = arr->data;
@@ -336,10 +341,10 @@ static int check_reply(cpl_runner *r, int i, int64_t k, int iteration) {
 /* Copies or sums the reply of peer i into the fields' out buffers. */
 static void take_outputs(cpl_runner *r, int i) {
   cpl_peer *p = &r->peers[i];
-  for (int b = 0; b < r->plan.contract.n; b++) {
-    const cpl_binding *bd = &r->plan.contract.b[b];
+  for (int b = 0; b < r->plan->contract.n; b++) {
+    const cpl_binding *bd = &r->plan->contract.b[b];
     if (bd->role != p->role || bd->msg != PROTO_MSG_DONE || !due(p, bd->spec)) continue;
-    cpl_field *f = &r->fields[bd->field];
+    cpl_field *f = &r->data.fields[bd->field];
     const int32_t *idx;
     const int64_t rows = bd->index ? proto_msg_sparse(&p->reply, bd->array, &idx) : -1;
     if (bd->spec->dims[0] == PROTO_DIM_NODES) {
@@ -356,16 +361,16 @@ static void take_outputs(cpl_runner *r, int i) {
 }
 
 static int in_stage(const cpl_runner *r, int stage, int peer) {
-  for (int e = 0; e < r->plan.nex; e++)
-    if (r->plan.ex[e].stage == stage && r->plan.ex[e].peer == peer) return 1;
+  for (int e = 0; e < r->plan->nex; e++)
+    if (r->plan->ex[e].stage == stage && r->plan->ex[e].peer == peer) return 1;
   return 0;
 }
 
 static int run_stage(cpl_runner *r, int stage, int64_t k, int iteration, int output,
                      int commit, int actions) {
   int waiting = 0;
-  for (int e = 0; e < r->plan.nex; e++) {
-    const cpl_exchange *x = &r->plan.ex[e];
+  for (int e = 0; e < r->plan->nex; e++) {
+    const cpl_exchange *x = &r->plan->ex[e];
     if (x->stage != stage) continue;
     if (x->peer < 0) {
       if (actions && cpl_do_action(r, x->action, k) < 0) return -1;
@@ -380,9 +385,9 @@ static int run_stage(cpl_runner *r, int stage, int64_t k, int iteration, int out
     double t0 = proto_now();
     if (cpl_receive(r, -1, r->scene->step_timeout, "step_timeout", NULL, &from) < 0) {
       const int late = r->failed_peer < 0 && strstr(r->err.msg, "did not answer");
-      for (int e = 0; e < r->plan.nex && late && r->failed_peer < 0; e++) /* name who is late */
-        if (r->plan.ex[e].stage == stage && r->plan.ex[e].peer >= 0 && !replied[r->plan.ex[e].peer]) {
-          r->failed_peer = r->plan.ex[e].peer;
+      for (int e = 0; e < r->plan->nex && late && r->failed_peer < 0; e++) /* name who is late */
+        if (r->plan->ex[e].stage == stage && r->plan->ex[e].peer >= 0 && !replied[r->plan->ex[e].peer]) {
+          r->failed_peer = r->plan->ex[e].peer;
           proto_fail(&r->err, "participant '%s' did not answer within %g s "
                      "(coupling.step_timeout)", r->peers[r->failed_peer].proc->name,
                      r->scene->step_timeout);
@@ -411,12 +416,13 @@ static int run_stage(cpl_runner *r, int stage, int64_t k, int iteration, int out
 /* (replies of a stage) -> (fields' out, summed in exchange order; committed) */
 void cpl_stage_take(cpl_runner *r, int stage, int commit) {
   /* outputs in exchange order: sums do not depend on arrival order */
-  for (int f = 0; f < CPL_N_FIELDS; f++) r->fields[f].given = 0;
-  for (int e = 0; e < r->plan.nex; e++)
-    if (r->plan.ex[e].stage == stage && r->plan.ex[e].peer >= 0) take_outputs(r, r->plan.ex[e].peer);
+  const int nf = r->plan->contract.nfields;
+  for (int f = 0; f < nf; f++) r->data.fields[f].given = 0;
+  for (int e = 0; e < r->plan->nex; e++)
+    if (r->plan->ex[e].stage == stage && r->plan->ex[e].peer >= 0) take_outputs(r, r->plan->ex[e].peer);
   if (commit)
-    for (int f = 0; f < CPL_N_FIELDS; f++)
-      if (r->fields[f].given) cpl_field_commit(r, (cpl_field_id)f);
+    for (int f = 0; f < nf; f++)
+      if (r->data.fields[f].given) cpl_field_commit(r, f);
 }
 
 /* (fields) -> (requests of each stage); (replies) -> (fields, summed, committed) */

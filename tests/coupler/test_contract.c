@@ -90,9 +90,8 @@ static void bad_rows_fail(void) {
 
 /* A newcomer's row, written in this test only: a further array a dem
  * returns, bound by the table alone to a coupler field of its shape. A
- * scalar per node ([n]) is refused until such a field exists: a toy thermal
- * role needs, besides its rows, one field (runner.h's enum, contract.c's
- * field_shape) and a role name (proto.h) — not shown here. */
+ * scalar per node ([n]) is refused until such a field exists (a new role
+ * with its own field: test_new_role.c). */
 static void newcomer_row(void) {
   static cpl_contract c;
   proto_err err = {0};

@@ -17,6 +17,7 @@ enum { DEM0, DEM1, FEM, BLOCK, NPEERS };
 static cpl_scene scene;
 static cpl_process procs[NPEERS];
 static cpl_runner r;
+static cpl_plan plan; /* the stub plan: written here, read by the stages through r.plan */
 
 static void stub_plan(cpl_scheme scheme) {
   static const char *const names[NPEERS] = {"dem0", "dem1", "fem", "block"};
@@ -29,7 +30,9 @@ static void stub_plan(cpl_scheme scheme) {
   scene.dt = 1.0 / 1024; /* a power of two: the impulses below are exact */
   r.scene = &scene;
   r.n = NPEERS;
-  r.plan.fem = FEM;
+  memset(&plan, 0, sizeof plan);
+  r.plan = &plan;
+  plan.fem = FEM;
   for (int i = 0; i < NPEERS; i++) {
     snprintf(procs[i].name, sizeof procs[i].name, "%s", names[i]);
     r.peers[i].proc = &procs[i];
@@ -37,11 +40,11 @@ static void stub_plan(cpl_scheme scheme) {
     proto_dims_init(&r.peers[i].dims);
     r.peers[i].dims.surface = roles[i] != PROTO_ROLE_BLOCK;
     r.peers[i].dims.nodes = NODES;
-    r.plan.n_of_role[roles[i]]++;
+    plan.n_of_role[roles[i]]++;
   }
-  OK(cpl_contract_build(&r.plan.contract, t, nrows, &err));
+  OK(cpl_contract_build(&plan.contract, t, nrows, &err));
   OK(cpl_fields_init(&r, NODES, &err));
-  cpl_schedule_build(&r);
+  cpl_schedule_build(&plan, r.peers, r.n, scheme);
 }
 
 static void schedules(void) {
@@ -50,10 +53,10 @@ static void schedules(void) {
   const cpl_exchange serial[] = {{0, DEM0, CPL_ACT_NONE}, {0, DEM1, CPL_ACT_NONE},
                                  {1, -1, CPL_ACT_RIM},   {1, FEM, CPL_ACT_NONE},
                                  {2, -1, CPL_ACT_ROAD},  {2, BLOCK, CPL_ACT_NONE}};
-  CHECK(r.plan.nex == 6, "serial: 6 exchanges, got %d", r.plan.nex);
-  for (int e = 0; e < 6 && e < r.plan.nex; e++)
-    CHECK(r.plan.ex[e].stage == serial[e].stage && r.plan.ex[e].peer == serial[e].peer &&
-          r.plan.ex[e].action == serial[e].action, "serial exchange %d", e);
+  CHECK(r.plan->nex == 6, "serial: 6 exchanges, got %d", r.plan->nex);
+  for (int e = 0; e < 6 && e < r.plan->nex; e++)
+    CHECK(r.plan->ex[e].stage == serial[e].stage && r.plan->ex[e].peer == serial[e].peer &&
+          r.plan->ex[e].action == serial[e].action, "serial exchange %d", e);
   CHECK(cpl_last_stage(&r) == 2, "serial: three stages");
   cpl_fields_free(&r);
   memset(&r, 0, sizeof r);
@@ -63,10 +66,10 @@ static void schedules(void) {
   const cpl_exchange parallel[] = {{0, -1, CPL_ACT_RIM},   {0, -1, CPL_ACT_ROAD},
                                    {0, DEM0, CPL_ACT_NONE}, {0, DEM1, CPL_ACT_NONE},
                                    {0, FEM, CPL_ACT_NONE},  {0, BLOCK, CPL_ACT_NONE}};
-  CHECK(r.plan.nex == 6 && cpl_last_stage(&r) == 0, "parallel: 6 exchanges in one stage");
-  for (int e = 0; e < 6 && e < r.plan.nex; e++)
-    CHECK(r.plan.ex[e].stage == parallel[e].stage && r.plan.ex[e].peer == parallel[e].peer &&
-          r.plan.ex[e].action == parallel[e].action, "parallel exchange %d", e);
+  CHECK(r.plan->nex == 6 && cpl_last_stage(&r) == 0, "parallel: 6 exchanges in one stage");
+  for (int e = 0; e < 6 && e < r.plan->nex; e++)
+    CHECK(r.plan->ex[e].stage == parallel[e].stage && r.plan->ex[e].peer == parallel[e].peer &&
+          r.plan->ex[e].action == parallel[e].action, "parallel exchange %d", e);
   cpl_fields_free(&r);
   memset(&r, 0, sizeof r);
 }
@@ -99,27 +102,27 @@ static void exchange_bookkeeping(void) {
   proto_msg_reset(m, "dem1", "done", 1, scene.dt);
   proto_msg_add(m, PROTO_A_NODAL_FORCE, PROTO_F8, 2, n3, a1);
   cpl_stage_take(&r, 0, 1);
-  const double *F = r.fields[CPL_F_SURF_FORCE].cur;
+  const double *F = r.data.fields[CPL_F_SURF_FORCE].cur;
   int exact = 1;
   for (int j = 0; j < 3 * NODES; j++) exact &= F[j] == F0 * (j + 1) + F1 * (j + 1);
   CHECK(exact, "surface.force = the two dems' impulse / dt summed, exactly");
-  CHECK(r.in[CPL_F_SURF_FORCE] == F, "the fem's request reads the committed sum");
-  CHECK(r.fields[CPL_F_SURF_FORCE].given == 2, "both dems gave it");
+  CHECK(r.data.in[CPL_F_SURF_FORCE] == F, "the fem's request reads the committed sum");
+  CHECK(r.data.fields[CPL_F_SURF_FORCE].given == 2, "both dems gave it");
 
   m = &r.peers[FEM].reply;
   proto_msg_reset(m, "fem", "done", 1, scene.dt);
   proto_msg_add(m, PROTO_A_X, PROTO_F8, 2, n3, x);
   proto_msg_add(m, PROTO_A_V, PROTO_F8, 2, n3, v);
   cpl_stage_take(&r, 1, 1);
-  CHECK(memcmp(r.fields[CPL_F_SURF_X].cur, x, sizeof x) == 0 &&
-        memcmp(r.fields[CPL_F_SURF_V].cur, v, sizeof v) == 0, "the fem's surface copied");
-  CHECK(r.fields[CPL_F_SURF_FORCE].cur == F, "stage 2 left the forces alone");
+  CHECK(memcmp(r.data.fields[CPL_F_SURF_X].cur, x, sizeof x) == 0 &&
+        memcmp(r.data.fields[CPL_F_SURF_V].cur, v, sizeof v) == 0, "the fem's surface copied");
+  CHECK(r.data.fields[CPL_F_SURF_FORCE].cur == F, "stage 2 left the forces alone");
 
   m = &r.peers[BLOCK].reply;
   proto_msg_reset(m, "block", "done", 1, scene.dt);
   proto_msg_add(m, PROTO_A_FORCE, PROTO_F8, 1, one, &road_f);
   cpl_stage_take(&r, 2, 0); /* not committed: the value waits in out */
-  CHECK(r.fields[CPL_F_ROAD_FORCE].out[0] == 7 && r.fields[CPL_F_ROAD_FORCE].cur[0] == 0,
+  CHECK(r.data.fields[CPL_F_ROAD_FORCE].out[0] == 7 && r.data.fields[CPL_F_ROAD_FORCE].cur[0] == 0,
         "an uncommitted reply stays in out");
   for (int i = 0; i < NPEERS; i++) proto_msg_free(&r.peers[i].reply);
   cpl_fields_free(&r);

@@ -26,10 +26,12 @@ FINE = ["--set", "processes.fem.surface.plane.n=[40,40]"]
 
 
 def dev_shm():
-    """/dev/shm's entries, less the benchmarks' scratch dirs (bench/ puts its
-    runs in /dev/shm/cosim-bench-*, and may run beside the suite)."""
+    """/dev/shm's entries, less the scratch files of what may run beside this
+    test: the benchmarks' run dirs (cosim-bench-*) and the fuzz replays'
+    inputs (cosim-fuzz-<pid>.*, tests/fuzz; ctest -j runs them alongside)."""
     try:
-        return {e for e in os.listdir("/dev/shm") if not e.startswith("cosim-bench-")}
+        return {e for e in os.listdir("/dev/shm")
+                if not e.startswith(("cosim-bench-", "cosim-fuzz-"))}
     except OSError:
         return set()
 
