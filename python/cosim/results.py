@@ -124,11 +124,12 @@ class Results:
         cols = [_text(c) for c in ds.attrs[COLUMNS_ATTR]]
         return Table(f"/{process}/{dataset}", cols, ds[()])
 
-    def traction_summary(self, skip_travel=0.1):
+    def traction_summary(self, skip_travel=0.1, batch_time=None):
         """The steady travel of a tyre run as `cosim sweep` summarises it: the
         window and, per traction quantity, the mean, its 95 % interval
-        (``_ci95``, batch means: cosim.stats), min and max."""
-        return traction.summarise_run(self, skip_travel)
+        (``_ci95``, batch means of at least batch_time s each, default
+        scenario.dbp_window or 0.1 s: cosim.stats.interval), min and max."""
+        return traction.summarise_run(self, skip_travel, batch_time)
 
     def dbp_curve(self, bin_width=traction.DBP_BIN_WIDTH):
         """A dbp-rig run's traction-slip curve: per slip bin the means of

@@ -68,6 +68,19 @@ def batch_means(x, max_batches=MAX_BATCHES, min_batches=MIN_BATCHES):
     return out
 
 
+def interval(x, min_rows=MIN_BATCH_ROWS):
+    """batch_means(x) with every batch at least min_rows rows long (a length
+    that covers the series' correlation time, e.g. a lug's passage), and no
+    interval (half nan) when the batch means are still correlated at the
+    fewest batches (lag-1 above BATCH_LAG1_MAX): the window is too short
+    against the correlation time, and an interval would be too narrow."""
+    n = len(np.asarray(x))
+    bm = batch_means(x, max_batches=min(MAX_BATCHES, n // max(int(min_rows), MIN_BATCH_ROWS)))
+    if not bm["lag1"] <= BATCH_LAG1_MAX:
+        bm["half"] = math.nan
+    return bm
+
+
 def across_runs(means):
     """{mean, half, runs} of independent run means (half nan for one run)."""
     v = np.asarray([m for m in means if not math.isnan(m)], float)

@@ -1,7 +1,7 @@
 """``cosim sweep``: one tyre run per value of a scene key, then a summary.
 
     cosim sweep SCENE --values scenario.slip=0,0.05,0.1,0.2,0.3 [--set K=V]...
-                [--jobs N] --out DIR [--repeat N] [--skip-travel M]
+                [--jobs N] --out DIR [--repeat N] [--skip-travel M] [--batch-time S]
                 [--reference REF.csv | --terra-params PARAMS.json] [--overwrite]
                 [--keep-going] [--resume] [--no-bed-reuse]
 
@@ -29,7 +29,11 @@ gives per value the mean of the run means and its interval from their
 spread (Student t, N - 1 degrees of freedom); ``DIR/runs.csv`` has one row
 per run with its own batch-means interval. With
 one run per value the interval is the run's batch-means interval
-(cosim/stats.py says how the batches are chosen).
+(cosim/stats.py says how the batches are chosen), each batch at least
+``--batch-time`` seconds long (default ``scenario.dbp_window``, 0.1 s: it
+should cover the traction's correlation time, a lug's passage); a window
+too short for 8 such batches, or whose batch means stay correlated, has no
+interval (empty: too short to say).
 
 The steady window: the travel starts at the first row whose vertical load
 reaches ``scenario.sinkage_force`` (the coupler's switch, coupler/scenario.c);
@@ -144,8 +148,9 @@ def write_summary(path, keys, rows, skip_travel, per_run=False):
                 f"(travel start) plus {skip_travel:g} m of travel at omega*radius*(1-slip), "
                 "to the end of the run (columns window_t0_s, window_t1_s; over several runs "
                 "their means)\n")
-        f.write("# ci95: one run: non-overlapping batch means within its window (cosim.stats."
-                "batch_means); several runs (column runs): Student t on the spread of the run "
+        f.write("# ci95: one run: non-overlapping batch means within its window, each batch at "
+                "least --batch-time (default scenario.dbp_window, 0.1 s) long, none when the "
+                "batch means stay correlated (cosim.stats.interval); several runs (column runs): Student t on the spread of the run "
                 "means (cosim.stats.across_runs); empty (nan) when too short to say\n")
         f.write("# units: N (T_H, T_R, T_P, vertical_load), m (sinkage), s (times)\n")
         w = csv.writer(f)
@@ -327,6 +332,8 @@ def main(argv):
                     help="N realisations per value, on beds of seeds s0 .. s0+N-1")
     ap.add_argument("--out", required=True)
     ap.add_argument("--skip-travel", type=float, default=DEFAULT_SKIP_TRAVEL_M, metavar="M")
+    ap.add_argument("--batch-time", type=float, default=None, metavar="S",
+                    help="shortest batch of an interval (default scenario.dbp_window, 0.1 s)")
     ap.add_argument("--reference", metavar="REF.csv")
     ap.add_argument("--terra-params", metavar="PARAMS.json")
     ap.add_argument("--overwrite", action="store_true")
@@ -345,6 +352,8 @@ def main(argv):
         raise UsageError(f"--repeat: must be at least 1, got {args.repeat}")
     if args.skip_travel < 0:
         raise UsageError(f"--skip-travel: must be >= 0, got {args.skip_travel:g}")
+    if args.batch_time is not None and not args.batch_time > 0:
+        raise UsageError(f"--batch-time: must be > 0 s, got {args.batch_time:g}")
     if not os.path.isfile(args.scene):
         raise UsageError(f"{args.scene}: no such scene file")
     for f in (args.reference, args.terra_params):
@@ -377,7 +386,7 @@ def main(argv):
             print(f"cosim sweep: {res}", file=sys.stderr)
             continue
         with (res if isinstance(res, Results) else Results(res)) as r:
-            row = summarise_run(r, args.skip_travel)
+            row = summarise_run(r, args.skip_travel, args.batch_time)
             scene = scene or r.scene
         row.update(point)
         row["dir"] = os.path.basename(d)

@@ -34,17 +34,33 @@ def travel_window(traction, scene, skip_travel):
     return mask, t0, (t[-1] if mask.any() else math.nan), start
 
 
-def summarise_run(results, skip_travel):
+def batch_time(scene, given=None):
+    """The shortest batch of an interval (s): given, else scenario.dbp_window
+    (the scene's averaging time), else DBP_WINDOW_S."""
+    if given is not None:
+        return float(given)
+    return float(scene.get("scenario", {}).get("dbp_window", DBP_WINDOW_S))
+
+
+def batch_rows(scene, given=None):
+    """batch_time in rows of the traction series (one per step, at least 1)."""
+    return max(1, math.ceil(batch_time(scene, given) / float(scene["time"]["dt"]) - 1e-9))
+
+
+def summarise_run(results, skip_travel, batch_s=None):
     """{column: value} of one run: the window and, of each quantity, the mean,
-    its 95 % half-width by batch means (stats.batch_means), min and max."""
+    its 95 % half-width by batch means of at least batch_time(scene, batch_s)
+    each (stats.interval: nan when the window is too short to say), min and
+    max."""
     tr = results.series("coupler", "traction")
     mask, t0, t1, start = travel_window(tr, results.scene, skip_travel)
+    rows = batch_rows(results.scene, batch_s)
     row = {"travel_start_s": start, "window_t0_s": t0, "window_t1_s": t1,
            "window_rows": int(mask.sum()), "runs": 1}
     for q in QUANTITIES:
         v = tr[q][mask]
         row[f"{q}_mean"] = float(np.mean(v)) if len(v) else math.nan
-        row[f"{q}_ci95"] = stats.batch_means(v)["half"]
+        row[f"{q}_ci95"] = stats.interval(v, rows)["half"]
         row[f"{q}_min"] = float(np.min(v)) if len(v) else math.nan
         row[f"{q}_max"] = float(np.max(v)) if len(v) else math.nan
     if is_dbp(results.scene):
@@ -88,8 +104,7 @@ def dbp_curve(results, bin_width=DBP_BIN_WIDTH, phases=(DBP_PHASE_RAMP,)):
     d = dbp_series(results)
     sc = results.scene["scenario"]
     load = float(sc["sinkage_force"])
-    batch_rows = max(1, math.ceil(sc.get("dbp_window", DBP_WINDOW_S) /
-                                  float(results.scene["time"]["dt"]) - 1e-9))
+    min_rows = batch_rows(results.scene)
     mask = np.isin(d["phase"], phases)
     slip = d["slip"][mask]
     if not len(slip):
@@ -107,14 +122,9 @@ def dbp_curve(results, bin_width=DBP_BIN_WIDTH, phases=(DBP_PHASE_RAMP,)):
                "rows": int(sel.sum()), "t0_s": float(t[0]), "t1_s": float(t[-1]),
                "slip_mean": float(slip[sel].mean())}
         for q in DBP_QUANTITIES:
-            # batches of at least one window: at most rows // batch_rows of them
-            bm = stats.batch_means(d[q][mask][sel], max_batches=min(
-                stats.MAX_BATCHES, int(sel.sum()) // batch_rows))
-            # batch means still correlated at the fewest batches: the bin is
-            # short against the correlation time (a lug's passage), and the
-            # interval would be too narrow: none
-            half = bm["half"] if bm["lag1"] <= stats.BATCH_LAG1_MAX else math.nan
-            row[f"{q}_mean"], row[f"{q}_ci95"] = bm["mean"], half
+            # batches of at least one window; none when still correlated
+            bm = stats.interval(d[q][mask][sel], min_rows)
+            row[f"{q}_mean"], row[f"{q}_ci95"] = bm["mean"], bm["half"]
         for q in ("T_H", "T_R", "T_P"):
             row[f"{q}_W_mean"] = row[f"{q}_mean"] / load if load > 0 else math.nan
             row[f"{q}_W_ci95"] = row[f"{q}_ci95"] / load if load > 0 else math.nan

@@ -23,13 +23,22 @@ static inline char *fuzz_text(const uint8_t *data, size_t size) {
   return t;
 }
 
+/* The scratch file of this process, removed when it exits. */
+static char fuzz_scratch[256];
+static inline void fuzz_scratch_remove(void) {
+  if (fuzz_scratch[0]) unlink(fuzz_scratch);
+}
+
 /* A per-process scratch file (in /dev/shm when there is one) holding data;
- * returns its path (static storage). The file readers under test take paths. */
+ * returns its path (static storage), removed at exit. The file readers under
+ * test take paths. */
 static inline const char *fuzz_file(const uint8_t *data, size_t size,
                                     const char *suffix) {
-  static char path[256];
+  char *path = fuzz_scratch;
   const char *dir = access("/dev/shm", W_OK) == 0 ? "/dev/shm" : "/tmp";
-  snprintf(path, sizeof path, "%s/cosim-fuzz-%d%s", dir, (int)getpid(), suffix);
+  if (!path[0]) atexit(fuzz_scratch_remove);
+  else if (!strstr(path, suffix)) unlink(path); /* another suffix: the old one goes */
+  snprintf(path, sizeof fuzz_scratch, "%s/cosim-fuzz-%d%s", dir, (int)getpid(), suffix);
   FILE *f = fopen(path, "wb");
   if (!f) return NULL;
   size_t w = size ? fwrite(data, 1, size, f) : 0;

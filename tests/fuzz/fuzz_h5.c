@@ -276,6 +276,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   grid g = {4, 3, 1e-3, 1e-3};
   int reader = build(path, text, &g);
   if (reader >= 0) run(reader, path, &g);
+  unlink(path); /* nothing left in /dev/shm */
   free(text);
   return 0;
 }

@@ -38,19 +38,25 @@ path = write(s)
 out = tempfile.mkdtemp(prefix="cosim-sweep-")
 
 
-def batch_half(x):
+BATCH_TIME = 0.004  # s: batches of at least 4 rows (dt 1e-3)
+
+
+def batch_half(x, min_rows=4):
     """95 % half-width of the mean by batch means, as the summary documents it:
     32 batches, halved while the batch means' lag-1 correlation is above 0.2,
-    at least 8 batches of 4 rows; Student t with b - 1 degrees of freedom."""
+    at least 8 batches of min_rows (>= 4) rows, none when still correlated
+    at the fewest; Student t with b - 1 degrees of freedom."""
     from scipy.stats import t as student
-    b = min(32, len(x) // 4)
+    b = min(32, len(x) // max(4, min_rows))
     while b >= 8:
         m = len(x) // b
         bm = x[:b * m].reshape(b, m).mean(axis=1)
         d = bm - bm.mean()
         r = (d[1:] @ d[:-1]) / (d @ d) if d @ d > 0 else 0.0
-        if r <= 0.2 or b // 2 < 8:
+        if r <= 0.2:
             return student.ppf(0.975, b - 1) * bm.std(ddof=1) / np.sqrt(b)
+        if b // 2 < 8:
+            return float("nan")  # still correlated at the fewest batches
         b //= 2
     return float("nan")
 
@@ -62,7 +68,8 @@ def sweep(*args):
 
 # 1. two runs at once, summary against results.h5
 rc, so, se = sweep(path, "--values", "scenario.slip=" + ",".join(map(str, SLIPS)),
-                   "--jobs", "2", "--out", out, "--skip-travel", str(SKIP))
+                   "--jobs", "2", "--out", out, "--skip-travel", str(SKIP),
+                   "--batch-time", str(BATCH_TIME))
 check(rc == 0, f"sweep exits 0 (got {rc}: {se.strip()[-400:]})")
 with open(os.path.join(out, "summary.csv")) as f:
     lines = f.read().splitlines()
@@ -86,7 +93,7 @@ for slip, row in zip(SLIPS, rows):
     check(used["scenario"]["slip"] == slip, f"run of slip {slip} used slip {used['scenario']['slip']}")
     col = {c: tr[:, i] for i, c in enumerate(cols)}
     with cosim.Results(os.path.join(out, row["dir"])) as res:
-        api_rows[slip] = res.traction_summary(SKIP)
+        api_rows[slip] = res.traction_summary(SKIP, BATCH_TIME)
     start = col["t"][np.argmax(col["vertical_load"] >= SCEN["sinkage_force"])]
     t0 = start + SKIP / (SCEN["omega"] * SCEN["radius"] * (1 - slip))
     w = col["t"] >= t0
