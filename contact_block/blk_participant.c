@@ -1,7 +1,11 @@
 /* blk_participant.c — the contact_block process: the block model behind the
  * participant loop (proto/PROTOCOL.md, role "block"). Each step request
  * carries d_road [1]; the reply carries force [1], a series row and, at
- * output steps, per-element snapshot arrays. */
+ * output steps, per-element snapshot arrays. Built with BLK_SERVE_LUGS it
+ * is `lug_block` (role "lug", scenario tire_road): the same block under one
+ * lug of a rolling tyre at a time; a request's header reset: true (a new
+ * lug) starts its history afresh, and the reply adds its centre of
+ * pressure cop [2] (relative to the grid's centre). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -27,6 +31,7 @@ typedef struct server {
   int have_model, have_state;
   double row[NCOL];
   double force[1];
+  double cop[2];   /* lug_block: centre of pressure (m) */
   double *x; /* [M][3] element centres, z = road height */
   double prev[2]; /* force and d_road of the previous step (stiffness column) */
 } server;
@@ -73,6 +78,25 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   return 0;
 }
 
+#ifdef BLK_SERVE_LUGS
+#define BLK_ROLE PROTO_ROLE_LUG
+#else
+#define BLK_ROLE PROTO_ROLE_BLOCK
+#endif
+
+/* The centre of the element forces relative to the grid's centre (m); 0
+ * without force. */
+static void centre_of_pressure(const blk_model *m, const blk_state *st, double cop[2]) {
+  double f = 0, fx = 0, fy = 0;
+  for (int e = 0; e < m->M; e++) {
+    f += st->force[e];
+    fx += st->force[e] * ((e % m->nx + 0.5) * m->dx - 0.5 * m->nx * m->dx);
+    fy += st->force[e] * ((e / m->nx + 0.5) * m->dy - 0.5 * m->ny * m->dy);
+  }
+  cop[0] = f != 0 ? fx / f : 0;
+  cop[1] = f != 0 ? fy / f : 0;
+}
+
 static int step(void *user, proto_peer *peer, const proto_step_info *info,
                 const proto_msg *req, proto_msg *reply, proto_err *err) {
   (void)peer;
@@ -80,6 +104,11 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   const blk_model *m = &s->model;
   /* checked against the role table by the participant loop */
   const double *d_road = proto_msg_data(req, PROTO_A_D_ROAD);
+  if (BLK_ROLE == PROTO_ROLE_LUG &&
+      cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(req->header, PROTO_H_RESET))) {
+    blk_state_reset(m, &s->state); /* a new lug: nothing of the last one's history */
+    s->prev[0] = s->prev[1] = 0;
+  }
   if (blk_step(m, &s->state, d_road[0], err)) return -1;
   const blk_state *st = &s->state;
   const double dd = st->d_road - s->prev[1];
@@ -98,6 +127,11 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   if (proto_msg_add_f8(reply, PROTO_A_FORCE, 1, 0, s->force) ||
       proto_msg_add_f8(reply, PROTO_A_SERIES, NCOL, 0, s->row))
     return proto_fail(err, "done: too many arrays");
+  if (BLK_ROLE == PROTO_ROLE_LUG) {
+    centre_of_pressure(m, st, s->cop);
+    if (proto_msg_add_f8(reply, PROTO_A_COP, 2, 0, s->cop))
+      return proto_fail(err, "done: too many arrays");
+  }
   if (info->output) {
     /* snapshot arrays ("snap.<name>" → /<name>/steps/<k>/<name>) */
     const double *snap[N_SNAP] = {s->x, st->force, st->d_rs, st->d_el};
@@ -138,7 +172,7 @@ static void finish(void *user) {
 
 int main(int argc, char **argv) {
   static server s;
-  const proto_participant_ops ops = {.role = PROTO_ROLE_BLOCK, .configure = configure,
+  const proto_participant_ops ops = {.role = BLK_ROLE, .configure = configure,
                                      .init = init, .step = step, .finish = finish,
                                      .state_save = state_save, .state_load = state_load};
   return proto_participant_main(argc, argv, &ops, &s);

@@ -72,7 +72,8 @@ static int coupler_state(cpl_runner *r, int64_t *step, double *wall, int64_t *un
                          cpl_stateval *v) {
   static const char *const field_keys[CPL_N_FIELDS] = {
       "field.surface.x", "field.surface.v", "field.surface.force", "field.rim.R",
-      "field.rim.c", "field.rim.omega", "field.rim.v", "field.road.d", "field.road.force"};
+      "field.rim.c", "field.rim.omega", "field.rim.v", "field.road.d", "field.road.force",
+      "field.lug.d", "field.lug.force", "field.lug.cop"};
   int n = 0;
   v[n++] = (cpl_stateval){V_STEP, PROTO_I8, step, 1};
   v[n++] = (cpl_stateval){"wall_s", PROTO_F8, wall, 1};
@@ -99,6 +100,8 @@ static int coupler_state(cpl_runner *r, int64_t *step, double *wall, int64_t *un
                           CPL_DBP_BINS * CPL_DBP_NAVG};
   v[n++] = (cpl_stateval){"rim.avg_part", PROTO_F8, r->data.rim.avg_part, CPL_DBP_NAVG};
   v[n++] = (cpl_stateval){"rim.avg_n", PROTO_I8, r->data.rim.avg_n, 4};
+  v[n++] = (cpl_stateval){"lug.slot", PROTO_I4, r->data.lug.lug, CPL_MAX_PROCS};
+  v[n++] = (cpl_stateval){"lug.handovers", PROTO_I8, &r->data.lug.handovers, 1};
   v[n++] = (cpl_stateval){"road.d", PROTO_F8, &r->data.road.d, 1};
   v[n++] = (cpl_stateval){"road.v", PROTO_F8, &r->data.road.v, 1};
   v[n++] = (cpl_stateval){"road.a", PROTO_F8, &r->data.road.a, 1};
@@ -378,6 +381,22 @@ static void drop_key(cJSON *root, const char *dotted) {
   if (cJSON_IsObject(o)) cJSON_DeleteItemFromObjectCaseSensitive(o, part);
 }
 
+/* processes.<name>.exec as its participant alone (the last element of a
+ * launcher list): the launcher in front of it may change on a restart, e.g.
+ * `mpirun -np N` to resume liggghts_dem on another rank count (its state is
+ * LIGGGHTS' restart file, which any rank count reads); the participant may
+ * not. */
+static void drop_launchers(cJSON *root) {
+  cJSON *procs = cJSON_GetObjectItemCaseSensitive(root, "processes");
+  for (cJSON *p = cJSON_IsObject(procs) ? procs->child : NULL; p; p = p->next) {
+    const cJSON *exec = cJSON_GetObjectItemCaseSensitive(p, "exec");
+    const int n = cJSON_IsArray(exec) ? cJSON_GetArraySize(exec) : 0;
+    const cJSON *last = n > 0 ? cJSON_GetArrayItem(exec, n - 1) : NULL;
+    if (cJSON_IsString(last))
+      cJSON_ReplaceItemInObjectCaseSensitive(p, "exec", cJSON_CreateString(last->valuestring));
+  }
+}
+
 /* The scene must continue the checkpointed one: equal in every key that
  * decides the results. */
 static int same_scene(const cpl_ckpt *c, const cpl_scene *s, proto_err *err) {
@@ -386,6 +405,8 @@ static int same_scene(const cpl_ckpt *c, const cpl_scene *s, proto_err *err) {
     drop_key(was, FREE_KEYS[i]);
     drop_key(now, FREE_KEYS[i]);
   }
+  drop_launchers(was);
+  drop_launchers(now);
   char path[CPL_PATH_LEN] = "";
   int differ = !was || !now || json_diff(was, now, path, sizeof path);
   cJSON_Delete(was);
@@ -393,8 +414,9 @@ static int same_scene(const cpl_ckpt *c, const cpl_scene *s, proto_err *err) {
   if (differ)
     return proto_fail(err, "--restart %s: the scene differs from the checkpointed one "
                       "at '%s'; a restart continues the same scene (it may change "
-                      "time.end, output, bus, checkpoint, security and the "
-                      "coupling deadlines)", c->path, path[0] ? path : "(root)");
+                      "time.end, output, bus, checkpoint, security, the "
+                      "coupling deadlines and the launcher in front of a "
+                      "participant's exec, e.g. mpirun -np N)", c->path, path[0] ? path : "(root)");
   if (c->nparts != s->nprocs)
     return proto_fail(err, "--restart %s: the checkpoint holds %d participants, the "
                       "scene has %d processes", c->path, c->nparts, s->nprocs);

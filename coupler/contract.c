@@ -26,15 +26,21 @@ static const cpl_field_spec shipped_fields[CPL_N_FIELDS] = {
     [CPL_F_RIM_V] = {"rim.v", 1, {3}},
     [CPL_F_ROAD_D] = {"road.d", 1, {1}},
     [CPL_F_ROAD_FORCE] = {"road.force", 1, {1}},
+    [CPL_F_LUG_D] = {"lug.d", 1, {1}, 1},
+    [CPL_F_LUG_FORCE] = {"lug.force", 1, {1}, 1},
+    [CPL_F_LUG_COP] = {"lug.cop", 1, {2}, 1},
 };
 
 /* The serial step (seed 000's staggered scheme, PROTOCOL.md "Schedule"): the
- * grains on the surface of t_{k-1}; the rim moved with their load; the tread
- * with their forces; the blocks on the road of t_k. */
+ * grains, or the lug blocks (their lugs chosen first), on the surface of
+ * t_{k-1}; their forces onto the tread's nodes and the rim moved with their
+ * load; the tread with their forces; the blocks on the road of t_k. An
+ * action does nothing in a scene without its processes. */
 static const cpl_stage_row shipped_stages[] = {
-    {0, PROTO_ROLE_DEM, CPL_ACT_NONE}, {1, -1, CPL_ACT_RIM},
-    {1, PROTO_ROLE_FEM, CPL_ACT_NONE}, {2, -1, CPL_ACT_ROAD},
-    {2, PROTO_ROLE_BLOCK, CPL_ACT_NONE}};
+    {0, -1, CPL_ACT_LUG},       {0, PROTO_ROLE_DEM, CPL_ACT_NONE},
+    {0, PROTO_ROLE_LUG, CPL_ACT_NONE}, {1, -1, CPL_ACT_LUG_FORCE},
+    {1, -1, CPL_ACT_RIM},       {1, PROTO_ROLE_FEM, CPL_ACT_NONE},
+    {2, -1, CPL_ACT_ROAD},      {2, PROTO_ROLE_BLOCK, CPL_ACT_NONE}};
 
 const cpl_stage_row *cpl_contract_stages(int *n) {
   *n = (int)(sizeof shipped_stages / sizeof shipped_stages[0]);
@@ -77,6 +83,9 @@ static int bind_row(const cpl_contract *c, const proto_array_spec *s, cpl_bindin
                       "(f8, %d dims)", what, s->field, c->field[f].ndim);
   if (s->sum && s->msg != PROTO_MSG_DONE)
     return proto_fail(err, "%s: only replies (done) can be summed", what);
+  if (c->field[f].per_process && s->sum)
+    return proto_fail(err, "%s: the field '%s' holds one row per process: not summed", what,
+                      s->field);
   *b = (cpl_binding){s->role, s->msg, s->name, f, s->sum, s, NULL};
   return 0;
 }
@@ -143,9 +152,11 @@ int cpl_contract_build_with(cpl_contract *c, const proto_array_spec *t, int n,
                       CPL_MAX_FIELDS - CPL_N_FIELDS);
   c->nfields = CPL_N_FIELDS;
   memcpy(c->field, shipped_fields, sizeof shipped_fields);
+  for (int f = 0; f < CPL_MAX_FIELDS; f++) c->field_role[f] = -1;
   for (int f = 0; f < nmore; f++) {
     const cpl_field_spec *m = &more[f];
-    int ok = m->name && field_of(c, m->name) < 0 && (m->ndim == 1 || m->ndim == 2);
+    int ok = m->name && field_of(c, m->name) < 0 && (m->ndim == 1 || m->ndim == 2) &&
+             (!m->per_process || m->dims[0] > 0);
     for (int d = 0; ok && d < m->ndim; d++) ok = m->dims[d] > 0 || m->dims[d] == PROTO_DIM_NODES;
     if (!ok)
       return proto_fail(err, "coupler field '%s': a new name, 1 or 2 dims, each > 0 or the "
@@ -171,7 +182,13 @@ int cpl_contract_build_with(cpl_contract *c, const proto_array_spec *t, int n,
       return proto_fail(err, "%s: more than %d step/done rows",
                         row_name(s, what, sizeof what), CPL_MAX_BINDINGS);
     if (bind_row(c, s, &c->b[c->n], err) < 0) return -1;
-    used[c->b[c->n++].field] = 1;
+    const int f = c->b[c->n++].field;
+    if (c->field[f].per_process && used[f] && c->field_role[f] != (int)s->role)
+      return proto_fail(err, "%s: the field '%s' holds one row per process of role '%s': "
+                        "another role cannot bind it", row_name(s, what, sizeof what),
+                        s->field, proto_role_name((proto_role)c->field_role[f]));
+    c->field_role[f] = (int)s->role;
+    used[f] = 1;
   }
   for (int f = 0; f < c->nfields; f++)
     if (!used[f])

@@ -44,7 +44,14 @@ typedef struct cpl_implicit {
   double filter;           /* IQN-ILS QR2 limit (Haelterman et al. 2016) */
 } cpl_implicit;
 
-typedef enum { CPL_SCN_NONE, CPL_SCN_TIRE_TRAVEL, CPL_SCN_INDENTATION } cpl_scenario_kind;
+typedef enum {
+  CPL_SCN_NONE, CPL_SCN_TIRE_TRAVEL, CPL_SCN_INDENTATION,
+  CPL_SCN_TIRE_ROAD /* the tyre rolls on a road: tread blocks (role lug) under its lugs */
+} cpl_scenario_kind;
+/* tire_travel and tire_road: the rim sinks, then travels (same keys and rigs). */
+static inline int cpl_scenario_rolls(cpl_scenario_kind k) {
+  return k == CPL_SCN_TIRE_TRAVEL || k == CPL_SCN_TIRE_ROAD;
+}
 /* scenario.rig: what holds the rim during travel: its height frozen and its
  * speed set (kinematic), the height a degree of freedom carrying the load
  * (load), or that and the carriage free along the travel against a ramped
@@ -116,6 +123,13 @@ typedef struct cpl_scenario {
   double frequency;       /* Hz: sinusoidal */
   double road_mass;       /* kg: force-driven road body */
   double road_force;      /* N: external force pushing the road (force mode) */
+  /* tire_road (scenario_lugs.c): the road plane z = road_z; a lug whose face
+   * comes within lug_engage of it is given a lug process; surface nodes off
+   * the lug faces below it are pushed up by road_penalty (N/m) per node */
+  double road_z;          /* m */
+  double lug_engage;      /* m */
+  double lug_tolerance;   /* m: a lug-face node lies this close to the outer radius */
+  double road_penalty;    /* N/m */
 } cpl_scenario;
 
 typedef struct cpl_scene {
@@ -224,6 +238,57 @@ double cpl_dbp_resistance(const cpl_scenario *s, double a, double b);
 double cpl_rim_slip(const cpl_rim *rim, const cpl_scenario *s);
 /* Prescribed road displacement at t (m); NAN for force-driven mode. */
 double cpl_road_displacement(const cpl_scenario *s, double t);
+
+/* ---- tire_road (scenario_lugs.c): the lugs of the tread and the blocks
+ * that serve them. A lug face is a connected set of surface triangles whose
+ * nodes all lie on the tread's outer radius (rim frame: axle along y); its
+ * nodes carry area-lumped weights (a third of each triangle's area). */
+typedef struct cpl_lugs {
+  int n;                /* lugs */
+  int32_t *start;       /* [n+1]: lug j's nodes are node[start[j] .. start[j+1]) */
+  int32_t *node;        /* surface node indices */
+  double *weight;       /* m², per entry of node */
+  double *area;         /* [n] m² */
+  uint8_t *on_lug;      /* [n_nodes]: 1 for a node of a lug face */
+  double outer_radius;  /* m */
+} cpl_lugs;
+/* Finds the lug faces of a surface (x0 rim frame, tri); tol: how close to
+ * the outer radius a face node lies (m). -1 with err if none is found. */
+int cpl_lugs_find(const double *x0, int64_t n_nodes, const int32_t *tri, int64_t n_tris,
+                  double tol, cpl_lugs *L, proto_err *err);
+void cpl_lugs_free(cpl_lugs *L);
+/* Lug j's approach towards the road plane z = road_z (m, positive =
+ * indentation): road_z minus the area-weighted mean height of its face
+ * nodes at the world positions x. */
+double cpl_lug_approach(const cpl_lugs *L, int j, const double *x, double road_z);
+/* Adds to f (nodal forces, [n, 3]) a block's normal force F (N, +z, the
+ * road pushing the face up) spread over lug j's nodes, the weights w_i =
+ * (a_i/A)(1 + b . (p_i - p_c)) with p_i the nodes' world (x, y), p_c their
+ * area-weighted centre and b such that sum w_i (p_i - p_c) = cop: the nodal
+ * forces sum to F ez and have its moment about p_c (F at p_c + cop). */
+void cpl_lug_spread(const cpl_lugs *L, int j, const double *x, double F, const double cop[2],
+                    double *f);
+/* Which lug process serves which lug (-1: none), and reset[s]: process s
+ * took a new lug this step (its block starts afresh). */
+#define CPL_LUG_IDLE_D (-1.0) /* m: the approach sent to a process with no lug (far) */
+#define CPL_LUG_MAX_LUGS 512  /* lugs on one tread (the generated one has 32 to 128) */
+typedef struct cpl_lug_slots {
+  int n;                  /* lug processes */
+  int lug[CPL_MAX_PROCS];
+  int reset[CPL_MAX_PROCS];
+  int64_t handovers;      /* lugs taken so far */
+} cpl_lug_slots;
+/* One step's assignment from each lug's approach d[j] (m) and each process's
+ * last force (N): a process whose lug has moved out beyond engage with no
+ * force left is freed; every lug within engage of the road without a
+ * process takes the lowest free one (nearest lug first). -1 with err when
+ * more lugs are within engage than there are processes. */
+int cpl_lug_assign(cpl_lug_slots *S, int n_lugs, const double *d, double engage,
+                   const double *force, proto_err *err);
+/* The road's penalty on the nodes off the lug faces: f_z += k (road_z - z)
+ * for each node below the plane (N); returns their sum. */
+double cpl_road_penalty(const cpl_lugs *L, const double *x, int64_t n, double road_z, double k,
+                        double *f);
 
 /* The road body of the force-driven indentation (seed 002 fig. 49):
  * road_mass pushed by road_force against the contact force. */

@@ -97,6 +97,25 @@ static const char *const coupler_cols[N_CS] = {
     "t", "wall_s", "iterations", "converged", "residual_x", "residual_force",
     "residual_road"};
 
+/* tire_road's /coupler/lugs row: t, lugs taken so far, the road's penalty
+ * force, then per lug process the lug it serves (-1: none), its approach,
+ * force and centre of pressure. */
+static int lug_row(cpl_runner *r, int64_t k, double t) {
+  double row[3 + 5 * CPL_MAX_PROCS];
+  const cpl_lug_slots *S = &r->data.lug;
+  const double *d = r->data.fields[CPL_F_LUG_D].cur, *F = r->data.fields[CPL_F_LUG_FORCE].cur;
+  const double *cop = r->data.fields[CPL_F_LUG_COP].cur;
+  row[0] = t, row[1] = (double)S->handovers, row[2] = r->data.lug_penalty;
+  for (int p = 0; p < S->n; p++) {
+    double *o = &row[3 + 5 * p];
+    o[0] = S->lug[p], o[1] = d[p], o[2] = F[p], o[3] = cop[2 * p], o[4] = cop[2 * p + 1];
+  }
+  const int n = r->plan->n_lug_cols;
+  if (cpl_output_coupler_row(r->out, "lugs", n, r->plan->lug_cols, row, &r->err) < 0) return -1;
+  publish(r, "coupler.lugs", "series", k, t, n, row, r->plan->lug_cols);
+  return 0;
+}
+
 /* (fields, replies of step k, rim) -> (results.h5 rows and snapshots, bus) */
 int cpl_record(cpl_runner *r, int64_t k, int output) {
   for (int i = 0; i < r->n; i++) {
@@ -114,13 +133,14 @@ int cpl_record(cpl_runner *r, int64_t k, int output) {
   if (cpl_output_coupler_row(r->out, PROTO_A_SERIES, N_CS, coupler_cols, crow, &r->err) < 0)
     return -1;
   publish(r, "coupler.series", "series", k, t, N_CS, crow, coupler_cols);
-  if (r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL) {
+  if (cpl_scenario_rolls(r->scene->scenario.kind)) {
     double row[CPL_N_TRACTION];
     traction(r, t, row);
     if (cpl_output_coupler_row(r->out, "traction", CPL_N_TRACTION, traction_cols, row,
                                &r->err) < 0)
       return -1;
     publish(r, "coupler.traction", "series", k, t, CPL_N_TRACTION, row, traction_cols);
+    if (r->plan->n_of_role[PROTO_ROLE_LUG] && lug_row(r, k, t) < 0) return -1;
     if (r->scene->scenario.rig == CPL_RIG_DBP) { /* /coupler/dbp (scenario.c cpl_dbp_row) */
       double drow[CPL_N_DBP];
       cpl_dbp_row(&r->data.rim, &r->scene->scenario, r->scene->dt, row, drow);

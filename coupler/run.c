@@ -190,7 +190,7 @@ static int wait_hellos(cpl_runner *r) {
   r->draft->fem = -1;
   for (int i = 0; i < r->n; i++) {
     roles[i] = r->peers[i].role;
-    r->draft->n_of_role[roles[i]]++;
+    r->peers[i].rank = r->draft->n_of_role[roles[i]]++;
     if (roles[i] == PROTO_ROLE_FEM) r->draft->fem = i;
   }
   return cpl_check_roles(r->scene, roles, &r->err);
@@ -355,7 +355,12 @@ static int welcome_all(cpl_runner *r) {
   const int rim_auto = r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL &&
                        r->scene->scenario.rim_auto && r->plan->fem >= 0;
   if (r->plan->fem >= 0 && welcome_one(r, r->plan->fem) < 0) return -1;
+  if (cpl_lugs_setup(r) < 0) return -1;
   if (cpl_fields_init(r, r->plan->surf.n_nodes, &r->err) < 0) return -1;
+  const cpl_scenario *sc = &r->scene->scenario;
+  if (sc->kind == CPL_SCN_TIRE_ROAD && sc->rim_auto) /* above the road plane */
+    cpl_rim_place(&r->data.rim, r->plan->surf.x0, r->plan->surf.n_nodes,
+                  sc->road_z + sc->auto_gap);
   if (rim_auto) /* out of the way while the beds settle */
     cpl_rim_place(&r->data.rim, r->plan->surf.x0, r->plan->surf.n_nodes, CPL_AUTO_PARK_Z);
   cpl_fields_from_rim(r);
@@ -614,6 +619,7 @@ int cpl_run(cpl_scene *s, const cpl_run_opts *opts) {
             CPL_RESULTS_FILE);
   }
   cpl_timing_free(r->timing);
+  cpl_lugs_teardown(plan, &r->data);
   free(r);
   free(plan);
   return exit_code;

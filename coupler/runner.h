@@ -29,6 +29,9 @@ typedef enum cpl_field_id {
   CPL_F_RIM_V,
   CPL_F_ROAD_D,     /* [1] road displacement at t_k (scenario / road body) */
   CPL_F_ROAD_FORCE, /* [1] force of the blocks on the road */
+  CPL_F_LUG_D,      /* [P] per lug process: its lug face's approach (tire_road) */
+  CPL_F_LUG_FORCE,  /* [P] per lug process: its force on the face */
+  CPL_F_LUG_COP,    /* [P,2] per lug process: its centre of pressure */
   CPL_N_FIELDS
 } cpl_field_id;
 
@@ -48,6 +51,8 @@ typedef struct cpl_field_spec {
   const char *name;
   int ndim;
   int64_t dims[2];
+  int per_process; /* one row of dims per process of the role that binds it:
+                      the process's own value, never summed (lug.*) */
 } cpl_field_spec;
 
 /* A role-table row bound to a field (contract.c): requests read in[field];
@@ -69,7 +74,10 @@ typedef struct cpl_binding {
 typedef enum cpl_action {
   CPL_ACT_NONE,
   CPL_ACT_RIM,  /* advance the rim frame by the scenario (uses the vertical load) */
-  CPL_ACT_ROAD  /* road displacement of t_k: profile, or the road body */
+  CPL_ACT_ROAD, /* road displacement of t_k: profile, or the road body */
+  CPL_ACT_LUG,  /* tire_road: lugs to lug processes, each face's approach */
+  CPL_ACT_LUG_FORCE /* tire_road: the lug processes' forces (and the road's penalty
+                       elsewhere) onto the surface nodes */
 } cpl_action;
 typedef struct cpl_stage_row {
   int stage;
@@ -87,6 +95,7 @@ typedef struct cpl_contract {
   cpl_binding b[CPL_MAX_BINDINGS];
   int nfields;
   cpl_field_spec field[CPL_MAX_FIELDS];
+  int field_role[CPL_MAX_FIELDS]; /* the role of a per-process field's rows */
   int nstages;
   cpl_stage_row stage[CPL_MAX_STAGE_ROWS];
 } cpl_contract;
@@ -136,6 +145,7 @@ typedef struct cpl_sparse {
 typedef struct cpl_peer {
   cpl_process *proc;
   proto_role role;   /* from its hello */
+  int rank;          /* its place among the processes of its role (scene order) */
   int connected;     /* hello received */
   int stopped;       /* bye received or known gone */
   int rollback;      /* ready.rollback: it can repeat a step */
@@ -181,6 +191,11 @@ typedef struct cpl_plan {
   cpl_surface surf;
   int nex;               /* the step's exchanges in order (schedule.c) */
   cpl_exchange ex[CPL_MAX_EXCHANGES];
+  /* tire_road: the lug faces of the surface and the columns of /coupler/lugs */
+  cpl_lugs lugs;
+  int n_lug_cols;
+  const char **lug_cols;
+  char *lug_col_text;
 } cpl_plan;
 
 /* The data of a run (as MuJoCo's mjData beside mjModel): what the steps
@@ -191,6 +206,11 @@ typedef struct cpl_data {
   const double *in[CPL_MAX_FIELDS]; /* what requests send (set by the scheme) */
   cpl_rim rim;
   cpl_road road;
+  /* tire_road: who serves which lug, each lug's approach [lugs], the road's
+   * penalty force this step (N) */
+  cpl_lug_slots lug;
+  double *lug_d;
+  double lug_penalty;
   /* implicit scheme (implicit.c) */
   double *xi, *xt;        /* interface vector: iterate and H(iterate) */
   double *x_start;        /* surface positions at t_{k-1} */
@@ -328,6 +348,10 @@ void cpl_field_commit(cpl_runner *r, int id);
 int cpl_do_action(cpl_runner *r, cpl_action a, int64_t k);
 /* (rim frame at t = 0, surface x0) -> (surface x, rim fields) */
 void cpl_fields_from_rim(cpl_runner *r);
+/* tire_road, after the fem's surface: its lug faces into the plan (through
+ * r->draft), the lug processes' slots and the columns of /coupler/lugs. */
+int cpl_lugs_setup(cpl_runner *r);
+void cpl_lugs_teardown(cpl_plan *p, cpl_data *d);
 /* The sum of the z components of the current surface force (N). */
 double cpl_vertical_load(const cpl_runner *r);
 

@@ -28,7 +28,7 @@ void cpl_rim_init(cpl_rim *rim, const cpl_scenario *s) {
   memcpy(rim->c0, s->rim_center, sizeof rim->c0);
   rotation_y(0, rim->R);
   rim->z_touch = rim->z_fit = NAN;
-  if (s->kind == CPL_SCN_TIRE_TRAVEL) rim->v[2] = -s->sinkage_velocity;
+  if (cpl_scenario_rolls(s->kind)) rim->v[2] = -s->sinkage_velocity;
 }
 
 void cpl_rim_place(cpl_rim *rim, const double *x0, int64_t n, double z) {
@@ -130,7 +130,7 @@ static void carriage_advance(cpl_rim *rim, const cpl_scenario *s, double dt, dou
 
 int cpl_rim_advance(cpl_rim *rim, const cpl_scenario *s, double dt, const double force[3],
                     proto_err *err) {
-  if (s->kind != CPL_SCN_TIRE_TRAVEL) return 0;
+  if (!cpl_scenario_rolls(s->kind)) return 0;
   const double vertical_load = force[2];
   if (!rim->travelling) rig_observe(rim, s, vertical_load);
   if (!rim->travelling && vertical_load >= s->sinkage_force) {

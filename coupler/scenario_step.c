@@ -5,6 +5,9 @@
  * traction); this file only moves values between it and the fields. */
 #include "runner.h"
 
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 double cpl_vertical_load(const cpl_runner *r) {
@@ -65,9 +68,47 @@ static void road_action(cpl_runner *r, int64_t k) {
   d[0] = cpl_road_explicit(&r->data.road, s, r->scene->dt);
 }
 
+/* tire_road, before the lug processes: (surface x of t_{k-1}, lug.force) ->
+ * (who serves which lug, lug.d) */
+static int lug_action(cpl_runner *r) {
+  const cpl_scenario *s = &r->scene->scenario;
+  const cpl_lugs *L = &r->plan->lugs;
+  const double *x = r->data.fields[CPL_F_SURF_X].cur;
+  cpl_lug_slots *S = &r->data.lug;
+  for (int j = 0; j < L->n; j++) r->data.lug_d[j] = cpl_lug_approach(L, j, x, s->road_z);
+  if (cpl_lug_assign(S, L->n, r->data.lug_d, s->lug_engage,
+                     r->data.fields[CPL_F_LUG_FORCE].cur, &r->err) < 0)
+    return -1;
+  double *d = r->data.fields[CPL_F_LUG_D].cur;
+  for (int p = 0; p < S->n; p++) d[p] = S->lug[p] >= 0 ? r->data.lug_d[S->lug[p]] : CPL_LUG_IDLE_D;
+  return 0;
+}
+
+/* tire_road, after the lug processes: (lug.force, lug.cop, surface x) ->
+ * (surface.force: each block's force on its lug's nodes, the road's penalty
+ * on the others) */
+static void lug_force_action(cpl_runner *r) {
+  const cpl_scenario *s = &r->scene->scenario;
+  const cpl_lugs *L = &r->plan->lugs;
+  cpl_field *f = &r->data.fields[CPL_F_SURF_FORCE];
+  const double *x = r->data.fields[CPL_F_SURF_X].cur;
+  const double *F = r->data.fields[CPL_F_LUG_FORCE].cur, *cop = r->data.fields[CPL_F_LUG_COP].cur;
+  memset(f->cur, 0, sizeof(double) * (size_t)f->len);
+  for (int p = 0; p < r->data.lug.n; p++)
+    if (r->data.lug.lug[p] >= 0) cpl_lug_spread(L, r->data.lug.lug[p], x, F[p], &cop[2 * p], f->cur);
+  r->data.lug_penalty = cpl_road_penalty(L, x, r->plan->surf.n_nodes, s->road_z, s->road_penalty,
+                                         f->cur);
+}
+
 /* (scenario, rim/road state, the grains' force of the fields) -> (rim frame,
  * road displacement fields of t_k) */
 int cpl_do_action(cpl_runner *r, cpl_action a, int64_t k) {
+  const int lugs = r->plan->n_of_role[PROTO_ROLE_LUG] > 0;
+  if (a == CPL_ACT_LUG && lugs) return lug_action(r);
+  if (a == CPL_ACT_LUG_FORCE && lugs) {
+    lug_force_action(r);
+    return 0;
+  }
   if (a == CPL_ACT_RIM && r->plan->fem >= 0) {
     double force[3];
     tread_force(r, force);
@@ -78,4 +119,48 @@ int cpl_do_action(cpl_runner *r, cpl_action a, int64_t k) {
     road_action(r, k);
   }
   return 0;
+}
+
+int cpl_lugs_setup(cpl_runner *r) {
+  cpl_plan *p = r->draft;
+  const int np = p->n_of_role[PROTO_ROLE_LUG];
+  if (!np) return 0;
+  if (cpl_lugs_find(p->surf.x0, p->surf.n_nodes, p->surf.tri, p->surf.n_tris,
+                    r->scene->scenario.lug_tolerance, &p->lugs, &r->err) < 0)
+    return -1;
+  r->data.lug.n = np;
+  for (int s = 0; s < np; s++) r->data.lug.lug[s] = -1;
+  double amin = INFINITY, amax = 0;
+  for (int j = 0; j < p->lugs.n; j++)
+    amin = fmin(amin, p->lugs.area[j]), amax = fmax(amax, p->lugs.area[j]);
+  if (!r->opts->quiet)
+    printf("tire_road: %d lug faces on the outer radius %.6g m (areas %.4g-%.4g mm2), served by "
+           "%d lug processes\n", p->lugs.n, p->lugs.outer_radius, amin * 1e6, amax * 1e6, np);
+  r->data.lug_d = calloc((size_t)p->lugs.n, sizeof(double));
+  /* /coupler/lugs: t, handovers, penalty, then lug, d, force, cop_x, cop_y per process */
+  enum { PER = 5, HEAD = 3, W = 32 };
+  p->n_lug_cols = HEAD + PER * np;
+  p->lug_cols = malloc(sizeof(char *) * (size_t)p->n_lug_cols);
+  p->lug_col_text = malloc((size_t)W * (size_t)p->n_lug_cols);
+  if (!r->data.lug_d || !p->lug_cols || !p->lug_col_text)
+    return proto_fail(&r->err, "out of memory (lugs)");
+  static const char *const head[HEAD] = {"t", "handovers", "road_penalty"};
+  static const char *const per[PER] = {"lug", "d", "force", "cop_x", "cop_y"};
+  for (int c = 0; c < p->n_lug_cols; c++) {
+    char *t = p->lug_col_text + (size_t)W * (size_t)c;
+    if (c < HEAD) snprintf(t, W, "%s", head[c]);
+    else snprintf(t, W, "%s%d", per[(c - HEAD) % PER], (c - HEAD) / PER);
+    p->lug_cols[c] = t;
+  }
+  return 0;
+}
+
+void cpl_lugs_teardown(cpl_plan *p, cpl_data *d) {
+  cpl_lugs_free(&p->lugs);
+  free(p->lug_cols);
+  free(p->lug_col_text);
+  p->lug_cols = NULL;
+  p->lug_col_text = NULL;
+  free(d->lug_d);
+  d->lug_d = NULL;
 }

@@ -318,8 +318,26 @@ static int read_indentation(proto_cfg *c, cpl_scenario *sc) {
   return 0;
 }
 
+/* tire_road's own keys (coupler.h): the road plane, the lugs, the penalty. */
+static int read_tire_road(proto_cfg *c, cpl_scenario *sc, cpl_scheme scheme) {
+  sc->lug_engage = 1e-3;      /* m: a block takes a lug this far above the road */
+  sc->lug_tolerance = 7.5e-3; /* m: half the generated tread's 15 mm groove: the inflated
+                                 lug tops bulge by several mm (docs/tire-road.md) */
+  sc->road_penalty = 1e5;     /* N/m per node: stiff against the tread's nodes at
+                                 the coupling steps of the block rates (docs/tire-road.md) */
+  if (proto_cfg_num(c, "road_z", PROTO_OPTIONAL, -1e3, 1e3, &sc->road_z) < 0 ||
+      proto_cfg_num(c, "lug_engage", PROTO_OPTIONAL, 0, 1, &sc->lug_engage) < 0 ||
+      proto_cfg_num(c, "lug_tolerance", PROTO_OPTIONAL, 1e-9, 1, &sc->lug_tolerance) < 0 ||
+      proto_cfg_num(c, "road_penalty", PROTO_OPTIONAL, 0, 1e12, &sc->road_penalty) < 0)
+    return -1;
+  if (scheme == CPL_SCHEME_IMPLICIT)
+    return proto_fail(c->err, "coupling.scheme: 'implicit' does not iterate the lug blocks "
+                      "of tire_road yet; use 'serial' or 'parallel'");
+  return 0; /* rim_center[2] "auto": the lowest tread node auto_gap above road_z */
+}
+
 static int read_scenario(proto_cfg *root, cpl_scene *s) {
-  static const char *const kinds[] = {"none", "tire_travel", "indentation",
+  static const char *const kinds[] = {"none", "tire_travel", "indentation", "tire_road",
                                       NULL};
   proto_cfg c;
   cpl_scenario *sc = &s->scenario;
@@ -329,7 +347,8 @@ static int read_scenario(proto_cfg *root, cpl_scene *s) {
   int kind = 0;
   if (proto_cfg_enum(&c, "kind", PROTO_REQUIRED, kinds, &kind) < 0) return -1;
   sc->kind = (cpl_scenario_kind)kind;
-  if (kind == CPL_SCN_TIRE_TRAVEL && read_tire_travel(&c, sc, s->dt) < 0) return -1;
+  if (cpl_scenario_rolls(sc->kind) && read_tire_travel(&c, sc, s->dt) < 0) return -1;
+  if (kind == CPL_SCN_TIRE_ROAD && read_tire_road(&c, sc, s->scheme) < 0) return -1;
   if (kind == CPL_SCN_INDENTATION && read_indentation(&c, sc) < 0) return -1;
   return proto_cfg_end(&c);
 }
@@ -415,6 +434,14 @@ int cpl_check_roles(const cpl_scene *s, const proto_role *roles, proto_err *err)
       !(count[PROTO_ROLE_DEM] && count[PROTO_ROLE_FEM]))
     return proto_fail(err, "scenario.kind: 'tire_travel' needs a process of "
                       "role dem and one of role fem (processes: %s)", have);
+  if (s->scenario.kind == CPL_SCN_TIRE_ROAD &&
+      !(count[PROTO_ROLE_LUG] && count[PROTO_ROLE_FEM] && !count[PROTO_ROLE_DEM] &&
+        !count[PROTO_ROLE_BLOCK]))
+    return proto_fail(err, "scenario.kind: 'tire_road' needs one process of role fem and "
+                      "one or more of role lug, and no dem or block (processes: %s)", have);
+  if (s->scenario.kind != CPL_SCN_TIRE_ROAD && count[PROTO_ROLE_LUG])
+    return proto_fail(err, "processes: role lug serves the lugs of scenario.kind "
+                      "'tire_road' only (processes: %s)", have);
   if (s->scenario.kind == CPL_SCN_INDENTATION && !count[PROTO_ROLE_BLOCK])
     return proto_fail(err, "scenario.kind: 'indentation' needs a process of "
                       "role block (processes: %s)", have);

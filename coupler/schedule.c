@@ -14,6 +14,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Doubles in one row of a per-process field: the row's literal dims. */
+static int64_t row_len(const proto_array_spec *s) {
+  int64_t m = 1;
+  for (int d = 0; d < s->ndim; d++) m *= s->dims[d];
+  return m;
+}
+
 /* Is the array due for this peer (the table's "when")? */
 static int due(const cpl_peer *p, const proto_array_spec *s) {
   return s->when != PROTO_WHEN_SURFACE || p->dims.surface;
@@ -52,6 +59,8 @@ int cpl_fields_init(cpl_runner *r, int64_t n, proto_err *err) {
     fd->len = 1;
     for (int d = 0; d < c->field[f].ndim; d++)
       fd->len *= c->field[f].dims[d] == PROTO_DIM_NODES ? n : c->field[f].dims[d];
+    if (c->field[f].per_process) /* a row per process of its role */
+      fd->len *= c->field_role[f] >= 0 ? r->plan->n_of_role[c->field_role[f]] : 0;
     size_t bytes = sizeof(double) * (size_t)(fd->len > 0 ? fd->len : 1);
     fd->cur = calloc(1, bytes);
     fd->out = calloc(1, bytes);
@@ -133,7 +142,9 @@ int cpl_last_stage(const cpl_runner *r) {
 
 void cpl_schedule_print(const cpl_runner *r, FILE *f) {
   static const char *const actions[] = {"", "rim frame <- vertical load (scenario)",
-                                        "road displacement (scenario)"};
+                                        "road displacement (scenario)",
+                                        "lugs -> lug processes, their approach (scenario)",
+                                        "lug forces + road penalty -> surface force (scenario)"};
   fprintf(f, "schedule (%s):\n", cpl_scheme_name(r->scene->scheme));
   for (int s = 0; s <= cpl_last_stage(r); s++) {
     int any = 0;
@@ -141,8 +152,10 @@ void cpl_schedule_print(const cpl_runner *r, FILE *f) {
       const cpl_exchange *x = &r->plan->ex[e];
       if (x->stage != s) continue;
       if (x->peer < 0) {
-        if ((x->action == CPL_ACT_RIM && r->scene->scenario.kind != CPL_SCN_TIRE_TRAVEL) ||
-            (x->action == CPL_ACT_ROAD && !r->plan->n_of_role[PROTO_ROLE_BLOCK]))
+        if ((x->action == CPL_ACT_RIM && !cpl_scenario_rolls(r->scene->scenario.kind)) ||
+            (x->action == CPL_ACT_ROAD && !r->plan->n_of_role[PROTO_ROLE_BLOCK]) ||
+            ((x->action == CPL_ACT_LUG || x->action == CPL_ACT_LUG_FORCE) &&
+             !r->plan->n_of_role[PROTO_ROLE_LUG]))
           continue;
         fprintf(f, "  %d. coupler: %s\n", s + 1, actions[x->action]);
         continue;
@@ -248,6 +261,8 @@ void cpl_request_build(cpl_runner *r, int i, int64_t k, int iteration, int outpu
   if (p->role == PROTO_ROLE_DEM && r->scene->sparse) cJSON_AddBoolToObject(h, PROTO_H_SPARSE, 1);
   if (p->role == PROTO_ROLE_DEM && rows >= 0)
     cJSON_AddItemToObject(h, PROTO_H_REACH, cJSON_CreateDoubleArray(p->sp.reach_use, 6));
+  if (p->role == PROTO_ROLE_LUG && p->rank < CPL_MAX_PROCS && r->data.lug.reset[p->rank])
+    cJSON_AddBoolToObject(h, PROTO_H_RESET, 1); /* it takes a new lug this step */
   for (int b = 0; b < r->plan->contract.n; b++) {
     const cpl_binding *bd = &r->plan->contract.b[b];
     const proto_array_spec *s = bd->spec;
@@ -257,6 +272,8 @@ void cpl_request_build(cpl_runner *r, int i, int64_t k, int iteration, int outpu
       shape[d] = s->dims[d] > 0 ? s->dims[d]
                  : s->dims[d] == PROTO_DIM_NODES ? p->dims.nodes : p->dims.tris;
     const void *data = r->data.in[bd->field];
+    if (r->plan->contract.field[bd->field].per_process) /* its own row */
+      data = r->data.in[bd->field] + (int64_t)p->rank * row_len(s);
     if (s->dims[0] == PROTO_DIM_NODES) {
       p->sp.out_dense += 24.0 * (double)p->dims.nodes;
       p->sp.out_bytes += bd->index && rows >= 0 ? 28.0 * (double)rows : 24.0 * (double)p->dims.nodes;
@@ -354,6 +371,12 @@ static void take_outputs(cpl_runner *r, int i) {
     /* a sparse reply expanded: rows not listed are +0.0, as the dense reply's */
     const double *a = bd->index ? proto_msg_dense(&p->reply, bd->array, f->len / 3, 3, p->sp.dense)
                                 : proto_msg_data(&p->reply, bd->array);
+    if (r->plan->contract.field[bd->field].per_process) { /* into its own row */
+      const int64_t m = row_len(bd->spec);
+      memcpy(f->out + (int64_t)p->rank * m, a, sizeof(double) * (size_t)m);
+      f->given++;
+      continue;
+    }
     if (!f->given++ || !bd->sum) memcpy(f->out, a, sizeof(double) * (size_t)f->len);
     else
       for (int64_t j = 0; j < f->len; j++) f->out[j] += a[j];

@@ -43,6 +43,9 @@ typedef enum proto_role {
   PROTO_ROLE_DEM = 0,   /* grains: gets the surface, returns nodal forces */
   PROTO_ROLE_FEM = 1,   /* the tread: gets forces + rim frame, returns the surface */
   PROTO_ROLE_BLOCK = 2, /* tread block on the road: gets d_road, returns force */
+  PROTO_ROLE_LUG = 3,   /* a tread block serving the lugs of a rolling tyre (tire_road):
+                           gets its lug face's approach d_road, returns force and its
+                           centre of pressure */
   PROTO_N_ROLES
 } proto_role;
 
@@ -71,6 +74,7 @@ typedef enum proto_msg_kind {
 #define PROTO_A_V "v"
 #define PROTO_A_D_ROAD "d_road"
 #define PROTO_A_FORCE "force"
+#define PROTO_A_COP "cop"
 /* Sparse form of an [n, ...] array (PROTOCOL.md "Sparse exchange"): the
  * array has k rows, the rows of the nodes listed in "<name>_index" (i4 [k],
  * increasing). Rows not listed are zero (forces) or not carried (positions,
@@ -93,6 +97,7 @@ typedef enum proto_msg_kind {
 #define PROTO_H_CONFIG "config"       /* welcome: the process's section */
 #define PROTO_H_RUN "run"             /* welcome: run information */
 #define PROTO_H_DT "dt"               /* step: coupling step, s */
+#define PROTO_H_RESET "reset"         /* step (lug): a new lug: its history starts afresh */
 #define PROTO_H_OUTPUT "output"       /* step: snapshot wanted (bool) */
 #define PROTO_H_ITERATION "iteration" /* step, done: 0, or n >= 1 = repeat n of step k */
 #define PROTO_H_COMPUTE_S "compute_s" /* done: seconds spent in the participant's step */

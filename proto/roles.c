@@ -8,7 +8,7 @@
 #include <stdio.h>
 #include <string.h>
 
-static const char *const role_names[PROTO_N_ROLES] = {"dem", "fem", "block"};
+static const char *const role_names[PROTO_N_ROLES] = {"dem", "fem", "block", "lug"};
 static const char *const msg_types[PROTO_N_MSGS] = {
     "hello", "welcome", "ready", "step", "done", "stop", "bye", "error",
     "checkpoint", "state", "restore", "restored", "heartbeat"};
@@ -113,6 +113,25 @@ static const proto_array_spec table[] = {
      "adhesion): at t_k, or the impulse over the step divided by dt if the "
      "block sub-steps",
      "road.force", 1},
+    /* ---- lug: a tread block under one lug of the rolling tyre at a time
+     * (scenario tire_road): each process has its own row of the fields. */
+    {PROTO_ROLE_LUG, PROTO_MSG_STEP, PROTO_A_D_ROAD, PROTO_F8, 1, {1}, "m",
+     PROTO_WHEN_ALWAYS,
+     "approach of its lug face towards the road at t_k (road height minus the "
+     "face's area-weighted mean height; positive = indentation); a large "
+     "negative value while it serves no lug. Header reset: true when it takes "
+     "a new lug (the block's history starts afresh)",
+     "lug.d", 0},
+    {PROTO_ROLE_LUG, PROTO_MSG_DONE, PROTO_A_FORCE, PROTO_F8, 1, {1}, "N",
+     PROTO_WHEN_ALWAYS,
+     "total normal contact force on its lug face (positive = compression) at "
+     "t_k, held over the step",
+     "lug.force", 0},
+    {PROTO_ROLE_LUG, PROTO_MSG_DONE, PROTO_A_COP, PROTO_F8, 1, {2}, "m",
+     PROTO_WHEN_ALWAYS,
+     "centre of pressure relative to the block grid's centre (x along the "
+     "rolling direction, y along the axle); 0 when the force is 0",
+     "lug.cop", 0},
 };
 
 const proto_array_spec *proto_role_table(int *n) {

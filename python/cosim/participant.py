@@ -116,7 +116,7 @@ class Step:
 class Participant:
     """Connects to the coupler and does the handshake up to the welcome.
 
-    role        "dem", "fem" or "block" (the role table's roles)
+    role        "dem", "fem", "block" or "lug" (the role table's roles)
     configure   called with a :class:`cosim.Config` of this participant's
                 section; raise ConfigError (or read keys with cfg.number(...)
                 etc., whose errors name the key path); its return value is

@@ -1,4 +1,4 @@
-"""The role table: which arrays each role (dem, fem, block) exchanges in each
+"""The role table: which arrays each role (dem, fem, block, lug) exchanges in each
 message, with dtype, shape (symbolic ``n`` surface nodes, ``m`` triangles),
 units and meaning. Declared once, in the C sources (proto/roles.c); this
 module reads it from ``cosim roles --json`` and checks arrays against it the

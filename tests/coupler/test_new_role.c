@@ -20,7 +20,7 @@ static proto_array_spec rows[MAX_ROWS];
 static int nrows;
 static cpl_stage_row order[CPL_MAX_STAGE_ROWS];
 static int norder;
-static const cpl_field_spec temperature = {"surface.temperature", 1, {PROTO_DIM_NODES}};
+static const cpl_field_spec temperature = {"surface.temperature", 1, {PROTO_DIM_NODES}, 0};
 
 /* The shipped table and order, and the newcomer's two rows and its stage. */
 static void newcomer_contract(void) {
@@ -46,7 +46,7 @@ static void refused_when_incomplete(void) {
   FAILS_WITH(cpl_contract_build_with(&c, rows, nrows, NULL, 0, order, norder, &err),
              "unknown coupler field 'surface.temperature'");
   FAILS_WITH(cpl_contract_build_with(&c, rows, nrows, &temperature, 1, order, norder - 1, &err),
-             "its role (3) has no place in the step's order");
+             "has no place in the step's order");
   order[norder - 1].stage = 5;
   FAILS_WITH(cpl_contract_build_with(&c, rows, nrows, &temperature, 1, order, norder, &err),
              "stages 0, 1, ... in order");
@@ -87,17 +87,18 @@ static void stub_run(cpl_scheme scheme) {
 
 static void scheduled(void) {
   stub_run(CPL_SCHEME_SERIAL);
-  const cpl_exchange serial[] = {{0, DEM, CPL_ACT_NONE}, {1, -1, CPL_ACT_RIM},
+  const cpl_exchange serial[] = {{0, -1, CPL_ACT_LUG}, {0, DEM, CPL_ACT_NONE},
+                                 {1, -1, CPL_ACT_LUG_FORCE}, {1, -1, CPL_ACT_RIM},
                                  {1, FEM, CPL_ACT_NONE}, {2, -1, CPL_ACT_ROAD},
                                  {3, TH, CPL_ACT_NONE}};
-  CHECK(plan.nex == 5 && cpl_last_stage(&r) == 3, "serial: 5 exchanges in 4 stages (%d)",
+  CHECK(plan.nex == 7 && cpl_last_stage(&r) == 3, "serial: 7 exchanges in 4 stages (%d)",
         plan.nex);
-  for (int e = 0; e < 5 && e < plan.nex; e++)
+  for (int e = 0; e < 7 && e < plan.nex; e++)
     CHECK(plan.ex[e].stage == serial[e].stage && plan.ex[e].peer == serial[e].peer &&
           plan.ex[e].action == serial[e].action, "serial exchange %d", e);
   cpl_fields_free(&r);
   stub_run(CPL_SCHEME_PARALLEL);
-  CHECK(plan.nex == 5 && plan.ex[4].peer == TH && cpl_last_stage(&r) == 0,
+  CHECK(plan.nex == 7 && plan.ex[6].peer == TH && cpl_last_stage(&r) == 0,
         "parallel: the thermal process in the one stage, last");
   cpl_fields_free(&r);
 }

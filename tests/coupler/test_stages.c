@@ -49,25 +49,28 @@ static void stub_plan(cpl_scheme scheme) {
 
 static void schedules(void) {
   stub_plan(CPL_SCHEME_SERIAL);
-  /* 1. the dems; 2. rim action, fem; 3. road action, block */
-  const cpl_exchange serial[] = {{0, DEM0, CPL_ACT_NONE}, {0, DEM1, CPL_ACT_NONE},
-                                 {1, -1, CPL_ACT_RIM},   {1, FEM, CPL_ACT_NONE},
-                                 {2, -1, CPL_ACT_ROAD},  {2, BLOCK, CPL_ACT_NONE}};
-  CHECK(r.plan->nex == 6, "serial: 6 exchanges, got %d", r.plan->nex);
-  for (int e = 0; e < 6 && e < r.plan->nex; e++)
+  /* 1. the dems (the lug action first: a no-op without lug processes); 2. the
+   * lug-force and rim actions, fem; 3. road action, block */
+  const cpl_exchange serial[] = {{0, -1, CPL_ACT_LUG},       {0, DEM0, CPL_ACT_NONE},
+                                 {0, DEM1, CPL_ACT_NONE},    {1, -1, CPL_ACT_LUG_FORCE},
+                                 {1, -1, CPL_ACT_RIM},       {1, FEM, CPL_ACT_NONE},
+                                 {2, -1, CPL_ACT_ROAD},      {2, BLOCK, CPL_ACT_NONE}};
+  CHECK(r.plan->nex == 8, "serial: 8 exchanges, got %d", r.plan->nex);
+  for (int e = 0; e < 8 && e < r.plan->nex; e++)
     CHECK(r.plan->ex[e].stage == serial[e].stage && r.plan->ex[e].peer == serial[e].peer &&
           r.plan->ex[e].action == serial[e].action, "serial exchange %d", e);
   CHECK(cpl_last_stage(&r) == 2, "serial: three stages");
   cpl_fields_free(&r);
   memset(&r, 0, sizeof r);
   stub_plan(CPL_SCHEME_PARALLEL);
-  /* one stage: both actions first (the last step's load), then every process
-   * in role order (dem, fem, block) */
-  const cpl_exchange parallel[] = {{0, -1, CPL_ACT_RIM},   {0, -1, CPL_ACT_ROAD},
+  /* one stage: the actions first (the last step's values), then every
+   * process in the order's order (dem, fem, block) */
+  const cpl_exchange parallel[] = {{0, -1, CPL_ACT_LUG},   {0, -1, CPL_ACT_LUG_FORCE},
+                                   {0, -1, CPL_ACT_RIM},   {0, -1, CPL_ACT_ROAD},
                                    {0, DEM0, CPL_ACT_NONE}, {0, DEM1, CPL_ACT_NONE},
                                    {0, FEM, CPL_ACT_NONE},  {0, BLOCK, CPL_ACT_NONE}};
-  CHECK(r.plan->nex == 6 && cpl_last_stage(&r) == 0, "parallel: 6 exchanges in one stage");
-  for (int e = 0; e < 6 && e < r.plan->nex; e++)
+  CHECK(r.plan->nex == 8 && cpl_last_stage(&r) == 0, "parallel: 8 exchanges in one stage");
+  for (int e = 0; e < 8 && e < r.plan->nex; e++)
     CHECK(r.plan->ex[e].stage == parallel[e].stage && r.plan->ex[e].peer == parallel[e].peer &&
           r.plan->ex[e].action == parallel[e].action, "parallel exchange %d", e);
   cpl_fields_free(&r);

@@ -70,7 +70,7 @@ raises(lambda: P.wire_array("x", np.zeros(3, np.float32)), "dtype float32", "flo
 # 2. the role table, as the C side declares it
 table = cosim.RoleTable.load()
 c_names = set()
-for role in ("dem", "fem", "block"):
+for role in ("dem", "fem", "block", "lug"):
     txt = subprocess.run([COSIM, "roles"], capture_output=True, text=True).stdout
     block = txt.split(f"role {role}\n")[1].split("role ")[0]
     c_names |= {(role, l.split()[0], l.split()[1]) for l in block.splitlines()
