@@ -35,8 +35,8 @@ typedef struct lgd_options {
 } lgd_options;
 
 /* A checkpoint of a sim (lgd_save): LIGGGHTS' own restart file (grains,
- * velocities, the tangential contact history of pairs and walls) and what the
- * sim holds beside it. Any rank count may resume it (LIGGGHTS reads one
+ * velocities, the tangential contact history of pairs, plane walls and mesh
+ * contacts) and what the sim holds beside it. Any rank count may resume it (LIGGGHTS reads one
  * restart file on any number of ranks). */
 typedef struct lgd_resume {
   const char *restart;       /* LIGGGHTS restart file (rank 0 reads it) */
@@ -45,9 +45,6 @@ typedef struct lgd_resume {
                                           after the last DEM step (NULL: none) */
   const double *force, *torque; /* [n_grains*3] each, config order: the last DEM
                                    step's, which velocity Verlet starts from (rank 0) */
-  const double *mesh_history; /* [mesh_contacts*10]: mesh, grain tag, triangle,
-                                 tangential history of each grain-mesh contact (rank 0) */
-  int mesh_contacts;
 } lgd_resume;
 
 /* Per-step results, valid on rank 0 after lgd_step. Forces are averages over
@@ -107,8 +104,8 @@ int lgd_open(lgd_sim **out, MPI_Comm comm, const dem_model *m, double coupling_d
 int lgd_step(lgd_sim *s, double dt, const double *x, const double *v, proto_err *err);
 /* Writes the checkpoint: LIGGGHTS' restart file at path (given on rank 0;
  * rank 0 writes it) and fills r (path, clock; pointers into the sim: the
- * surface valid until its next step, forces and histories until the next
- * lgd_save or lgd_close). Refuses what a restart would not reproduce (a
+ * surface valid until its next step, forces until the next lgd_save or
+ * lgd_close). Refuses what a restart would not reproduce (a
  * mesh wall moved by LIGGGHTS). Collective. */
 int lgd_save(lgd_sim *s, const char *path, struct lgd_resume *r, proto_err *err);
 /* Results of the last step (rank 0; other ranks get zeros). */

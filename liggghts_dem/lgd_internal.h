@@ -53,15 +53,9 @@ int lgd_shim_mesh_set(void *lmp, const char *fix_id, const int32_t *tri, const d
 int lgd_shim_mesh_flags(void *lmp, const char *fix_id, uint8_t *edge_active, uint8_t *corner_active);
 /* Appends this rank's contacts with the mesh (store_force_contact_stress). */
 int lgd_shim_mesh_contacts(void *lmp, const char *fix_id, lgd_rows *rows);
-/* The mesh's per-contact tangential history (its contact tracker), for
- * checkpoints: rows of LGD_ROW_LEN values, mesh, grain tag, triangle id, then
- * the history values (lgd_shim_mesh_history_width of them). _get appends this
- * rank's contacts; _set writes the values of the rows into the contacts this
- * rank holds now (all n rows given on every rank). */
-#define LGD_HIST_HEAD 3
-int lgd_shim_mesh_history_width(void *lmp, const char *fix_id);
-int lgd_shim_mesh_history_get(void *lmp, const char *fix_id, double mesh, lgd_rows *rows);
-int lgd_shim_mesh_history_set(void *lmp, const char *fix_id, double mesh, const double *rows, int n);
+/* Call before write_restart: the per-grain sizes LIGGGHTS writes for its
+ * per-contact stores are updated (else read_restart overruns them). */
+void lgd_shim_restart_sizes(void *lmp);
 /* Total force ON the mesh from its stress module (the same on every rank). */
 int lgd_shim_mesh_force(void *lmp, const char *fix_id, double *f);
 /* Grain–grain contacts of this rank from the pair neighbour list; estar is

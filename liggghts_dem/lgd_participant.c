@@ -32,8 +32,6 @@ typedef struct op_msg {
 #define LGD_STATE_SURFACE_V "surface_v"
 #define LGD_STATE_FORCE "force"              /* f8 [n_grains, 3]: the last DEM step's, config order */
 #define LGD_STATE_TORQUE "torque"
-#define LGD_STATE_MESH_HISTORY "mesh_history" /* f8 [contacts, 10]: lgd_resume.mesh_history */
-#define LGD_MESH_HISTORY_COLS 10
 #define LGD_STATE_FILE "state.restart"       /* in app.state_dir, rank 0 */
 /* the largest restart file taken back (bytes): a damaged checkpoint must not
  * make us allocate without bound; 2 GiB is ~10^7 grains with history */
@@ -173,15 +171,13 @@ static int do_save(app *a, size_t *len, proto_err *err) {
 
 /* Every rank: LIGGGHTS again, from the restart file rank 0 wrote to path,
  * with the clock in op and the surface in a->x, a->v. */
-static int do_load(app *a, const op_msg *op, const char *path, const proto_array *hist, proto_err *err) {
+static int do_load(app *a, const op_msg *op, const char *path, proto_err *err) {
   lgd_close(a->sim);
   a->sim = NULL;
   const size_t n3 = 3 * (size_t)a->model.n_grains;
   const lgd_resume r = {.restart = path, .t = op->t, .coupling_dt = op->dt,
                         .surface_x = a->n_nodes > 0 ? a->x : NULL, .surface_v = a->n_nodes > 0 ? a->v : NULL,
-                        .force = a->load_ft, .torque = a->load_ft ? a->load_ft + n3 : NULL,
-                        .mesh_history = hist ? hist->data : NULL,
-                        .mesh_contacts = hist ? (int)hist->shape[0] : 0};
+                        .force = a->load_ft, .torque = a->load_ft ? a->load_ft + n3 : NULL};
   lgd_options o = {.screen = a->rank == 0 ? a->screen : NULL, .resume = &r};
   return lgd_open(&a->sim, MPI_COMM_WORLD, &a->model, op->dt > 0 ? op->dt : a->run_dt, &o, err);
 }
@@ -264,7 +260,7 @@ static int worker_loop(app *a) {
         MPI_Bcast(a->x, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
         MPI_Bcast(a->v, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
       }
-      if (a->have_model) do_load(a, &op, "", NULL, &err);
+      if (a->have_model) do_load(a, &op, "", &err);
       break;
     default:
       return 0;
@@ -407,9 +403,7 @@ static int state_save(void *user, proto_msg *state, proto_err *err) {
       proto_msg_add_prefixed(state, PROTO_P_STATE, LGD_STATE_CLOCK, PROTO_F8, 2, 0, a->clock) ||
       proto_msg_add_prefixed(state, PROTO_P_STATE, LGD_STATE_FORCE, PROTO_F8, a->model.n_grains, 3, a->saved.force) ||
       proto_msg_add_prefixed(state, PROTO_P_STATE, LGD_STATE_TORQUE, PROTO_F8, a->model.n_grains, 3,
-                             a->saved.torque) ||
-      proto_msg_add_prefixed(state, PROTO_P_STATE, LGD_STATE_MESH_HISTORY, PROTO_F8, a->saved.mesh_contacts,
-                             LGD_MESH_HISTORY_COLS, a->saved.mesh_history))
+                             a->saved.torque))
     return proto_fail(err, "state message full");
   if (a->n_nodes == 0) return 0;
   const lgd_resume *r = &a->saved;
@@ -436,11 +430,6 @@ static int state_load(void *user, const proto_msg *state, proto_err *err) {
   if (proto_state_get(state, LGD_STATE_FORCE, PROTO_F8, g3, a->load_ft, err) ||
       proto_state_get(state, LGD_STATE_TORQUE, PROTO_F8, g3, a->load_ft + g3, err))
     return -1;
-  const proto_array *hist = proto_msg_find(state, PROTO_P_STATE LGD_STATE_MESH_HISTORY);
-  if (!hist || hist->dtype != PROTO_F8 || hist->ndim != 2 || hist->shape[1] != LGD_MESH_HISTORY_COLS ||
-      hist->shape[0] < 0 || hist->shape[0] > LGD_STATE_MAX / (8 * LGD_MESH_HISTORY_COLS))
-    return proto_fail(err, "state: '%s%s' must be an f8 array [contacts, %d]", PROTO_P_STATE,
-                      LGD_STATE_MESH_HISTORY, LGD_MESH_HISTORY_COLS);
   const size_t n3 = 3 * (size_t)a->n_nodes;
   if (n3 && (proto_state_get(state, LGD_STATE_SURFACE_X, PROTO_F8, n3, a->x, err) ||
              proto_state_get(state, LGD_STATE_SURFACE_V, PROTO_F8, n3, a->v, err)))
@@ -462,7 +451,7 @@ static int state_load(void *user, const proto_msg *state, proto_err *err) {
       MPI_Bcast(a->v, 3 * (int)a->n_nodes, MPI_DOUBLE, 0, MPI_COMM_WORLD);
     }
   }
-  rc = do_load(a, &op, path, hist, err);
+  rc = do_load(a, &op, path, err);
   unlink(path);
   return rc;
 }

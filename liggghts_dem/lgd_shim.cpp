@@ -1,7 +1,9 @@
 /* lgd_shim.cpp — the little of LIGGGHTS 3.8 that its C library interface
  * cannot reach: a mesh's node positions, node velocities and edge/corner
  * activity; the per-contact forces and contact points on a mesh; the stress
- * module's total; grain–grain contact statistics from the neighbour list. Everything else goes through library.h in C.
+ * module's total; grain–grain contact statistics from the neighbour list;
+ * the per-grain sizes of a restart file. Everything else goes through
+ * library.h in C.
  * Built against Debian's libliggghts-dev headers with the package's own
  * (empty) set of -D flags (docs/liggghts.md §1). */
 #include <cmath>
@@ -11,7 +13,7 @@
 
 #include "atom.h"
 #include "fix_contact_history.h"
-#include "fix_contact_history_mesh.h"
+#include "fix_contact_property_atom.h"
 #include "fix_mesh_surface.h"
 #include "force.h"
 #include "lammps.h"
@@ -187,51 +189,18 @@ extern "C" void lgd_shim_screen_trim(void *lmp, long max_bytes) {
   if (ftruncate(fileno(s), 0) == 0) rewind(s);
 }
 
-/* The mesh's contact tracker (FixMeshSurface::createContactHistory names it). */
-static FixContactHistoryMesh *mesh_tracker(void *lmp, const char *fix_id) {
-  char id[LGD_ID_LEN + 16];
-  snprintf(id, sizeof id, "tracker_%s", fix_id);
-  return dynamic_cast<FixContactHistoryMesh *>(static_cast<LAMMPS *>(lmp)->modify->find_fix_id(id));
-}
-
-extern "C" int lgd_shim_mesh_history_width(void *lmp, const char *fix_id) {
-  FixContactHistoryMesh *h = mesh_tracker(lmp, fix_id);
-  return h ? h->get_dnum() : -1;
-}
-
-extern "C" int lgd_shim_mesh_history_get(void *lmp, const char *fix_id, double mesh, lgd_rows *rows) {
-  FixContactHistoryMesh *h = mesh_tracker(lmp, fix_id);
-  if (!h) return -1;
-  const int dnum = h->get_dnum(), *tag = static_cast<LAMMPS *>(lmp)->atom->tag;
-  if (LGD_HIST_HEAD + dnum > LGD_ROW_LEN) return -1;
-  for (int i = 0; i < static_cast<LAMMPS *>(lmp)->atom->nlocal; i++)
-    for (int j = 0; j < h->nneighs(i); j++) {
-      if (h->get_partner_idTri(i, j) < 0) continue;
-      if (lgd_rows_reserve(rows, 1)) return -1;
-      double *row = &rows->v[LGD_ROW_LEN * (size_t)rows->n++];
-      row[0] = mesh;
-      row[1] = tag[i];
-      row[2] = h->get_partner_idTri(i, j);
-      const double *v = h->contacthistory(i, j);
-      for (int d = 0; d < dnum; d++) row[LGD_HIST_HEAD + d] = v[d];
-    }
-  return 0;
-}
-
-extern "C" int lgd_shim_mesh_history_set(void *lmp, const char *fix_id, double mesh, const double *rows, int n) {
-  FixContactHistoryMesh *h = mesh_tracker(lmp, fix_id);
-  if (!h) return -1;
-  const int dnum = h->get_dnum(), *tag = static_cast<LAMMPS *>(lmp)->atom->tag;
-  for (int i = 0; i < static_cast<LAMMPS *>(lmp)->atom->nlocal; i++)
-    for (int j = 0; j < h->nneighs(i); j++) {
-      const int tri = h->get_partner_idTri(i, j);
-      if (tri < 0) continue;
-      double *v = h->contacthistory(i, j);
-      for (int r = 0; r < n; r++) { /* few contacts per grain: a scan per contact */
-        const double *row = &rows[LGD_ROW_LEN * (size_t)r];
-        if (row[0] == mesh && row[1] == tag[i] && row[2] == tri)
-          for (int d = 0; d < dnum; d++) v[d] = row[LGD_HIST_HEAD + d];
-      }
-    }
-  return 0;
+/* LIGGGHTS 3.8's write_restart sizes each fix's per-grain data by the fix's
+ * maxsize_restart(), from its maxtouch_ (most contacts of any grain). The
+ * per-contact stores (FixContactPropertyAtom: `store_force_contact_stress`)
+ * update maxtouch_ only in pre_exchange at a re-neighbouring (their
+ * setup_pre_exchange does nothing), so between re-neighbourings a grain can
+ * hold more contacts than the file's per-grain size says: read_restart then
+ * writes past atom->extra (the heap: a crash) and the fixes after it read
+ * their data from the wrong place (the grain pairs' tangential history).
+ * Recomputing maxtouch_ now (their pre_exchange does only that) makes the
+ * sizes right. */
+extern "C" void lgd_shim_restart_sizes(void *lmp) {
+  Modify *mod = static_cast<LAMMPS *>(lmp)->modify;
+  for (int k = 0; k < mod->nfix; k++)
+    if (FixContactPropertyAtom *f = dynamic_cast<FixContactPropertyAtom *>(mod->fix[k])) f->pre_exchange();
 }

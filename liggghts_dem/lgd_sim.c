@@ -43,9 +43,6 @@ struct lgd_sim {
   double *gsend, *grecv;
   int gsend_cap, *counts, *displs;
   double *ckpt_ft;        /* checkpoint: forces, torques [n_grains*3] each (lgd_save, resume) */
-  lgd_rows hist;          /* checkpoint: this rank's mesh contact histories */
-  double *ckpt_hist;      /* checkpoint: all ranks' (LGD_ROW_LEN per row, every rank) */
-  int ckpt_hist_n;
 };
 
 /* Every rank learns whether any failed; the first failing rank's message wins. */
@@ -218,11 +215,12 @@ static int save_bed(lgd_sim *s, proto_err *err) {
   return agree(s->comm, rc, err);
 }
 
-/* After LIGGGHTS read its restart file: the sim's clock, and the coupled
- * surface where it was after the last DEM step (positions, velocities,
- * activity), which a second set-up run puts into the initial forces, as the
- * step that wrote the checkpoint left them. Set-up runs do not change the
- * tangential history (LIGGGHTS' `shearupdate` is off in set-up). */
+/* After LIGGGHTS read its restart file (grains and the tangential history of
+ * every contact: pairs, plane walls, mesh triangles): the sim's clock, and
+ * the coupled surface where it was after the last DEM step (positions,
+ * velocities, activity), which a second set-up run puts into the initial
+ * forces, as the step that wrote the checkpoint left them. Set-up runs do not
+ * change the tangential history (LIGGGHTS' `shearupdate` is off in set-up). */
 static void set_forces(lgd_sim *s, const double *f, const double *torque);
 static int gather_atoms(lgd_sim *s, const char *const names[3], double *out[3], proto_err *err);
 static int resume_surface(lgd_sim *s, const lgd_resume *r, proto_err *err);
@@ -238,13 +236,6 @@ static int resume(lgd_sim *s, const lgd_resume *r, proto_err *err) {
     memcpy(s->ckpt_ft + n3, r->torque, sizeof(double) * n3);
   }
   MPI_Bcast(s->ckpt_ft, 2 * (int)n3, MPI_DOUBLE, 0, s->comm);
-  s->ckpt_hist_n = s->rank == 0 ? r->mesh_contacts : 0;
-  MPI_Bcast(&s->ckpt_hist_n, 1, MPI_INT, 0, s->comm);
-  const size_t nh = LGD_ROW_LEN * (size_t)s->ckpt_hist_n;
-  rc = (s->ckpt_hist = malloc(sizeof(double) * (nh + 1))) ? 0 : proto_fail(err, "out of memory");
-  if (agree(s->comm, rc, err)) return -1;
-  if (s->rank == 0 && nh) memcpy(s->ckpt_hist, r->mesh_history, sizeof(double) * nh);
-  MPI_Bcast(s->ckpt_hist, (int)nh, MPI_DOUBLE, 0, s->comm);
   rc = resume_surface(s, r, err);
   if (agree(s->comm, rc, err)) return -1;
   set_forces(s, s->ckpt_ft, s->ckpt_ft + n3);
@@ -273,11 +264,6 @@ static int resume_surface(lgd_sim *s, const lgd_resume *r, proto_err *err) {
  * torques, and they replace the set-up's (ft: [n_grains*3] each, config
  * order, every rank). */
 static void set_forces(lgd_sim *s, const double *f, const double *torque) {
-  for (int k = 0; k < s->m->n_meshes; k++) { /* LIGGGHTS' own restart of these is not exact */
-    char id[LGD_ID_LEN];
-    snprintf(id, sizeof id, LGD_FIX_MESH, k);
-    lgd_shim_mesh_history_set(s->lmp, id, k, s->ckpt_hist, s->ckpt_hist_n);
-  }
   const int n = *(int *)lammps_extract_global(s->lmp, "nlocal");
   double **pf = lammps_extract_atom(s->lmp, "f"), **pt = lammps_extract_atom(s->lmp, "torque");
   const int *tag = lammps_extract_atom(s->lmp, "id");
@@ -286,30 +272,6 @@ static void set_forces(lgd_sim *s, const double *f, const double *torque) {
       pf[i][d] = f[3 * (size_t)(tag[i] - 1) + d]; /* atom tags are model order + 1 */
       pt[i][d] = torque[3 * (size_t)(tag[i] - 1) + d];
     }
-}
-
-/* Every rank's mesh contact histories into ckpt_hist on every rank. */
-static int gather_mesh_history(lgd_sim *s, proto_err *err) {
-  s->hist.n = 0;
-  int rc = 0;
-  for (int k = 0; k < s->m->n_meshes && !rc; k++) {
-    char id[LGD_ID_LEN];
-    snprintf(id, sizeof id, LGD_FIX_MESH, k);
-    if (lgd_shim_mesh_history_get(s->lmp, id, k, &s->hist))
-      rc = proto_fail(err, "mesh %d: LIGGGHTS' contact history not found (or %d values per contact, "
-                      "more than %d)", k, lgd_shim_mesh_history_width(s->lmp, id), LGD_ROW_LEN - LGD_HIST_HEAD);
-  }
-  if (agree(s->comm, rc, err)) return -1;
-  const int mine = LGD_ROW_LEN * s->hist.n;
-  MPI_Allgather(&mine, 1, MPI_INT, s->counts, 1, MPI_INT, s->comm);
-  int total = 0;
-  for (int p = 0; p < s->nproc; p++) { s->displs[p] = total; total += s->counts[p]; }
-  free(s->ckpt_hist);
-  s->ckpt_hist = malloc(sizeof(double) * ((size_t)total + 1));
-  s->ckpt_hist_n = total / LGD_ROW_LEN;
-  if (agree(s->comm, s->ckpt_hist ? 0 : proto_fail(err, "out of memory"), err)) return -1;
-  MPI_Allgatherv(s->hist.v, mine, MPI_DOUBLE, s->ckpt_hist, s->counts, s->displs, MPI_DOUBLE, s->comm);
-  return 0;
 }
 
 int lgd_save(lgd_sim *s, const char *path, lgd_resume *r, proto_err *err) {
@@ -329,10 +291,10 @@ int lgd_save(lgd_sim *s, const char *path, lgd_resume *r, proto_err *err) {
   double *out[3] = {s->ckpt_ft, s->ckpt_ft + n3, NULL};
   if (gather_atoms(s, ft, out, err)) return -1;
   MPI_Bcast(s->ckpt_ft, 2 * (int)n3, MPI_DOUBLE, 0, s->comm);
-  if (gather_mesh_history(s, err)) return -1;
   char cmd[700];
   if (s->rank == 0) snprintf(cmd, sizeof cmd, "write_restart %s", path);
   MPI_Bcast(cmd, (int)sizeof cmd, MPI_CHAR, 0, s->comm);
+  lgd_shim_restart_sizes(s->lmp); /* else read_restart overruns its buffer (lgd_shim.cpp) */
   lammps_command(s->lmp, cmd); /* one file, written by rank 0 */
   /* write_restart re-exchanges the grains and rebuilds the ghosts (LAMMPS'
    * WriteRestart::command), which the neighbour lists of a `run 1 pre no`
@@ -345,8 +307,7 @@ int lgd_save(lgd_sim *s, const char *path, lgd_resume *r, proto_err *err) {
                     .surface_x = s->surface >= 0 ? s->node_x : NULL,
                     .surface_v = s->surface >= 0 ? s->node_v : NULL,
                     .force = s->rank == 0 ? s->ckpt_ft : NULL,
-                    .torque = s->rank == 0 ? s->ckpt_ft + 3 * (size_t)s->n_grains : NULL,
-                    .mesh_history = s->ckpt_hist, .mesh_contacts = s->ckpt_hist_n};
+                    .torque = s->rank == 0 ? s->ckpt_ft + 3 * (size_t)s->n_grains : NULL};
   return 0;
 }
 
@@ -420,7 +381,6 @@ void lgd_close(lgd_sim *s) {
   free(s->out.nodal_force); free(s->node_x); free(s->node_v); free(s->nodal_local);
   free(s->edge_on); free(s->corner_on); free(s->rows.v); free(s->gsend); free(s->grecv);
   free(s->counts); free(s->displs); free(s->near); free(s->ckpt_ft);
-  free(s->hist.v); free(s->ckpt_hist);
   if (s->comm != MPI_COMM_NULL && s->comm) MPI_Comm_free(&s->comm);
   free(s);
 }
