@@ -98,6 +98,11 @@ typedef struct blk_model {
   /* road: outermost heights per element and the initial gap */
   double *z_road; /* [M] m */
   double z_free;  /* m */
+  /* a road in world coordinates (road.kind "world", lug_block): the heights
+   * under the block are taken anew at each lug's origin (blk_road_world) */
+  int road_world;
+  double road_rms;
+  uint64_t road_seed;
   /* roughness springs: monotone piecewise-cubic Hermite tables, knots
    * d[t][0..K-1] (d[0] = 0), F, k = dF/dd; linear beyond the last. Element e
    * uses table spr_table[e] scaled in force by spr_scale[e]. rigid: no
@@ -210,6 +215,13 @@ int blk_road_set(blk_model *m, const double *z, proto_err *err);
 int blk_road_paraboloid(blk_model *m, double R, proto_err *err);
 /* Gaussian-ish random heights (rms, seeded), max shifted to 0. */
 int blk_road_random(blk_model *m, double rms, uint64_t seed, proto_err *err);
+/* The road of road.kind "world" under a block centred at world (x, y) (m):
+ * a Gaussian height field of rms road_rms on the world grid of dx x dy cells,
+ * element (i, j) taking the height of the cell its centre lies in (hashed
+ * from road_seed and the cell's indices), mean 0, not shifted: the same road
+ * wherever a block lands on it. Called between passages (nothing in
+ * contact), never inside a step. */
+void blk_road_world(blk_model *m, double x, double y);
 
 /* Full validation before a run (shapes, finiteness, monotone springs). */
 int blk_model_check(const blk_model *m, proto_err *err);

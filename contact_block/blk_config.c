@@ -139,7 +139,7 @@ static int read_road(blk_model *m, proto_cfg *sec, proto_err *err) {
   if (r < 0) return -1;
   if (r == 1) return 0; /* flat, or the heights of a springs file */
   static const char *const kinds[] = {"flat", "paraboloid", "random", "springs_file",
-                                      "values", NULL};
+                                      "values", "world", NULL};
   int kind = 0, rc = 0;
   if (proto_cfg_enum(&c, "kind", PROTO_OPTIONAL, kinds, &kind) ||
       proto_cfg_num(&c, "z_free", PROTO_OPTIONAL, -1.0, 1.0, &m->z_free))
@@ -167,6 +167,14 @@ static int read_road(blk_model *m, proto_cfg *sec, proto_err *err) {
       m->z_road[e] = it->valuedouble;
     }
     rc = blk_road_set(m, m->z_road, err);
+  } else if (kind == 5) { /* lug_block: the heights follow the lug (blk_road_world) */
+    double rms = 2e-5;
+    int64_t seed = 1;
+    if (proto_cfg_num(&c, "rms", PROTO_OPTIONAL, 0.0, 1.0, &rms) ||
+        proto_cfg_int(&c, "seed", PROTO_OPTIONAL, 0, INT64_MAX, &seed))
+      return -1;
+    m->road_world = 1, m->road_rms = rms, m->road_seed = (uint64_t)seed;
+    blk_road_world(m, 0, 0);
   } else if (kind == 0) {
     for (int e = 0; e < m->M; e++) m->z_road[e] = 0;
   } else if (kind == 3) { /* the springs file's heights, highest point at 0 */

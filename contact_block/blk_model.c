@@ -119,6 +119,18 @@ int blk_road_random(blk_model *m, double rms, uint64_t seed, proto_err *err) {
   return 0;
 }
 
+void blk_road_world(blk_model *m, double x, double y) {
+  for (int j = 0; j < m->ny; j++)
+    for (int i = 0; i < m->nx; i++) {
+      const double xw = x + (i + 0.5 - 0.5 * m->nx) * m->dx;
+      const double yw = y + (j + 0.5 - 0.5 * m->ny) * m->dy;
+      const int64_t ci = (int64_t)floor(xw / m->dx), cj = (int64_t)floor(yw / m->dy);
+      uint64_t s = m->road_seed ^ ((uint64_t)ci * 0x9E3779B97F4A7C15ull) ^
+                   ((uint64_t)cj * 0xC2B2AE3D27D4EB4Full);
+      m->z_road[j * m->nx + i] = m->road_rms * gauss(&s);
+    }
+}
+
 /* ----------------------------------------------------------- springs */
 
 /* T tables of K knots; element e → table e (T = M) or table 0, scale 1. */

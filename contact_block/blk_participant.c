@@ -108,6 +108,11 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
       cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(req->header, PROTO_H_RESET))) {
     blk_state_reset(m, &s->state); /* a new lug: nothing of the last one's history */
     s->prev[0] = s->prev[1] = 0;
+    const double *o = proto_msg_data(req, PROTO_A_ORIGIN);
+    if (m->road_world) { /* the road under it, and the snapshot's heights */
+      blk_road_world(&s->model, o[0], o[1]);
+      for (int e = 0; e < m->M; e++) s->x[3 * e + 2] = m->z_road[e];
+    }
   }
   if (blk_step(m, &s->state, d_road[0], err)) return -1;
   const blk_state *st = &s->state;

@@ -261,6 +261,8 @@ void cpl_lugs_free(cpl_lugs *L);
  * indentation): road_z minus the area-weighted mean height of its face
  * nodes at the world positions x. */
 double cpl_lug_approach(const cpl_lugs *L, int j, const double *x, double road_z);
+/* Lug j's area centre, world (x, y) (m), at the positions x. */
+void cpl_lug_centre(const cpl_lugs *L, int j, const double *x, double c[2]);
 /* Adds to f (nodal forces, [n, 3]) a block's normal force F (N, +z, the
  * road pushing the face up) spread over lug j's nodes, the weights w_i =
  * (a_i/A)(1 + b . (p_i - p_c)) with p_i the nodes' world (x, y), p_c their

@@ -32,6 +32,7 @@ typedef enum cpl_field_id {
   CPL_F_LUG_D,      /* [P] per lug process: its lug face's approach (tire_road) */
   CPL_F_LUG_FORCE,  /* [P] per lug process: its force on the face */
   CPL_F_LUG_COP,    /* [P,2] per lug process: its centre of pressure */
+  CPL_F_LUG_ORIGIN, /* [P,2] per lug process: where its lug's face is (world x, y) */
   CPL_N_FIELDS
 } cpl_field_id;
 

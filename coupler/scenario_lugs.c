@@ -110,13 +110,18 @@ double cpl_lug_approach(const cpl_lugs *L, int j, const double *x, double road_z
   return road_z - z / L->area[j];
 }
 
+void cpl_lug_centre(const cpl_lugs *L, int j, const double *x, double c[2]) {
+  c[0] = c[1] = 0;
+  for (int32_t e = L->start[j]; e < L->start[j + 1]; e++)
+    for (int d = 0; d < 2; d++) c[d] += L->weight[e] / L->area[j] * x[3 * (size_t)L->node[e] + d];
+}
+
 /* (block force F, centre of pressure) -> (lug j's nodal forces, += f) */
 void cpl_lug_spread(const cpl_lugs *L, int j, const double *x, double F, const double cop[2],
                     double *f) {
   const double A = L->area[j];
-  double c[2] = {0, 0}, S[3] = {0, 0, 0}; /* centre; second moment xx, xy, yy */
-  for (int32_t e = L->start[j]; e < L->start[j + 1]; e++)
-    for (int d = 0; d < 2; d++) c[d] += L->weight[e] / A * x[3 * (size_t)L->node[e] + d];
+  double c[2], S[3] = {0, 0, 0}; /* centre; second moment xx, xy, yy */
+  cpl_lug_centre(L, j, x, c);
   for (int32_t e = L->start[j]; e < L->start[j + 1]; e++) {
     const double *p = &x[3 * (size_t)L->node[e]], a = L->weight[e] / A;
     const double q[2] = {p[0] - c[0], p[1] - c[1]};

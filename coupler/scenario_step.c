@@ -79,8 +79,12 @@ static int lug_action(cpl_runner *r) {
   if (cpl_lug_assign(S, L->n, r->data.lug_d, s->lug_engage,
                      r->data.fields[CPL_F_LUG_FORCE].cur, &r->err) < 0)
     return -1;
-  double *d = r->data.fields[CPL_F_LUG_D].cur;
-  for (int p = 0; p < S->n; p++) d[p] = S->lug[p] >= 0 ? r->data.lug_d[S->lug[p]] : CPL_LUG_IDLE_D;
+  double *d = r->data.fields[CPL_F_LUG_D].cur, *o = r->data.fields[CPL_F_LUG_ORIGIN].cur;
+  for (int p = 0; p < S->n; p++) {
+    d[p] = S->lug[p] >= 0 ? r->data.lug_d[S->lug[p]] : CPL_LUG_IDLE_D;
+    o[2 * p] = o[2 * p + 1] = 0;
+    if (S->lug[p] >= 0) cpl_lug_centre(L, S->lug[p], x, &o[2 * p]);
+  }
   return 0;
 }
 

@@ -75,6 +75,7 @@ typedef enum proto_msg_kind {
 #define PROTO_A_D_ROAD "d_road"
 #define PROTO_A_FORCE "force"
 #define PROTO_A_COP "cop"
+#define PROTO_A_ORIGIN "origin"
 /* Sparse form of an [n, ...] array (PROTOCOL.md "Sparse exchange"): the
  * array has k rows, the rows of the nodes listed in "<name>_index" (i4 [k],
  * increasing). Rows not listed are zero (forces) or not carried (positions,

@@ -122,6 +122,12 @@ static const proto_array_spec table[] = {
      "negative value while it serves no lug. Header reset: true when it takes "
      "a new lug (the block's history starts afresh)",
      "lug.d", 0},
+    {PROTO_ROLE_LUG, PROTO_MSG_STEP, PROTO_A_ORIGIN, PROTO_F8, 1, {2}, "m",
+     PROTO_WHEN_ALWAYS,
+     "world (x, y) of its lug face's area centre at t_{k-1} (0, 0 while it serves no "
+     "lug): where on the road the block is (a road in world coordinates is taken "
+     "there when it takes the lug)",
+     "lug.origin", 0},
     {PROTO_ROLE_LUG, PROTO_MSG_DONE, PROTO_A_FORCE, PROTO_F8, 1, {1}, "N",
      PROTO_WHEN_ALWAYS,
      "total normal contact force on its lug face (positive = compression) at "
