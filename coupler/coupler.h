@@ -278,6 +278,7 @@ typedef struct cpl_lug_slots {
   int n;                  /* lug processes */
   int lug[CPL_MAX_PROCS];
   int reset[CPL_MAX_PROCS];
+  double ahead[CPL_MAX_PROCS]; /* m: its face's centre ahead of the rim centre (x) */
   int64_t handovers;      /* lugs taken so far */
 } cpl_lug_slots;
 /* One step's assignment from each lug's approach d[j] (m) and each process's

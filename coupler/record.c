@@ -99,16 +99,20 @@ static const char *const coupler_cols[N_CS] = {
 
 /* tire_road's /coupler/lugs row: t, lugs taken so far, the road's penalty
  * force, then per lug process the lug it serves (-1: none), its approach,
- * force and centre of pressure. */
+ * force, centre of pressure, and where its face is: x ahead of the rim's
+ * centre (the place in the footprint) and y (world). */
 static int lug_row(cpl_runner *r, int64_t k, double t) {
-  double row[3 + 5 * CPL_MAX_PROCS];
+  double row[3 + CPL_LUG_COLS * CPL_MAX_PROCS];
   const cpl_lug_slots *S = &r->data.lug;
   const double *d = r->data.fields[CPL_F_LUG_D].cur, *F = r->data.fields[CPL_F_LUG_FORCE].cur;
   const double *cop = r->data.fields[CPL_F_LUG_COP].cur;
+  const double *o = r->data.fields[CPL_F_LUG_ORIGIN].cur;
   row[0] = t, row[1] = (double)S->handovers, row[2] = r->data.lug_penalty;
   for (int p = 0; p < S->n; p++) {
-    double *o = &row[3 + 5 * p];
-    o[0] = S->lug[p], o[1] = d[p], o[2] = F[p], o[3] = cop[2 * p], o[4] = cop[2 * p + 1];
+    double *q = &row[3 + CPL_LUG_COLS * p];
+    const int on = S->lug[p] >= 0;
+    q[0] = S->lug[p], q[1] = d[p], q[2] = F[p], q[3] = cop[2 * p], q[4] = cop[2 * p + 1];
+    q[5] = S->ahead[p], q[6] = on ? o[2 * p + 1] : 0;
   }
   const int n = r->plan->n_lug_cols;
   if (cpl_output_coupler_row(r->out, "lugs", n, r->plan->lug_cols, row, &r->err) < 0) return -1;

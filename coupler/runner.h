@@ -195,6 +195,7 @@ typedef struct cpl_plan {
   /* tire_road: the lug faces of the surface and the columns of /coupler/lugs */
   cpl_lugs lugs;
   int n_lug_cols;
+#define CPL_LUG_COLS 7 /* /coupler/lugs columns per lug process */
   const char **lug_cols;
   char *lug_col_text;
 } cpl_plan;

@@ -84,6 +84,7 @@ static int lug_action(cpl_runner *r) {
     d[p] = S->lug[p] >= 0 ? r->data.lug_d[S->lug[p]] : CPL_LUG_IDLE_D;
     o[2 * p] = o[2 * p + 1] = 0;
     if (S->lug[p] >= 0) cpl_lug_centre(L, S->lug[p], x, &o[2 * p]);
+    S->ahead[p] = S->lug[p] >= 0 ? o[2 * p] - r->data.rim.c[0] : 0; /* both of t_{k-1} */
   }
   return 0;
 }
@@ -141,15 +142,16 @@ int cpl_lugs_setup(cpl_runner *r) {
     printf("tire_road: %d lug faces on the outer radius %.6g m (areas %.4g-%.4g mm2), served by "
            "%d lug processes\n", p->lugs.n, p->lugs.outer_radius, amin * 1e6, amax * 1e6, np);
   r->data.lug_d = calloc((size_t)p->lugs.n, sizeof(double));
-  /* /coupler/lugs: t, handovers, penalty, then lug, d, force, cop_x, cop_y per process */
-  enum { PER = 5, HEAD = 3, W = 32 };
+  /* /coupler/lugs: t, handovers, penalty, then per process lug, d, force, cop_x, cop_y,
+   * x (ahead of the rim centre), y of its face (record.c) */
+  enum { PER = CPL_LUG_COLS, HEAD = 3, W = 32 };
   p->n_lug_cols = HEAD + PER * np;
   p->lug_cols = malloc(sizeof(char *) * (size_t)p->n_lug_cols);
   p->lug_col_text = malloc((size_t)W * (size_t)p->n_lug_cols);
   if (!r->data.lug_d || !p->lug_cols || !p->lug_col_text)
     return proto_fail(&r->err, "out of memory (lugs)");
   static const char *const head[HEAD] = {"t", "handovers", "road_penalty"};
-  static const char *const per[PER] = {"lug", "d", "force", "cop_x", "cop_y"};
+  static const char *const per[PER] = {"lug", "d", "force", "cop_x", "cop_y", "x", "y"};
   for (int c = 0; c < p->n_lug_cols; c++) {
     char *t = p->lug_col_text + (size_t)W * (size_t)c;
     if (c < HEAD) snprintf(t, W, "%s", head[c]);

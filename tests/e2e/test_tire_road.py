@@ -61,6 +61,21 @@ for p in range(3):
         lost += lug[k] >= 0 and F[k] != 0  # given up while still holding force
 check(lost == 0, "no lug given up while its block still held force")
 
+# the figures and the spectrum (python3 -m cosim.fig_road)
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+env = dict(os.environ, PYTHONPATH=os.path.join(HERE, "..", "..", "python"))
+p = subprocess.run([sys.executable, "-m", "cosim.fig_road", s["output"]["dir"]], env=env,
+                   capture_output=True, text=True, timeout=300)
+check(p.returncode == 0, f"cosim.fig_road runs ({p.stderr.strip()[-300:]})")
+for png in ("road_passages.png", "road_psd.png", "road_footprint.png"):
+    f = os.path.join(s["output"]["dir"], png)
+    check(os.path.exists(f) and os.path.getsize(f) > 1000, f"{png} written")
+spec = np.loadtxt(os.path.join(s["output"]["dir"], "road_psd.csv"), delimiter=",")
+check(abs(spec[-1, 0] - 0.5 / s["time"]["dt"]) < 1e-6 and np.all(spec[:, 1] >= 0),
+      f"the spectrum reaches the block rate's Nyquist frequency ({spec[-1, 0]:.6g} Hz)")
+check(f"{taken} passages" in p.stdout, f"one passage per lug taken ({p.stdout.strip()})")
+
 # one lug passage with a prescribed lug-face motion: a rigid 20 x 20 mm face (fem_stub)
 # on a rim sinking at depth / ramp_time is the thesis' linear indentation; the lug block
 # (tread_block.json's block) must give the stand-alone block scene's force history. The
