@@ -34,6 +34,15 @@
 #define DEM_SLEEP_TIME 0.02
 #define DEM_SLEEP_DISTANCE 0.0
 #define DEM_SLEEP_OVERLAP 0.02
+/* at rest: its centre moved less than 1e-3 of its radius over `time` (for
+ * the paper bed's 3.5 mm grains and 20 ms: creep below 0.18 mm/s). Slow is
+ * not at rest: the paper bed loaded by positions still creeps at 0.3-0.5
+ * mm/s (median) and the velocity alone froze two thirds of it, which changed
+ * the tread's load by a quarter; `velocity` 2e-4 m/s (about this bound for a
+ * steady creep) gave the all-awake load (bench/results/tire_soil.md). 1e-3 is
+ * 1/20 of `overlap`: a grain frozen while creeping below it reaches the wake
+ * overlap only after 20 x `time`. */
+#define DEM_SLEEP_DISPLACEMENT 1e-3
 
 typedef struct dem_material {
   double density, E, nu, G; /* G = E/(2(1+nu)) unless given */
@@ -81,7 +90,8 @@ typedef struct dem_mesh {
 } dem_mesh;
 
 /* "sleep" (dem_sleep.c): a grain slower than `velocity` (also |ω| r) for
- * `time`, resting on something and outside the region around the moving
+ * `time`, its centre within `displacement` × its radius of where it was when
+ * that time began, resting on something and outside the region around the moving
  * meshes (their box grown by a margin of at least `distance`) stops: not
  * integrated, not in the list rebuild, its contacts with other sleeping
  * grains frozen; it wakes when an awake grain listed with it moves faster
@@ -90,6 +100,7 @@ typedef struct dem_mesh {
 typedef struct dem_sleep_config {
   int on;
   double velocity, time, distance, overlap;
+  double displacement; /* at rest: moved less than this fraction of the radius over `time` */
 } dem_sleep_config;
 
 /* Preparation of a packing ("particles.prepare" of a generated bed; terra's

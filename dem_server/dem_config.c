@@ -306,10 +306,11 @@ static int read_wall(dem_model *m, proto_cfg *c, int i, void *ctx) {
   return proto_cfg_end(c);
 }
 
-/* "sleep": false | true (defaults) | {"velocity", "time", "distance", "overlap"}. */
+/* "sleep": false | true (defaults) | {"velocity", "time", "distance", "overlap", "displacement"}. */
 static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
   const cJSON *j = proto_cfg_raw(c, "sleep", PROTO_OPTIONAL);
-  *sl = (dem_sleep_config){0, DEM_SLEEP_VELOCITY, DEM_SLEEP_TIME, DEM_SLEEP_DISTANCE, DEM_SLEEP_OVERLAP};
+  *sl = (dem_sleep_config){0, DEM_SLEEP_VELOCITY, DEM_SLEEP_TIME, DEM_SLEEP_DISTANCE, DEM_SLEEP_OVERLAP,
+                           DEM_SLEEP_DISPLACEMENT};
   if (!j || cJSON_IsFalse(j)) return 0;
   sl->on = 1;
   if (cJSON_IsTrue(j)) return 0;
@@ -321,7 +322,8 @@ static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
       proto_cfg_num(&sc, "velocity", PROTO_OPTIONAL, 1e-12, 1e3, &sl->velocity) ||
       proto_cfg_num(&sc, "time", PROTO_OPTIONAL, 0.0, 1e6, &sl->time) ||
       proto_cfg_num(&sc, "distance", PROTO_OPTIONAL, 0.0, 1e6, &sl->distance) ||
-      proto_cfg_num(&sc, "overlap", PROTO_OPTIONAL, 0.0, 1.0, &sl->overlap))
+      proto_cfg_num(&sc, "overlap", PROTO_OPTIONAL, 0.0, 1.0, &sl->overlap) ||
+      proto_cfg_num(&sc, "displacement", PROTO_OPTIONAL, 0.0, 1e6, &sl->displacement))
     return -1;
   return proto_cfg_end(&sc);
 }

@@ -108,6 +108,7 @@ struct dem_work {
    * the per-step loops and the list rebuild run over the awake block only */
   uint8_t *asleep, *wake; /* [n] asleep; woken (asleep grain to wake at the end of the step) */
   int32_t *rest;          /* [n] steps at rest */
+  double *rest_x;         /* [n,3] where the grain was when its steps at rest began */
   uint8_t *near;          /* [n] inside the region (at its last update): may not sleep */
   int n_active;           /* awake grains = first asleep slot */
   int *wake_list, n_wake; /* asleep grains woken this step (any order: only flags are set from it) */
@@ -281,7 +282,27 @@ static inline void dem_wake(struct dem_work *w, int i) {
 #define DEM_WAKE_FACTOR 4.0
 #define DEM_COMPACT_WAKE 1
 #define DEM_COMPACT_SLEEP 2
+/* min and max of boxes, inline: fmin/fmax are library calls (they order
+ * NaN), which took 5 % of a step with sleep in the triangle boxes of the
+ * region and the BVH refit. The same values for finite numbers (a box's
+ * -0 or +0 compares the same); a NaN node or grain stops the run elsewhere. */
+static inline double dem_min(double a, double b) { return b < a ? b : a; }
+static inline double dem_max(double a, double b) { return b > a ? b : a; }
+
 /* dem_neigh.c */
+/* The cell of coordinate x along axis k (clamped to the grid), and a cell's index. */
+static inline int dem_cell_coord(const struct dem_work *w, double x, int k) {
+  int c = (int)((x - w->cell_lo[k]) / w->cell_size);
+  return c < 0 ? 0 : (c >= w->cell_dim[k] ? w->cell_dim[k] - 1 : c);
+}
+static inline int dem_cell_index(const struct dem_work *w, int x, int y, int z) {
+  return (z * w->cell_dim[1] + y) * w->cell_dim[0] + x;
+}
+/* Morton rank of the cell that holds point x. */
+static inline int dem_cell_rank_at(const struct dem_work *w, const double *x) {
+  const int cx = dem_cell_coord(w, x[0], 0), cy = dem_cell_coord(w, x[1], 1), cz = dem_cell_coord(w, x[2], 2);
+  return w->cell_rank[dem_cell_index(w, cx, cy, cz)];
+}
 int dem_neigh_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_neigh_free(struct dem_work *w);
 int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err);

@@ -49,8 +49,8 @@ void dem_closest_on_triangle(const double *p, const double *a, const double *b,
 static void tri_box(const double *x, const int32_t *t, double *lo, double *hi) {
   for (int k = 0; k < 3; k++) {
     double a = x[3 * t[0] + k], b = x[3 * t[1] + k], c = x[3 * t[2] + k];
-    lo[k] = fmin(a, fmin(b, c));
-    hi[k] = fmax(a, fmax(b, c));
+    lo[k] = dem_min(a, dem_min(b, c));
+    hi[k] = dem_max(a, dem_max(b, c));
   }
 }
 
@@ -153,8 +153,8 @@ void dem_bvh_refit(dem_bvh *b, const double *x, const int32_t *tri) {
     } else {
       int l = b->left[i], r = b->right[i];
       for (int k = 0; k < 3; k++) {
-        b->lo[3 * i + k] = fmin(b->lo[3 * l + k], b->lo[3 * r + k]);
-        b->hi[3 * i + k] = fmax(b->hi[3 * l + k], b->hi[3 * r + k]);
+        b->lo[3 * i + k] = dem_min(b->lo[3 * l + k], b->lo[3 * r + k]);
+        b->hi[3 * i + k] = dem_max(b->hi[3 * l + k], b->hi[3 * r + k]);
       }
     }
   }
@@ -441,10 +441,10 @@ static void far_meshes(const dem_model *m, dem_state *s) {
   double glo[3] = {INFINITY, INFINITY, INFINITY}, ghi[3] = {-INFINITY, -INFINITY, -INFINITY}, rmax = 0;
   for (int i = 0; i < na; i++) {
     for (int k = 0; k < 3; k++) {
-      glo[k] = fmin(glo[k], s->x[3 * i + k]);
-      ghi[k] = fmax(ghi[k], s->x[3 * i + k]);
+      glo[k] = dem_min(glo[k], s->x[3 * i + k]);
+      ghi[k] = dem_max(ghi[k], s->x[3 * i + k]);
     }
-    rmax = fmax(rmax, s->radius[i]);
+    rmax = dem_max(rmax, s->radius[i]);
   }
   for (int mi = 0; mi < m->n_meshes; mi++) {
     const dem_bvh *b = &w->bvh[mi]; /* refitted: its root is the node box */
@@ -465,7 +465,9 @@ static void far_meshes(const dem_model *m, dem_state *s) {
 /* The lists of every grain from the current positions (refits the BVHs). */
 int dem_mesh_lists_build(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
-  const int n = s->n, nchunk = w->nchunk;
+  /* the awake grains only (slots [0, n_active)): an asleep grain touches no
+   * mesh and has no candidates (dem_sleep.c), so its rows stay empty */
+  const int n = w->n_active, nchunk = (n + DEM_CHUNK - 1) / DEM_CHUNK;
   for (int mi = 0; mi < m->n_meshes; mi++) {
     const dem_mesh *me = &m->meshes[mi];
     dem_bvh_update(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri);
@@ -477,6 +479,8 @@ int dem_mesh_lists_build(const dem_model *m, dem_state *s, proto_err *err) {
   if (oom) return proto_fail(err, "out of memory for the mesh contact candidates");
   w->ml_start[0] = 0;
   for (int i = 0; i < n; i++) w->ml_start[i + 1] += w->ml_start[i];
+  for (int i = n; i < s->n; i++) w->ml_start[i + 1] = w->ml_start[n]; /* asleep: no candidates */
+  for (int c = nchunk; c < w->nchunk; c++) w->chunk_mesh[c] = 0;
   const size_t total = (size_t)w->ml_start[n];
   if (total > w->ml_cap) {
     int32_t *k = realloc(w->ml_key, sizeof(int32_t) * (total + total / 4 + 64));

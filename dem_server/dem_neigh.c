@@ -90,27 +90,49 @@ typedef struct perm_task {
 static void perm_run(const perm_task *t, const int *restrict o, int n, char *restrict tmp) {
   const size_t rec = t->rec;
   char *restrict a = t->a;
-  switch (rec) { /* the common sizes as fixed-size copies */
-  case 8:
-    for (int i = 0; i < n; i++) memcpy(tmp + 8 * (size_t)i, a + 8 * (size_t)o[i], 8);
-    break;
-  case 24:
-    for (int i = 0; i < n; i++) memcpy(tmp + 24 * (size_t)i, a + 24 * (size_t)o[i], 24);
-    break;
-  case 32:
-    for (int i = 0; i < n; i++) memcpy(tmp + 32 * (size_t)i, a + 32 * (size_t)o[i], 32);
-    break;
-  case 4:
-    for (int i = 0; i < n; i++) memcpy(tmp + 4 * (size_t)i, a + 4 * (size_t)o[i], 4);
-    break;
-  default:
-    for (int i = 0; i < n; i++) memcpy(tmp + rec * i, a + rec * o[i], rec);
+  int i = 0;
+  while (i < n && o[i] == i) i++; /* the slots that stay (a partial or wake rebuild: most) */
+  const int first = i;
+  while (i < n) { /* runs of consecutive old slots (a sorted block shifted) as one copy */
+    int len = 1;
+    while (i + len < n && o[i + len] == o[i] + len) len++;
+    char *d = tmp + rec * (size_t)i;
+    const char *src = a + rec * (size_t)o[i];
+    if (len > 1) memcpy(d, src, rec * (size_t)len);
+    else switch (rec) { /* the common sizes as fixed-size copies */
+      case 4: memcpy(d, src, 4); break;
+      case 8: memcpy(d, src, 8); break;
+      case 24: memcpy(d, src, 24); break;
+      case 32: memcpy(d, src, 32); break;
+      default: memcpy(d, src, rec);
+      }
+    i += len;
   }
-  memcpy(a, tmp, rec * (size_t)n);
+  memcpy(a + rec * (size_t)first, tmp + rec * (size_t)first, rec * (size_t)(n - first));
 }
 
-/* Every per-grain array that lives across steps; one array per task. */
-static int perm_tasks(const dem_model *m, dem_state *s, perm_task *t) {
+/* A wake rebuild's order over the asleep block (sort_wake): the woken first
+ * (o[0..k), from anywhere), then the others in their order, each moved up by
+ * the woken before it. Those move in place from the end, in runs (one copy
+ * of the block, not two through tmp: the block is most of the grains' bytes),
+ * the woken through tmp. */
+static void perm_wake(const perm_task *t, const int *restrict o, int n, int k, char *restrict tmp) {
+  const size_t rec = t->rec;
+  char *a = t->a;
+  for (int q = 0; q < k; q++) memcpy(tmp + rec * (size_t)q, a + rec * (size_t)o[q], rec);
+  for (int i = n; i > k;) {
+    int len = 1;
+    while (i - len > k && o[i - len - 1] == o[i - len] - 1) len++;
+    if (o[i - len] != i - len) memmove(a + rec * (size_t)(i - len), a + rec * (size_t)o[i - len], rec * (size_t)len);
+    i -= len;
+  }
+  memcpy(a, tmp, rec * (size_t)k);
+}
+
+/* Every per-grain array that lives across steps; one array per task. A wake
+ * rebuild (wake) leaves out the mesh contacts: an asleep grain has none, and
+ * they are zero (fall_asleep, dem_sleep.c), so moving them changes nothing. */
+static int perm_tasks(const dem_model *m, dem_state *s, perm_task *t, int wake) {
   struct dem_work *w = s->work;
   const size_t d = sizeof(double), K = DEM_MESH_SLOTS;
   int c = 0;
@@ -130,13 +152,14 @@ static int perm_tasks(const dem_model *m, dem_state *s, perm_task *t) {
     t[c++] = (perm_task){w->asleep, 1};
     t[c++] = (perm_task){w->rest, sizeof(int32_t)};
     t[c++] = (perm_task){w->near, 1};
+    t[c++] = (perm_task){w->rest_x, 3 * d};
   }
   if (w->compact) { /* at the end of a step (dem_sleep_update): the next half kick takes these */
     t[c++] = (perm_task){s->force, 3 * d};
     t[c++] = (perm_task){s->torque, 3 * d};
   }
   for (int p = 0; p < m->n_planes; p++) t[c++] = (perm_task){dem_wall_shear(w, s->n, 0, p), 3 * d};
-  if (m->n_meshes > 0) {
+  if (m->n_meshes > 0 && !wake) {
     t[c++] = (perm_task){w->mc_key, K * sizeof(int64_t)};
     t[c++] = (perm_task){w->mc_mesh, K};
     t[c++] = (perm_task){w->mc_shear, 3 * K * d};
@@ -151,9 +174,9 @@ static int perm_tasks(const dem_model *m, dem_state *s, perm_task *t) {
 static int permute_grains(const dem_model *m, dem_state *s, int from, int cnt, proto_err *err) {
   struct dem_work *w = s->work;
   perm_task t[PERM_MAX_TASKS];
-  const int nt = perm_tasks(m, s, t);
+  const int nt = perm_tasks(m, s, t, from > 0);
   const int *order = w->old_of;
-  if (from > 0) { /* relative to from (rev_start: scratch during a rebuild) */
+  if (from > 0) { /* a wake rebuild: relative to from (rev_start: scratch during a rebuild) */
     for (int i = 0; i < cnt; i++) w->rev_start[i] = w->old_of[from + i] - from;
     order = w->rev_start;
     for (int k = 0; k < nt; k++) t[k].a = (char *)t[k].a + (size_t)from * t[k].rec;
@@ -162,7 +185,10 @@ static int permute_grains(const dem_model *m, dem_state *s, int from, int cnt, p
     if (!w->perm_tmp[k] && !(w->perm_tmp[k] = malloc(PERM_MAX_REC * (size_t)s->n + 1)))
       return proto_fail(err, "out of memory for re-sorting %d grains", s->n);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(w->nthreads)
-  for (int k = 0; k < nt; k++) perm_run(&t[k], order, cnt, w->perm_tmp[omp_get_thread_num()]);
+  for (int k = 0; k < nt; k++) {
+    if (from > 0) perm_wake(&t[k], order, cnt, w->n_active - from, w->perm_tmp[omp_get_thread_num()]);
+    else perm_run(&t[k], order, cnt, w->perm_tmp[omp_get_thread_num()]);
+  }
   return 0;
 }
 
@@ -214,21 +240,13 @@ static int setup_cells(const dem_model *m, dem_state *s, proto_err *err) {
   return (int)total;
 }
 
-static inline int cell_coord(const struct dem_work *w, double x, int k) {
-  int c = (int)((x - w->cell_lo[k]) / w->cell_size);
-  return c < 0 ? 0 : (c >= w->cell_dim[k] ? w->cell_dim[k] - 1 : c);
-}
-
-static inline int cell_index(const struct dem_work *w, int x, int y, int z) {
-  return (z * w->cell_dim[1] + y) * w->cell_dim[0] + x;
-}
 
 /* Morton rank of every cell: the cells of a power-of-two cube visited in
  * Z-curve order, cubes outside the grid skipped (O(cells) for any shape). */
 static void morton_visit(struct dem_work *w, int x, int y, int z, int size, int *next) {
   if (x >= w->cell_dim[0] || y >= w->cell_dim[1] || z >= w->cell_dim[2]) return;
   if (size == 1) {
-    w->cell_rank[cell_index(w, x, y, z)] = (*next)++;
+    w->cell_rank[dem_cell_index(w, x, y, z)] = (*next)++;
     return;
   }
   const int h = size / 2;
@@ -255,7 +273,7 @@ static void sort_by_cell(const dem_model *m, dem_state *s, int ncell, int cnt) {
 #pragma omp parallel for schedule(static) num_threads(w->nthreads)
   for (int i = 0; i < cnt; i++) {
     const double *x = &s->x[3 * i];
-    w->cell_of[i] = w->cell_rank[cell_index(w, cell_coord(w, x[0], 0), cell_coord(w, x[1], 1), cell_coord(w, x[2], 2))];
+    w->cell_of[i] = dem_cell_rank_at(w, x);
   }
   int na = 0;
   for (int i = 0; i < cnt; i++) na += !(asleep && asleep[i]);
@@ -287,7 +305,7 @@ static void sort_wake(dem_state *s, int ncell) {
 #pragma omp parallel for schedule(static) num_threads(w->nthreads)
   for (int i = na_old; i < n; i++) {
     const double *x = &s->x[3 * i];
-    w->cell_of[i] = w->cell_rank[cell_index(w, cell_coord(w, x[0], 0), cell_coord(w, x[1], 1), cell_coord(w, x[2], 2))];
+    w->cell_of[i] = dem_cell_rank_at(w, x);
   }
   int na = na_old;
   for (int i = na_old; i < n; i++) na += !w->asleep[i];
@@ -366,7 +384,7 @@ static int cell_ranges(const struct dem_work *w, const int *start, int rank_min,
   for (int z = cc[2] > 0 ? cc[2] - 1 : 0; z <= cc[2] + 1 && z < w->cell_dim[2]; z++)
     for (int y = cc[1] > 0 ? cc[1] - 1 : 0; y <= cc[1] + 1 && y < w->cell_dim[1]; y++)
       for (int x = cc[0] > 0 ? cc[0] - 1 : 0; x <= cc[0] + 1 && x < w->cell_dim[0]; x++) {
-        const int r = w->cell_rank[cell_index(w, x, y, z)];
+        const int r = w->cell_rank[dem_cell_index(w, x, y, z)];
         if (r < rank_min || start[r] == start[r + 1]) continue;
         int q = nr++;
         for (; q > first && lo[q - 1] > start[r]; q--) { lo[q] = lo[q - 1]; hi[q] = hi[q - 1]; }
@@ -431,7 +449,7 @@ static int list_chunk(const dem_model *m, dem_state *s, int c, int lo, int hi, v
     if (i == lo || ri != rank || i == na) { /* a new cell (or class): its candidates */
       rank = ri;
       int cc[3];
-      for (int k = 0; k < 3; k++) cc[k] = cell_coord(w, s->x[3 * i + k], k);
+      for (int k = 0; k < 3; k++) cc[k] = dem_cell_coord(w, s->x[3 * i + k], k);
       cell_candidates(m, w, s, rank, i < na, cc, &cs);
     }
     for (;;) {
@@ -503,7 +521,7 @@ int dem_neigh_asleep_cells(const dem_model *m, dem_state *s, proto_err *err) {
   int prev = 0;
   for (int i = na; i < n; i++) {
     const double *x = &s->x[3 * i];
-    const int r = w->cell_rank[cell_index(w, cell_coord(w, x[0], 0), cell_coord(w, x[1], 1), cell_coord(w, x[2], 2))];
+    const int r = dem_cell_rank_at(w, x);
     if (r < prev)
       return proto_fail(err, "state import: asleep grains not in the order of their cells (slot %d)", i);
     prev = r;
@@ -703,10 +721,10 @@ int dem_neigh_rebuild(const dem_model *m, dem_state *s, proto_err *err) {
     const size_t from = (size_t)w->old_start[cnt], to = (size_t)w->nl_start[cnt], len = (size_t)w->nl_start[n] - to;
     memcpy(&w->nl_j[to], &w->old_j[from], sizeof(int) * len);
     memcpy(&w->nl_shear[3 * to], &w->old_shear[3 * from], 3 * sizeof(double) * len);
-    for (size_t k = to; k < to + len; k++) {
-      const double *sh = &w->nl_shear[3 * k];
-      w->pair_touch[k] = sh[0] != 0 || sh[1] != 0 || sh[2] != 0;
-    }
+    /* pair_touch of an asleep row is (spring != 0), set when the row was
+     * last built and not changed since (asleep rows are not screened):
+     * moved with the rows (before the awake rows below overwrite it) */
+    memmove(&w->pair_touch[to], &w->pair_touch[from], len);
   }
 #pragma omp parallel for schedule(dynamic, 256) num_threads(w->nthreads)
   for (int i = 0; i < cnt; i++) {

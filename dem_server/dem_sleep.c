@@ -19,7 +19,9 @@
  * for any number of threads.
  *
  * A grain sleeps when it has been slower than `velocity` (|v| and |ω| r) for
- * `time`, is outside the region and touches no mesh: v = ω = 0, not
+ * `time`, its centre all that time within `displacement` × r of where it
+ * was when that time began (at rest, not merely slow), is outside the region
+ * and touches no mesh: v = ω = 0, not
  * integrated. It wakes when an awake grain listed with it (within r_i + r_j +
  * skin at the last rebuild) moves faster than `velocity`, or presses into it
  * beyond `overlap` of the smaller radius, or the region reaches it; it
@@ -77,30 +79,42 @@ int dem_sleep_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->wake = calloc((size_t)s->n + 1, 1);
   w->rest = calloc((size_t)s->n + 1, sizeof(int32_t));
   w->near = calloc((size_t)s->n + 1, 1);
+  w->rest_x = calloc(3 * (size_t)s->n + 1, sizeof(double));
   w->wake_list = calloc((size_t)s->n + 1, sizeof(int));
   int nodes = 1;
   for (int mi = 0; mi < m->n_meshes; mi++) nodes = m->meshes[mi].n_nodes > nodes ? m->meshes[mi].n_nodes : nodes;
   w->jump_pos = malloc(sizeof(int32_t) * (size_t)nodes);
-  if (!w->asleep || !w->wake || !w->rest || !w->near || !w->wake_list || !w->jump_pos)
+  if (!w->asleep || !w->wake || !w->rest || !w->near || !w->rest_x || !w->wake_list || !w->jump_pos)
     return proto_fail(err, "out of memory for the sleep state of %d grains", s->n);
   return 0;
 }
 
 void dem_sleep_free(struct dem_work *w) {
-  free(w->asleep); free(w->wake); free(w->rest); free(w->near); free(w->wake_list); free(w->frz_start);
+  free(w->asleep); free(w->wake); free(w->rest); free(w->near); free(w->rest_x); free(w->wake_list); free(w->frz_start);
   free(w->jump_pos);
 }
 
 void dem_sleep_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
   struct dem_work *w = s->work;
-  const double v2max = m->sleep.velocity * m->sleep.velocity;
+  const double v2max = m->sleep.velocity * m->sleep.velocity, d2max = m->sleep.displacement * m->sleep.displacement;
   const int weightless = dem_dot(m->gravity, m->gravity) == 0;
   for (int i = lo; i < hi; i++) {
     const double *v = &s->v[3 * i], *o = &s->omega[3 * i], r = s->radius[i], *f = &s->force[3 * i];
+    const double *x = &s->x[3 * i];
+    double *x0 = &w->rest_x[3 * i];
     /* slow, and resting on something: a grain without contacts under gravity is falling */
     const int held = weightless || f[0] != 0 || f[1] != 0 || f[2] != 0;
     const int still = held && dem_dot(v, v) < v2max && dem_dot(o, o) * r * r < v2max;
-    w->rest[i] = still ? (w->rest[i] < INT32_MAX ? w->rest[i] + 1 : INT32_MAX) : 0;
+    /* and at rest: within displacement x r of where its steps at rest began
+     * (slow is not at rest: a creeping bed moves its grains by far more
+     * than a contact's overlap within `time`) */
+    const double e0 = x[0] - x0[0], e1 = x[1] - x0[1], e2 = x[2] - x0[2];
+    if (still && w->rest[i] > 0 && e0 * e0 + e1 * e1 + e2 * e2 <= d2max * r * r) {
+      w->rest[i] = w->rest[i] < INT32_MAX ? w->rest[i] + 1 : INT32_MAX;
+    } else { /* a new start here */
+      w->rest[i] = still;
+      x0[0] = x[0]; x0[1] = x[1]; x0[2] = x[2];
+    }
   }
 }
 
@@ -220,8 +234,8 @@ static void grains_box(const dem_state *s, double *lo, double *hi) {
   }
   for (int i = 0; i < all; i++)
     for (int k = 0; k < 3; k++) {
-      lo[k] = fmin(lo[k], s->x[3 * i + k]);
-      hi[k] = fmax(hi[k], s->x[3 * i + k]);
+      lo[k] = dem_min(lo[k], s->x[3 * i + k]);
+      hi[k] = dem_max(hi[k], s->x[3 * i + k]);
     }
 }
 
@@ -261,13 +275,13 @@ static void region_update(const dem_model *m, dem_state *s) {
       int meets = 1;
       for (int k = 0; k < 3; k++) {
         const double a = x[3 * tn[0] + k], b = x[3 * tn[1] + k], c = x[3 * tn[2] + k];
-        tlo[k] = fmin(a, fmin(b, c));
-        thi[k] = fmax(a, fmax(b, c));
+        tlo[k] = dem_min(a, dem_min(b, c));
+        thi[k] = dem_max(a, dem_max(b, c));
         meets &= thi[k] >= glo[k] && tlo[k] <= ghi[k];
       }
       for (int k = 0; k < 3 && meets; k++) {
-        lo[k] = fmin(lo[k], tlo[k]);
-        hi[k] = fmax(hi[k], thi[k]);
+        lo[k] = dem_min(lo[k], tlo[k]);
+        hi[k] = dem_max(hi[k], thi[k]);
       }
     }
   }
@@ -304,7 +318,7 @@ static void region_update(const dem_model *m, dem_state *s) {
 static void fall_asleep(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
   const int32_t rest_steps = (int32_t)ceil(m->sleep.time / s->dt - 1e-9);
-  const int na = w->n_active, batch = 1 + s->n / 64;
+  const int na = w->n_active, batch = 1 + s->n / 16;
   int cand = 0;
   for (int i = 0; i < na; i++)
     cand += w->rest[i] >= rest_steps && !w->near[i] && !w->wake[i] && !touches_mesh(m, w, i);
@@ -327,8 +341,43 @@ static void fall_asleep(const dem_model *m, dem_state *s) {
       w->asleep[i] = 1;
       memset(&s->v[3 * i], 0, 3 * sizeof(double));
       memset(&s->omega[3 * i], 0, 3 * sizeof(double));
+      if (m->n_meshes > 0) { /* no mesh contact (mc_key 0): nothing kept, zero (a wake rebuild skips them) */
+        const size_t K = DEM_MESH_SLOTS;
+        memset(&w->mc_mesh[K * (size_t)i], 0, K);
+        memset(&w->mc_shear[3 * K * (size_t)i], 0, 3 * K * sizeof(double));
+        memset(&w->mc_normal[3 * K * (size_t)i], 0, 3 * K * sizeof(double));
+      }
       w->compact |= DEM_COMPACT_SLEEP;
     }
+}
+
+/* Waking in batches: with each grain woken, the asleep grains within one
+ * cell (2 r_max + skin, the cells of the last full rebuild) of it wake too.
+ * A wake rebuild copies the whole asleep block (O(n), several steps of the
+ * awake grains), and a disturbance that spreads into the asleep block wakes
+ * one layer of grains after another: without the batch, one wake rebuild per
+ * layer, nearly every step at a moving front. A grain woken early is at rest
+ * (as one woken in time); it falls asleep again after `time` if nothing
+ * reaches it. The set woken does not depend on the order of wake_list. */
+static void wake_halo(dem_state *s) {
+  struct dem_work *w = s->work;
+  if (!w->grid_ok) return;
+  const double h2 = w->cell_size * w->cell_size;
+  const int first = w->n_wake;
+  for (int q = 0; q < first; q++) {
+    const double *xi = &s->x[3 * w->wake_list[q]];
+    int cc[3];
+    for (int k = 0; k < 3; k++) cc[k] = dem_cell_coord(w, xi[k], k);
+    for (int z = cc[2] > 0 ? cc[2] - 1 : 0; z <= cc[2] + 1 && z < w->cell_dim[2]; z++)
+      for (int y = cc[1] > 0 ? cc[1] - 1 : 0; y <= cc[1] + 1 && y < w->cell_dim[1]; y++)
+        for (int x = cc[0] > 0 ? cc[0] - 1 : 0; x <= cc[0] + 1 && x < w->cell_dim[0]; x++) {
+          const int r = w->cell_rank[dem_cell_index(w, x, y, z)];
+          for (int j = w->frz_start[r]; j < w->frz_start[r + 1]; j++) {
+            const double *xj = &s->x[3 * j], d0 = xj[0] - xi[0], d1 = xj[1] - xi[1], d2 = xj[2] - xi[2];
+            if (!w->wake[j] && d0 * d0 + d1 * d1 + d2 * d2 < h2) dem_wake(w, j);
+          }
+        }
+  }
 }
 
 /* The woken grains join the awake block (a wake rebuild, or a full one when
@@ -336,6 +385,7 @@ static void fall_asleep(const dem_model *m, dem_state *s) {
 static int wake_woken(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
   const double *g = m->gravity;
+  if (w->n_wake > 0) wake_halo(s);
   for (int q = 0; q < w->n_wake; q++) {
     const int i = w->wake_list[q];
     w->wake[i] = 0;

@@ -110,6 +110,7 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
     add(e, &c, PROTO_P_STATE "asleep", PROTO_U1, w->asleep, 1, n, 0, 0);
     add(e, &c, PROTO_P_STATE "rest", PROTO_I4, w->rest, 1, n, 0, 0);
     add(e, &c, PROTO_P_STATE "near", PROTO_U1, w->near, 1, n, 0, 0);
+    add(e, &c, PROTO_P_STATE "rest_x", PROTO_F8, w->rest_x, 2, n, 3, 0);
   }
   /* ---- the active block (dem_sleep.c): region and the grid of the last full
    * rebuild, which the asleep grains are sorted by (owner: the sleep code) ---- */
@@ -167,7 +168,7 @@ static void model_parts(const dem_model *m, int64_t *part) {
   part[IO_M_MESHES] = (int64_t)h;
   part[IO_M_SKIN] = (int64_t)FNV_VAL(FNV0, m->skin);
   const dem_sleep_config *sl = &m->sleep;
-  const double sv[] = {sl->velocity, sl->time, sl->distance, sl->overlap};
+  const double sv[] = {sl->velocity, sl->time, sl->distance, sl->overlap, sl->displacement};
   h = FNV_VAL(FNV0, sl->on); /* also the set of arrays */
   part[IO_M_SLEEP] = (int64_t)(sl->on ? fnv(h, sv, sizeof sv) : h);
 }

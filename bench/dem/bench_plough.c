@@ -4,10 +4,14 @@
  * phase 2: it moves at VX along x for NMOVE steps, turning at OMEGA about its
  * axis (y); its nodes are set every COUPLE steps as a coupled surface is.
  * usage: bench_plough BED.h5 MESH.txt L|LXxLY NDESC VDESC NMOVE VX OMEGA THREADS [SLEEP [COUPLE [OUT.h5]]]
- * SLEEP: 0 off, 1 on with defaults, or a sleep velocity (m/s).
+ * SLEEP: 0 off, 1 on with defaults, a sleep velocity (m/s), or the "sleep" object as JSON.
  * Prints the wall time of each phase, the mean force of the grains on the
- * wheel over the second half of phase 2 and the sleeping grains. */
-#include "dem_server/dem.h"
+ * wheel over the second half of phase 2, and for the descent and each half of
+ * phase 2 (move1, move2) the sleeping grains, the mean number
+ * of awake grains per step (CPU ns per awake grain-step) and the rebuilds by
+ * kind. Under valgrind --tool=callgrind each phase is dumped on its own
+ * (instruction counts do not depend on the machine's load). */
+#include "dem_server/dem_internal.h"
 
 #include <math.h>
 #include <omp.h>
@@ -15,11 +19,38 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#if defined(__has_include)
+#if __has_include(<valgrind/callgrind.h>)
+#include <valgrind/callgrind.h>
+#endif
+#endif
+#ifndef CALLGRIND_DUMP_STATS_AT
+#define CALLGRIND_DUMP_STATS_AT(name) ((void)(name))
+#endif
 
 static double cpu_now(void) {
   struct timespec ts;
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
   return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* What one phase cost: rebuilds by kind since the last report, mean awake grains. */
+typedef struct phase_count {
+  long long rebuilds, full, wake, steps;
+  double awake;
+} phase_count;
+
+static void phase_report(const char *name, long steps, double wall, double cpu, const dem_state *s, phase_count *pc) {
+  const struct dem_work *w = s->work;
+  const long long reb = s->rebuilds - pc->rebuilds, full = w->full_rebuilds - pc->full;
+  const long long wake = w->wake_rebuilds - pc->wake;
+  const double awake = pc->steps ? pc->awake / (double)pc->steps : (double)s->n;
+  printf("%s %ld steps: %.3f s wall %.3f s cpu, %lld rebuilds, %lld contacts, %lld sleeping\n", name, steps, wall, cpu,
+         reb, (long long)s->contacts, (long long)s->sleeping);
+  printf("%s: mean awake %.0f of %d grains, %.1f ns cpu per awake grain-step; rebuilds full %lld, wake %lld, "
+         "partial %lld\n", name, awake, s->n, steps ? 1e9 * cpu / (awake * (double)steps) : 0.0, full, wake,
+         reb - full - wake);
+  *pc = (phase_count){s->rebuilds, w->full_rebuilds, w->wake_rebuilds, 0, 0};
 }
 
 static int read_mesh(const char *path, double *c0, int *nn, double **x, int *nt, int32_t **tri) {
@@ -62,10 +93,11 @@ int main(int argc, char **argv) {
   const long ndesc = atol(argv[4]), nmove = atol(argv[6]);
   const int threads = atoi(argv[9]), couple = argc > 11 ? atoi(argv[11]) : 10;
   const double sleep = argc > 10 ? atof(argv[10]) : 0;
-  char sleep_json[128] = "false";
-  if (sleep == 1) snprintf(sleep_json, sizeof sleep_json, "true");
+  char sleep_json[256] = "false";
+  if (argc > 10 && argv[10][0] == '{') snprintf(sleep_json, sizeof sleep_json, "%s", argv[10]);
+  else if (sleep == 1) snprintf(sleep_json, sizeof sleep_json, "true");
   else if (sleep > 0) snprintf(sleep_json, sizeof sleep_json, "{\"velocity\": %.17g}", sleep);
-  char json[1024];
+  char json[1280];
   snprintf(json, sizeof json,
            "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.6}],"
            "\"threads\":%d,\"dt\":5e-5,\"skin\":0.002,\"overlap_tolerance\":0.1,\"sleep\":%s,"
@@ -92,8 +124,9 @@ int main(int argc, char **argv) {
   const int mesh = m.n_meshes - 1, wall = m.meshes[mesh].wall;
   printf("%d grains, wheel %d nodes %d triangles; threads: %s\n", m.n_grains, nn, nt, s.threads_why);
   double *x = malloc(sizeof(double) * 3 * nn), *v = malloc(sizeof(double) * 3 * nn);
-  double t0 = omp_get_wtime(), u0 = cpu_now(), sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
+  double t0 = omp_get_wtime(), u0 = cpu_now(), tm0 = t0, um0 = u0, sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
   long navg = 0;
+  phase_count pc = {s.rebuilds, s.work->full_rebuilds, s.work->wake_rebuilds, 0, 0};
   const long trace = getenv("PLOUGH_TRACE") ? atol(getenv("PLOUGH_TRACE")) : 0; /* print every N steps */
   const double vd[3] = {0, 0, -vdesc}, vm[3] = {vx, 0, 0};
   for (long k = 0; k < ndesc + nmove; k++) {
@@ -105,12 +138,21 @@ int main(int argc, char **argv) {
     }
     if (k == ndesc) {
       double t1 = omp_get_wtime(), u1 = cpu_now();
-      printf("descent %ld steps: %.3f s wall %.3f s cpu, %lld rebuilds, %lld contacts, %lld sleeping\n", ndesc,
-             t1 - t0, u1 - u0, (long long)s.rebuilds, (long long)s.contacts, (long long)s.sleeping);
+      CALLGRIND_DUMP_STATS_AT("descent");
+      phase_report("descent", ndesc, t1 - t0, u1 - u0, &s, &pc);
+      t0 = tm0 = t1;
+      u0 = um0 = u1;
+    }
+    if (k == ndesc + nmove / 2 && k > ndesc) { /* the first half of the move: the bed still falling asleep */
+      double t1 = omp_get_wtime(), u1 = cpu_now();
+      CALLGRIND_DUMP_STATS_AT("move1");
+      phase_report("move1", nmove / 2, t1 - t0, u1 - u0, &s, &pc);
       t0 = t1;
       u0 = u1;
     }
     if (dem_step(&m, &s, &err)) { fprintf(stderr, "%s\n", err.msg); return 1; }
+    pc.awake += s.n - s.sleeping;
+    pc.steps++;
     if (trace && (k + 1) % trace == 0)
       printf("step %ld t %.5f wheel force %.6g %.6g %.6g N, %lld contacts, %lld sleeping, KE %.4g J\n", k + 1, s.t,
              s.wall_force[3 * wall], s.wall_force[3 * wall + 1], s.wall_force[3 * wall + 2], (long long)s.contacts,
@@ -124,8 +166,10 @@ int main(int argc, char **argv) {
     }
   }
   double t1 = omp_get_wtime(), u1 = cpu_now();
-  printf("move %ld steps: %.3f s wall %.3f s cpu, %lld rebuilds, %lld contacts, %lld sleeping\n", nmove, t1 - t0,
-         u1 - u0, (long long)s.rebuilds, (long long)s.contacts, (long long)s.sleeping);
+  CALLGRIND_DUMP_STATS_AT("move2");
+  phase_report("move2", nmove - nmove / 2, t1 - t0, u1 - u0, &s, &pc);
+  printf("move %ld steps: %.3f s wall %.3f s cpu, %lld rebuilds, %lld contacts, %lld sleeping\n", nmove, t1 - tm0,
+         u1 - um0, (long long)s.rebuilds, (long long)s.contacts, (long long)s.sleeping);
   for (int a = 0; a < 3; a++) sum[a] /= navg > 0 ? navg : 1;
   printf("wheel force (grains on the wheel), mean over the last %ld steps: %.6g %.6g %.6g N  (sd %.4g %.4g %.4g)\n",
          navg, sum[0], sum[1], sum[2], sqrt(fmax(0, sum2[0] / navg - sum[0] * sum[0])),

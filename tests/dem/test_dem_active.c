@@ -177,10 +177,12 @@ static void plate_nodes(double x0, double z, double *x, double *v) {
   }
 }
 
+/* (the bed falls asleep by its speed alone, displacement 1: a radius; its
+ * last rattlers never come to rest within 1e-3 of their radius) */
 static void bed_scene(dem_model *m, dem_state *s) {
   const char *json =
       "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.6}],\"threads\":1,"
-      "\"dt\":5e-5,\"sleep\":{\"velocity\":0.05,\"time\":0.005,\"distance\":0.005},"
+      "\"dt\":5e-5,\"sleep\":{\"velocity\":0.05,\"time\":0.005,\"distance\":0.005,\"displacement\":1},"
       "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[0.1414213562,0.1414213562,1],\"open_top\":true}],"
       "\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":7}}";
   proto_err err = {{0}};

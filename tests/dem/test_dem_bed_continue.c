@@ -172,7 +172,8 @@ int main(void) {
   char path[] = "/tmp/test_dem_bed_continue_XXXXXX";
   close(mkstemp(path));
   /* sleep thresholds under which part of the bed falls asleep within N steps (68 of 436 grains) */
-  continues("{\"velocity\":0.06,\"time\":0.01,\"distance\":0.005}", 0, 3000, 1000, path);
+  /* a bed still settling, put to sleep by its speed alone (displacement 1: a radius) to have asleep grains to save */
+  continues("{\"velocity\":0.06,\"time\":0.01,\"distance\":0.005,\"displacement\":1}", 0, 3000, 1000, path);
   continues("false", 1, 1500, 1000, path); /* the file now holds this bed */
 
   /* mismatches: refused, naming the part; or positions only when asked */

@@ -1,0 +1,130 @@
+/* The rest test of "sleep" (dem_sleep.c): a grain falls asleep when it is at
+ * rest, not merely slow. Three free grains in zero gravity, far apart, no
+ * walls, no meshes: one exactly still, one drifting slower than `velocity`
+ * but by more than `displacement` x r within `time` (a creeping grain: it
+ * must stay awake), one drifting by less than that (asleep, as the still
+ * one). Then the drifting grains' state goes through an export and import
+ * half way (the rest anchors travel: the same steps at rest after it).
+ * And the wake batch: an asleep cluster next to a fast grain wakes as one
+ * (the grains within one cell of a woken grain wake with it). */
+#include "dem_test.h"
+#include "dem_server/dem_internal.h"
+
+#define R 0.005
+#define V_SLEEP 0.01   /* m/s */
+#define T_SLEEP 0.005  /* s: 100 steps */
+#define DT 5e-5
+#define V_CREEP 5e-3   /* < V_SLEEP; moves 2.5e-5 m = 5e-3 R in T_SLEEP: not at rest */
+#define V_TINY 5e-5    /* moves 2.5e-7 m = 5e-5 R in T_SLEEP: at rest (displacement 1e-4) */
+
+static void three(dem_model *m, dem_state *s) {
+  static char json[2000];
+  snprintf(json, sizeof json,
+           "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.5}],"
+           "\"gravity\":[0,0,0],\"dt\":%g,\"threads\":1,"
+           "\"sleep\":{\"velocity\":%g,\"time\":%g,\"displacement\":1e-4},\"particles\":["
+           "{\"x\":[0,0,0],\"r\":%g},{\"x\":[0.1,0,0],\"r\":%g,\"v\":[%g,0,0]},"
+           "{\"x\":[0.2,0,0],\"r\":%g,\"v\":[0,%g,0]}]}",
+           DT, V_SLEEP, T_SLEEP, R, R, V_CREEP, R, V_TINY);
+  scene(json, m, s);
+}
+
+static int asleep_id(const dem_state *s, int id) {
+  for (int i = 0; i < s->n; i++)
+    if (s->id[i] == id) return s->work->asleep[i];
+  return -1;
+}
+
+static void rest_not_slow(void) {
+  dem_model m;
+  dem_state s;
+  proto_err err;
+  three(&m, &s);
+  for (int k = 0; k < 600; k++) CHECK(dem_step(&m, &s, &err) == 0, "step: %s", err.msg);
+  printf("after 6 x time: still %d, creeping %d, tiny drift %d asleep\n", asleep_id(&s, 0), asleep_id(&s, 1),
+         asleep_id(&s, 2));
+  CHECK(asleep_id(&s, 0) == 1, "the still grain does not sleep");
+  CHECK(asleep_id(&s, 1) == 0, "a grain creeping slower than the sleep velocity fell asleep");
+  CHECK(asleep_id(&s, 2) == 1, "a grain drifting by less than displacement x r does not sleep");
+  /* the anchors travel with the state: an import half way gives the same run */
+  dem_model m2;
+  dem_state a, b;
+  three(&m2, &a);
+  CHECK(dem_state_init(&m2, &b, 0, &err) == 0, "state: %s", err.msg);
+  for (int k = 0; k < 150; k++) CHECK(dem_step(&m2, &a, &err) == 0 && dem_step(&m2, &b, &err) == 0, "step");
+  proto_msg msg = {0};
+  proto_msg_reset(&msg, "t", "state", 0, 0);
+  CHECK(dem_state_export(&m2, &a, &msg, &err) == 0, "export: %s", err.msg);
+  dem_state c;
+  CHECK(dem_state_init(&m2, &c, 0, &err) == 0 && dem_state_import(&m2, &c, &msg, &err) == 0, "import: %s", err.msg);
+  for (int k = 0; k < 150; k++) CHECK(dem_step(&m2, &b, &err) == 0 && dem_step(&m2, &c, &err) == 0, "step");
+  char what[128];
+  CHECK(dem_test_same_state(&m2, &b, &m2, &c, what, sizeof what), "import half way differs in %s", what);
+  proto_msg_free(&msg);
+  dem_state_free(&a); dem_state_free(&b); dem_state_free(&c);
+  dem_model_free(&m2);
+  dem_state_free(&s);
+  dem_model_free(&m);
+}
+
+/* A 4 x 4 x 4 cluster at rest (touching nothing), asleep; a grain launched
+ * at it wakes the 4 grains listed with it, and with each of them every asleep
+ * grain within one cell (2 r + skin) wakes at once (16 in the first wake). */
+static void wake_batch(void) {
+  static char json[20000];
+  int len = snprintf(json, sizeof json,
+                     "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.5}],"
+                     "\"gravity\":[0,0,0],\"dt\":%g,\"skin\":0.001,\"threads\":1,"
+                     "\"sleep\":{\"velocity\":%g,\"time\":%g},\"particles\":[", DT, V_SLEEP, T_SLEEP);
+  const double pitch = 2 * R + 1e-4, cell = 2 * R + 0.001;
+  enum { NC = 64, NG = NC + 1 };
+  for (int a = 0; a < NC; a++)
+    len += snprintf(json + len, sizeof json - (size_t)len, "{\"x\":[%g,%g,%g],\"r\":%g},", (a % 4) * pitch,
+                    (a / 4 % 4) * pitch, (a / 16) * pitch, R);
+  snprintf(json + len, sizeof json - (size_t)len, "{\"x\":[-0.015,%g,%g],\"r\":%g}]}", 1.5 * pitch, 1.5 * pitch, R);
+  dem_model m;
+  dem_state s;
+  proto_err err;
+  scene(json, &m, &s);
+  for (int k = 0; k < 200; k++) CHECK(dem_step(&m, &s, &err) == 0, "step: %s", err.msg);
+  CHECK(s.sleeping == NG, "the cluster and the grain at rest do not sleep (%lld)", (long long)s.sleeping);
+  for (int i = 0; i < s.n; i++) /* wake the lone grain by hand, as a region would, and launch it */
+    if (s.id[i] == NC) dem_wake(s.work, i);
+  CHECK(dem_step(&m, &s, &err) == 0, "step: %s", err.msg);
+  for (int i = 0; i < s.n; i++)
+    if (s.id[i] == NC) s.v[3 * i] = 1.0;
+  /* the grains the lone one meets first: layer x = 0, (y, z) in {1, 2}^2 */
+  const int struck[4] = {1 * 4 + 1 * 16, 2 * 4 + 1 * 16, 1 * 4 + 2 * 16, 2 * 4 + 2 * 16};
+  const int64_t wakes0 = s.work->wake_rebuilds;
+  int first = -1, woke_first = 0, missed = 0;
+  for (int k = 0; k < 400 && first < 0; k++) {
+    CHECK(dem_step(&m, &s, &err) == 0, "step: %s", err.msg);
+    if (s.sleeping == NC) continue; /* none of the cluster woke yet */
+    first = k;
+    double x[3 * NG];
+    uint8_t asleep[NG];
+    for (int i = 0; i < s.n; i++) {
+      asleep[s.id[i]] = s.work->asleep[i];
+      memcpy(&x[3 * s.id[i]], &s.x[3 * i], sizeof(double) * 3);
+    }
+    for (int a = 0; a < NC; a++) {
+      woke_first += !asleep[a];
+      for (int q = 0; q < 4; q++) {
+        const double *p = &x[3 * struck[q]], d0 = x[3 * a] - p[0], d1 = x[3 * a + 1] - p[1], d2 = x[3 * a + 2] - p[2];
+        missed += asleep[a] && d0 * d0 + d1 * d1 + d2 * d2 < cell * cell;
+      }
+    }
+  }
+  printf("the cluster's first wake (step %d, %lld wake rebuilds): %d grains, %d within a cell of the 4 struck ones "
+         "left asleep\n", first, (long long)(s.work->wake_rebuilds - wakes0), woke_first, missed);
+  /* the 4 struck, their 8 neighbours in the layer and the 4 behind them */
+  CHECK(first >= 0 && missed == 0 && woke_first == 16, "the first wake took %d grains, left %d", woke_first, missed);
+  dem_state_free(&s);
+  dem_model_free(&m);
+}
+
+int main(void) {
+  rest_not_slow();
+  wake_batch();
+  return cosim_test_done("test_dem_sleep_rest");
+}
