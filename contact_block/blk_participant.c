@@ -114,7 +114,11 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
       for (int e = 0; e < m->M; e++) s->x[3 * e + 2] = m->z_road[e];
     }
   }
-  if (blk_step(m, &s->state, d_road[0], err)) return -1;
+  /* a lug block serving no lug: force 0 without a step (the next lug resets it anyway) */
+  const int idle = BLK_ROLE == PROTO_ROLE_LUG &&
+                   cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(req->header, PROTO_H_IDLE));
+  if (idle) blk_state_reset(m, &s->state), s->state.d_road = d_road[0];
+  else if (blk_step(m, &s->state, d_road[0], err)) return -1;
   const blk_state *st = &s->state;
   const double dd = st->d_road - s->prev[1];
   s->row[COL_T] = info->t_end;

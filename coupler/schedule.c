@@ -263,6 +263,8 @@ void cpl_request_build(cpl_runner *r, int i, int64_t k, int iteration, int outpu
     cJSON_AddItemToObject(h, PROTO_H_REACH, cJSON_CreateDoubleArray(p->sp.reach_use, 6));
   if (p->role == PROTO_ROLE_LUG && p->rank < CPL_MAX_PROCS && r->data.lug.reset[p->rank])
     cJSON_AddBoolToObject(h, PROTO_H_RESET, 1); /* it takes a new lug this step */
+  if (p->role == PROTO_ROLE_LUG && p->rank < CPL_MAX_PROCS && r->data.lug.lug[p->rank] < 0)
+    cJSON_AddBoolToObject(h, PROTO_H_IDLE, 1); /* no lug: its force is 0, its next lug resets it */
   for (int b = 0; b < r->plan->contract.n; b++) {
     const cpl_binding *bd = &r->plan->contract.b[b];
     const proto_array_spec *s = bd->spec;

@@ -99,6 +99,7 @@ typedef enum proto_msg_kind {
 #define PROTO_H_RUN "run"             /* welcome: run information */
 #define PROTO_H_DT "dt"               /* step: coupling step, s */
 #define PROTO_H_RESET "reset"         /* step (lug): a new lug: its history starts afresh */
+#define PROTO_H_IDLE "idle"           /* step (lug): it serves no lug: nothing to compute */
 #define PROTO_H_OUTPUT "output"       /* step: snapshot wanted (bool) */
 #define PROTO_H_ITERATION "iteration" /* step, done: 0, or n >= 1 = repeat n of step k */
 #define PROTO_H_COMPUTE_S "compute_s" /* done: seconds spent in the participant's step */
