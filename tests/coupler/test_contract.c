@@ -43,8 +43,8 @@ static void shipped_table_binds(void) {
   int n;
   const proto_array_spec *t = proto_role_table(&n);
   OK(cpl_contract_build(&c, t, n, &err));
-  /* dem: x, v, nodal_force; fem: nodal_force, rim R c omega v, x, v; block: 2; lug: 3 */
-  CHECK(c.n == 15, "15 step/done rows bound, got %d", c.n);
+  /* dem: x, v, nodal_force; fem: nodal_force, rim R c omega v, x, v; block: 2; lug: 4 */
+  CHECK(c.n == 16, "16 step/done rows bound, got %d", c.n);
   const cpl_binding *f = binding_of(&c, PROTO_ROLE_DEM, PROTO_MSG_DONE, PROTO_A_NODAL_FORCE);
   CHECK(f && f->field == CPL_F_SURF_FORCE && f->sum, "dem forces are summed into surface.force");
   f = binding_of(&c, PROTO_ROLE_FEM, PROTO_MSG_DONE, PROTO_A_X);
@@ -104,7 +104,7 @@ static void newcomer_row(void) {
   rows[nrows - 1].ndim = 2;
   rows[nrows - 1].dims[1] = 3;
   OK(cpl_contract_build(&c, rows, nrows, &err));
-  CHECK(c.n == 16, "the newcomer's row is bound too (%d rows)", c.n);
+  CHECK(c.n == 17, "the newcomer's row is bound too (%d rows)", c.n);
   const cpl_binding *b = binding_of(&c, PROTO_ROLE_DEM, PROTO_MSG_DONE, "heat_flux");
   CHECK(b && b->sum && b->spec == &rows[nrows - 1], "bound to its own row");
 }
