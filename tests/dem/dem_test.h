@@ -34,7 +34,8 @@ static inline int dem_test_same_state(const dem_model *ma, const dem_state *a, c
   for (int k = 0; k < ea.narrays && same; k++) {
     const proto_array *x = &ea.arrays[k], *y = &eb.arrays[k];
     same = !strcmp(x->name, y->name) && x->nbytes == y->nbytes && x->ndim == y->ndim &&
-           !memcmp(x->shape, y->shape, sizeof x->shape) && !memcmp(x->data, y->data, x->nbytes);
+           !memcmp(x->shape, y->shape, sizeof x->shape) &&
+           (x->nbytes == 0 || !memcmp(x->data, y->data, x->nbytes)); /* empty: no data pointer */
     if (!same) snprintf(what, cap, "%s", x->name);
   }
   if (same) snprintf(what, cap, "%d arrays", ea.narrays);
