@@ -32,6 +32,7 @@ typedef struct server {
   double row[NCOL];
   double force[1];
   double cop[2];   /* lug_block: centre of pressure (m) */
+  int idle;        /* lug_block: it served no lug last step (its state already reset) */
   double *x; /* [M][3] element centres, z = road height */
   double prev[2]; /* force and d_road of the previous step (stiffness column) */
 } server;
@@ -117,8 +118,10 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   /* a lug block serving no lug: force 0 without a step (the next lug resets it anyway) */
   const int idle = BLK_ROLE == PROTO_ROLE_LUG &&
                    cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(req->header, PROTO_H_IDLE));
-  if (idle) blk_state_reset(m, &s->state), s->state.d_road = d_road[0];
+  if (idle && !s->idle) blk_state_reset(m, &s->state); /* once, when it goes idle */
+  if (idle) s->state.d_road = d_road[0];
   else if (blk_step(m, &s->state, d_road[0], err)) return -1;
+  s->idle = idle;
   const blk_state *st = &s->state;
   const double dd = st->d_road - s->prev[1];
   s->row[COL_T] = info->t_end;

@@ -80,22 +80,22 @@ int cpl_lugs_find(const double *x0, int64_t n, const int32_t *tri, int64_t m, do
   for (int64_t i = 0; i < n; i++) on += L->on_lug[i];
   L->node = malloc(sizeof(int32_t) * (size_t)on);
   L->weight = malloc(sizeof(double) * (size_t)on);
-  if (!L->start || !L->area || !L->node || !L->weight) goto oom;
+  int32_t *fill = calloc((size_t)L->n, sizeof(int32_t)); /* the next place of each lug */
+  if (!L->start || !L->area || !L->node || !L->weight || !fill) {
+    free(fill);
+    goto oom;
+  }
   for (int64_t i = 0; i < n; i++)
     if (L->on_lug[i]) L->start[lug_of[root_of(up, (int32_t)i)] + 1]++;
-  for (int j = 0; j < L->n; j++) L->start[j + 1] += L->start[j];
+  for (int j = 0; j < L->n; j++) L->start[j + 1] += L->start[j], fill[j] = L->start[j];
   for (int64_t i = 0; i < n; i++) { /* each lug's nodes in ascending order */
     if (!L->on_lug[i]) continue;
-    const int32_t j = lug_of[root_of(up, (int32_t)i)];
-    const int32_t at = L->start[j] + (int32_t)L->area[j]; /* area counts the placed */
-    L->area[j] += 1;
+    const int32_t j = lug_of[root_of(up, (int32_t)i)], at = fill[j]++;
     L->node[at] = (int32_t)i;
     L->weight[at] = w[i];
+    L->area[j] += w[i];
   }
-  for (int j = 0; j < L->n; j++) L->area[j] = 0;
-  for (int j = 0; j < L->n; j++)
-    for (int32_t e = L->start[j]; e < L->start[j + 1]; e++) L->area[j] += L->weight[e];
-  free(top), free(up), free(lug_of), free(w);
+  free(fill), free(top), free(up), free(lug_of), free(w);
   return 0;
 oom:
   free(top), free(up), free(lug_of), free(w);

@@ -80,11 +80,23 @@ def travel_rows(results):
     return reached[0] if len(reached) else 0
 
 
-def plot_passages(path, lugs, pas):
+def _figure(*args, **kw):
+    """matplotlib's subplots, off screen (Agg)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, (at, ax) = plt.subplots(1, 2, figsize=(12, 4.5))
+    return plt.subplots(*args, **kw)
+
+
+def _save(fig, path):
+    import matplotlib.pyplot as plt
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_passages(path, lugs, pas):
+    fig, (at, ax) = _figure(1, 2, figsize=(12, 4.5))
     for p, j, s in pas:
         t, x, F = lugs["t"][s], lugs[f"x{p}"][s], lugs[f"force{p}"][s]
         at.plot(t, F, lw=0.8, label=f"lug {j} (process {p})")
@@ -97,16 +109,11 @@ def plot_passages(path, lugs, pas):
     ax.set_xlabel("face centre ahead of the rim centre (mm)")
     ax.set_ylabel("block force (N)")
     ax.set_title("against the place in the footprint", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def plot_psd(path, t, force, f, p, dt):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, (at, af) = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, (at, af) = _figure(1, 2, figsize=(12, 4.5))
     at.plot(t, force, lw=0.6)
     at.set_xlabel("t (s)")
     at.set_ylabel("road force (N)")
@@ -116,17 +123,12 @@ def plot_psd(path, t, force, f, p, dt):
     af.set_xlabel("frequency (Hz), up to the block rate's Nyquist frequency")
     af.set_ylabel("PSD (N²/Hz)")
     af.set_title(f"Welch, Hann, {min(WELCH_SEGMENT, len(force))}-sample segments", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def plot_footprint(path, results, lugs, names, step):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     k = int(np.searchsorted(lugs["t"], step * results.scene["time"]["dt"] - 1e-12))
-    fig, ax = plt.subplots(figsize=(7, 5))
+    fig, ax = _figure(figsize=(7, 5))
     im = None
     for p, name in enumerate(names):
         if lugs[f"lug{p}"][k] < 0:
@@ -145,9 +147,7 @@ def plot_footprint(path, results, lugs, names, step):
     ax.autoscale()
     if im is not None:
         fig.colorbar(im, ax=ax, label="pressure (MPa)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def main(argv):
