@@ -15,6 +15,7 @@ launcher, and checks of every request and reply against the role table. The
 protocol itself is in :mod:`cosim.protocol`.
 """
 import json
+import math
 import os
 import sys
 import threading
@@ -214,7 +215,9 @@ class Participant:
         self.output_dir = self.run.get(P.RUN_OUTPUT_DIR, ".")
         self.rollback_wanted = bool(self.run.get(P.RUN_ROLLBACK, False))
         self.restart_step = int(self.run.get(P.RUN_RESTART_STEP, 0))
-        self._idle = float(self.run.get(P.RUN_IDLE_TIMEOUT, P.IDLE_TIMEOUT_S))
+        # 0: never give up on silence (a launched participant watches its launcher
+        # instead; proto/PROTOCOL.md "welcome")
+        self._idle = float(self.run.get(P.RUN_IDLE_TIMEOUT, P.IDLE_TIMEOUT_S)) or math.inf
         bus = self.run.get(P.RUN_BUS)
         if bus:
             self._bus = self._ctx.socket(zmq.PUB)

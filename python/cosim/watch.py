@@ -35,6 +35,9 @@ MAX_ROWS = 1 << 17      # rows kept per series (~1 MB per column); then every ot
 PLOT_POINTS = 1000      # rows per chart sent to the page: evenly spaced, first and last kept
 REFRESH_S = 0.5         # the page's state is rebuilt at most this often (the page polls at 1 s)
 WAIT_S = 30.0           # how long to wait for a live run's endpoints.json
+CLOSE_WAIT_S = 60.0     # after the bus's end: how long the coupler may take to exit (closing
+                        # results.h5; HDF5 refuses a reader while the writer holds its lock)
+CLOSE_POLL_S = 0.05
 WEB_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "web")
 STATIC = {"/": ("index.html", "text/html; charset=utf-8"),
           "/watch.js": ("watch.js", "text/javascript; charset=utf-8"),
@@ -303,6 +306,10 @@ def follow(state, source, snapshots=None, key_file=None, wait=WAIT_S):
         state.set_status(STATUS_ENDED)
     except CosimError as e:
         state.set_status(STATUS_ENDED, error=str(e))
+    if run_dir is not None:  # the bus ends before the coupler has closed the file
+        until = time.monotonic() + CLOSE_WAIT_S
+        while not run_is_over(run_dir) and time.monotonic() < until:
+            time.sleep(CLOSE_POLL_S)
     if run_dir is not None and os.path.exists(os.path.join(run_dir, RESULTS_FILE)):
         try:
             state.load_results(run_dir)
