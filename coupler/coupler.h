@@ -98,6 +98,7 @@ typedef struct cpl_scenario {
   double rim_center[3];   /* m, at t = 0 */
   double sinkage_velocity;/* m/s */
   double sinkage_force;   /* N: vertical load that ends the sinkage phase */
+  double sinkage_depth;   /* m: or the sinkage below the start that ends it (0: none) */
   double slip;            /* s in v = omega R (1 - s) */
   double omega;           /* rad/s during travel */
   double radius;          /* m, rolling radius R */

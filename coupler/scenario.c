@@ -133,7 +133,8 @@ int cpl_rim_advance(cpl_rim *rim, const cpl_scenario *s, double dt, const double
   if (!cpl_scenario_rolls(s->kind)) return 0;
   const double vertical_load = force[2];
   if (!rim->travelling) rig_observe(rim, s, vertical_load);
-  if (!rim->travelling && vertical_load >= s->sinkage_force) {
+  const int deep = s->sinkage_depth > 0 && rim->c0[2] - rim->c[2] >= s->sinkage_depth;
+  if (!rim->travelling && (vertical_load >= s->sinkage_force || deep)) {
     rim->travelling = 1;
     rim->v[2] = 0; /* kinematic: frozen; load and dbp rigs: released at rest */
     rim->v[0] = s->omega * s->radius * (1 - s->slip); /* dbp: the carriage's start */

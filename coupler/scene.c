@@ -271,6 +271,7 @@ static int read_tire_travel(proto_cfg *c, cpl_scenario *sc, double dt) {
                     &sc->sinkage_velocity) < 0 ||
       proto_cfg_num(c, "sinkage_force", PROTO_REQUIRED, 0, 1e9,
                     &sc->sinkage_force) < 0 ||
+      proto_cfg_num(c, "sinkage_depth", PROTO_OPTIONAL, 1e-9, 10, &sc->sinkage_depth) < 0 ||
       proto_cfg_num_below(c, "slip", PROTO_OPTIONAL, -1, 1, &sc->slip) < 0 ||
       proto_cfg_num(c, "omega", PROTO_REQUIRED, -1e4, 1e4, &sc->omega) < 0 ||
       proto_cfg_num(c, "radius", PROTO_OPTIONAL, 1e-6, 1e3, &sc->radius) < 0)
@@ -434,11 +435,13 @@ int cpl_check_roles(const cpl_scene *s, const proto_role *roles, proto_err *err)
       !(count[PROTO_ROLE_DEM] && count[PROTO_ROLE_FEM]))
     return proto_fail(err, "scenario.kind: 'tire_travel' needs a process of "
                       "role dem and one of role fem (processes: %s)", have);
+  /* tire_road without a lug process: the fem alone, on a road of its own (fem_server's
+   * "road": docs/tire-road.md) */
   if (s->scenario.kind == CPL_SCN_TIRE_ROAD &&
-      !(count[PROTO_ROLE_LUG] && count[PROTO_ROLE_FEM] && !count[PROTO_ROLE_DEM] &&
-        !count[PROTO_ROLE_BLOCK]))
+      !(count[PROTO_ROLE_FEM] && !count[PROTO_ROLE_DEM] && !count[PROTO_ROLE_BLOCK]))
     return proto_fail(err, "scenario.kind: 'tire_road' needs one process of role fem and "
-                      "one or more of role lug, and no dem or block (processes: %s)", have);
+                      "any of role lug (none: the fem alone, on its own road), and no dem or "
+                      "block (processes: %s)", have);
   if (s->scenario.kind != CPL_SCN_TIRE_ROAD && count[PROTO_ROLE_LUG])
     return proto_fail(err, "processes: role lug serves the lugs of scenario.kind "
                       "'tire_road' only (processes: %s)", have);

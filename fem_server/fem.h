@@ -112,6 +112,7 @@ typedef struct fem_tread_params {
   double lug_fraction;   /* lug share of the pitch, 0.5 */
   double lug_span;       /* lug length across the width, fraction, 0.6 */
   double refine;         /* 1 */
+  double phase;          /* rad: the pattern turned about the axle (0: lug 0 starts at +x) */
 } fem_tread_params;
 void fem_tread_defaults(fem_tread_params *p);
 int fem_gen_tread(fem_mesh *m, const fem_tread_params *p, proto_err *err);
@@ -272,6 +273,25 @@ typedef struct fem_frame {
   double acc[3];   /* acceleration of the origin, R^T d2c/dt2, m/s^2 */
 } fem_frame;
 
+/* A flat road under the body, solved in the FEM alone (fem_road.c): the world
+ * plane z = height pushes each node i of a surface below it with
+ * f_i = k_area a_i depth_i along its normal (a_i the node's share of the
+ * surface area; normal only). n = 0: no road. */
+typedef struct fem_road {
+  int32_t n;            /* surface nodes the road acts on (0: no road) */
+  int32_t *node;        /* [n] mesh node of each */
+  double *area;         /* [n] a_i, m^2: projected on the road (fem_road_place) */
+  int32_t n_tri, *tri;  /* the surface's triangles in road-node numbering */
+  double *tri_area;     /* [n_tri*4] area and outward unit normal (frame) of each */
+  double *k;            /* [n] k_area a_i, N/m */
+  double k_area;        /* penalty per unit area, N/m^3 */
+  double height;        /* world z of the plane, m */
+  double normal[3], h;  /* the plane in the frame: n . r = h (fem_road_place) */
+  double *force;        /* [n_dof] the road's force at the last evaluation (frame) */
+  double total;         /* its sum along n (the world +z force), N */
+  int32_t contacts;     /* nodes below the plane at the last evaluation */
+} fem_road;
+
 typedef struct fem_state {
   double t;             /* s */
   double *u;            /* [n_dof] displacement at t (rim frame) */
@@ -296,6 +316,7 @@ typedef struct fem_state {
   double rim_w_prev[3], rim_v_prev[3]; /* fem_frame_from_rim: last call's */
   int rim_has_prev;
   fem_work work;        /* the force kernel's scratch */
+  fem_road road;        /* optional road (fem_road_init; zeroed: none), freed with the state */
 } fem_state;
 
 /* Columns of fem_server's per-step summary, its "series" dataset (names:
@@ -329,6 +350,26 @@ int fem_stable_dt(const fem_model *md, fem_state *st, int max_iter,
  * discrete energy exceeds 10x (energy0 + work_abs) or is not finite. */
 int fem_explicit_advance(const fem_model *md, fem_state *st, double span,
                          double safety, double dt_sub, proto_err *err);
+
+/* The road (fem_road.c). fem_road_init: over the surface nodes node[n] (mesh
+ * indices), triangles tri[n_tri*3] in surface numbering and surface positions
+ * x[n*3] (areas and normals of its triangles). fem_road_place: the plane in
+ * the frame x = R r + c of the coming step, and the area shares a_i: a third
+ * of each triangle facing the road, projected on it. fem_road_force:
+ * r->force, total and contacts at displacement u. fem_road_dt: the stable step
+ * bound 2 / sqrt(omega_max^2 + max_i k_i / m_i) with the road's stiffness. */
+int fem_road_init(const fem_model *md, fem_road *r, const int32_t *node, int32_t n,
+                  const int32_t *tri, int32_t n_tri, const double *x, double k_area,
+                  double height, proto_err *err);
+void fem_road_place(fem_road *r, const double R[9], const double c[3]);
+void fem_road_force(const fem_model *md, fem_road *r, const double *u);
+double fem_road_dt(const fem_model *md, const fem_road *r, double omega_max);
+void fem_road_free(fem_road *r);
+/* The load the body puts on its supports (the rim), frame components: the sum
+ * over the fixed DOFs of b + road - m a_frame - K u (b: the step's external
+ * force; quasi_static: b holds the frame loads and the road's force already). */
+void fem_rim_load(const fem_model *md, const fem_state *st, const double *b, int quasi_static,
+                  double load[3]);
 
 /* Sets st->frame for the coming step of length span from the rim's motion
  * at its end (world frame, PROTOCOL.md role fem): R (rim -> world, row-major),
@@ -389,6 +430,9 @@ typedef struct fem_config {
   int power_iterations;
   int initial_static;        /* start from K u0 = b0 */
   char surface_group[FEM_NAME_LEN]; /* coupled to the grains */
+  int road;                  /* a road solved in the FEM (README "road") */
+  double road_z, road_k_area; /* world z of the plane (m), penalty per area (N/m^3) */
+  int reaction;              /* series: the load on the fixed DOFs (the rim) */
 } fem_config;
 
 void fem_config_defaults(fem_config *c);

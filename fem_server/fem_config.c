@@ -89,6 +89,7 @@ static int read_mesh(proto_cfg *parent, fem_config *c, proto_err *err) {
   } else {
     fem_tread_params *t = &c->tread;
     int64_t lugs = t->lugs;
+    double phase_deg = 0;
     if (proto_cfg_num(&m, "outer_diameter", PROTO_OPTIONAL, 1e-3, 100, &t->outer_diameter) ||
         proto_cfg_num(&m, "width", PROTO_OPTIONAL, 1e-4, 100, &t->width) ||
         proto_cfg_num(&m, "wall", PROTO_OPTIONAL, 1e-5, 100, &t->wall) ||
@@ -96,9 +97,11 @@ static int read_mesh(proto_cfg *parent, fem_config *c, proto_err *err) {
         proto_cfg_int(&m, "lugs", PROTO_OPTIONAL, 2, 10000, &lugs) ||
         proto_cfg_num(&m, "lug_fraction", PROTO_OPTIONAL, 0.01, 0.99, &t->lug_fraction) ||
         proto_cfg_num(&m, "lug_span", PROTO_OPTIONAL, 0.01, 1, &t->lug_span) ||
-        proto_cfg_num(&m, "refine", PROTO_OPTIONAL, 0.1, 16, &t->refine))
+        proto_cfg_num(&m, "refine", PROTO_OPTIONAL, 0.1, 16, &t->refine) ||
+        proto_cfg_num(&m, "phase_deg", PROTO_OPTIONAL, -360, 360, &phase_deg))
       return -1;
     t->lugs = (int)lugs;
+    t->phase = phase_deg * M_PI / 180;
     if (!(t->outer_diameter / 2 > t->wall + t->groove_depth))
       return proto_fail(err, "%s.outer_diameter: radius must exceed wall + groove_depth", m.path);
   }
@@ -160,6 +163,21 @@ static int read_pressure(proto_cfg *s, fem_config *c, proto_err *err) {
   return 0;
 }
 
+/* "road": {"z": m, "k_area": N/m^3}: a flat road solved in the FEM (fem_road.c). */
+static int read_road(proto_cfg *s, fem_config *c, proto_err *err) {
+  proto_cfg r;
+  const int rc = proto_cfg_child(s, "road", PROTO_OPTIONAL, &r);
+  if (rc != 0) return rc < 0 ? -1 : 0;
+  c->road = 1;
+  if (proto_cfg_num(&r, "z", PROTO_OPTIONAL, -1e3, 1e3, &c->road_z) ||
+      proto_cfg_num(&r, "k_area", PROTO_REQUIRED, -INFINITY, INFINITY, &c->road_k_area))
+    return -1;
+  if (!(c->road_k_area > 0) || !isfinite(c->road_k_area))
+    return proto_fail(err, "%s.k_area: must be a finite penalty per unit area > 0 (N/m^3), "
+                      "got %g", r.path, c->road_k_area);
+  return proto_cfg_end(&r);
+}
+
 int fem_config_read(const cJSON *section, const char *path, fem_config *c, proto_err *err) {
   fem_config_defaults(c);
   snprintf(c->path, sizeof c->path, "%s", path);
@@ -193,7 +211,8 @@ int fem_config_read(const cJSON *section, const char *path, fem_config *c, proto
       proto_cfg_bool(&s, "allow_unstable", PROTO_OPTIONAL, &c->allow_unstable) ||
       proto_cfg_int(&s, "power_iterations", PROTO_OPTIONAL, 10, 100000, &piter) ||
       proto_cfg_bool(&s, "initial_static", PROTO_OPTIONAL, &c->initial_static) ||
-      proto_cfg_str(&s, "surface", PROTO_OPTIONAL, c->surface_group, sizeof c->surface_group))
+      proto_cfg_str(&s, "surface", PROTO_OPTIONAL, c->surface_group, sizeof c->surface_group) ||
+      read_road(&s, c, err) || proto_cfg_bool(&s, "reaction", PROTO_OPTIONAL, &c->reaction))
     return -1;
   c->mode = (fem_mode)mode;
   c->solver = (fem_solver_kind)solver;

@@ -13,7 +13,9 @@
  *   f_a = -m_a [acc + alpha x r_a + Omega x (Omega x r_a)] - 2 m_a Omega x w_a.
  * The position-dependent part is evaluated at u_n, like K u_n, and counted as
  * external work: the identity above holds for any force evaluated at u_n, so
- * the energy check stays exact. Its u-dependent piece m Omega x (Omega x u)
+ * the energy check stays exact. The road's penalty (fem_road.c), when there is
+ * one, is such a force too: evaluated at u_n after K u_n, added to b. The
+ * frame's u-dependent piece m Omega x (Omega x u)
  * is a negative stiffness of size m Omega^2: it lowers omega_max^2 by at most
  * Omega^2 (rim ~2 rad/s against omega_max ~1e5 rad/s), so dt_crit stands.
  * The Coriolis term depends on the velocity; it is taken at the midpoint
@@ -55,6 +57,7 @@ void fem_state_free(fem_state *st) {
   free(st->fint);
   free(st->b);
   fem_work_free(&st->work);
+  fem_road_free(&st->road);
   memset(st, 0, sizeof *st);
 }
 
@@ -168,6 +171,7 @@ static double node_step_rotating(const fem_model *md, fem_state *st, int32_t a, 
   fem_frame_point_acc(fr, r, acc);
   for (int d = 0; d < 3; d++) {
     F[d] = st->b[i0 + d] - m * acc[d]; /* external + frame, at u_n */
+    if (st->road.n) F[d] += st->road.force[i0 + d];
     k[d] = dt * fr->omega[d];
   }
   const double *w_old = st->v_half + i0;
@@ -206,6 +210,8 @@ int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double
   const int rotating = fem_frame_rotating(&st->frame);
   const double *acc = st->frame.acc; /* a translating frame: uniform -m acc */
   const double t0 = st->t;
+  fem_road *road = st->road.n ? &st->road : NULL; /* its force at u_n, like K u_n */
+  if (road) fem_road_force(md, road, st->u);
   st->dt_sub = dt;
   for (int64_t k = 1; k <= n; k++) {
     double kin = 0, uKu = 0, dw = 0;
@@ -221,6 +227,7 @@ int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double
         }
         double m = md->mass[i / 3];
         double f = st->b[i] - m * acc[i % 3];
+        if (road) f += road->force[i];
         double w_old = st->v_half[i];
         double w = c1 * w_old + c2 * (f - st->fint[i]) / m;
         st->v_half[i] = w;
@@ -236,6 +243,7 @@ int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double
     st->t = t0 + span * (double)k / (double)n;
     st->n_sub++;
     fem_internal_force(md, &st->work, st->u, st->fint);
+    if (road) fem_road_force(md, road, st->u);
     if (!isfinite(st->energy) || fabs(st->energy) > 10 * (fabs(st->energy0) + st->work_abs))
       return unstable(md, st, dt, k, n, err);
   }
@@ -255,7 +263,8 @@ int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double
         st->v[i] = 0;
         continue;
       }
-      double acc_i = (st->b[i] - st->fint[i]) / m - fa[d] - 2 * cor[d] - alpha * st->v_half[i];
+      const double f_ext = road ? st->b[i] + road->force[i] : st->b[i];
+      double acc_i = (f_ext - st->fint[i]) / m - fa[d] - 2 * cor[d] - alpha * st->v_half[i];
       st->v[i] = st->v_half[i] + 0.5 * dt * acc_i;
       kin += 0.5 * m * st->v[i] * st->v[i];
     }

@@ -271,10 +271,11 @@ void fem_tread_defaults(fem_tread_params *p) {
   p->lug_fraction = 0.5;
   p->lug_span = 0.6;
   p->refine = 1.0;
+  p->phase = 0;
 }
 
 typedef struct tread_ctx {
-  double r_in, wall, groove, width;
+  double r_in, wall, groove, width, phase;
   int n_wall, n_groove, n_theta, n_y;
 } tread_ctx;
 
@@ -282,7 +283,7 @@ static void tread_map(const void *vctx, int i, int j, int k, double *x) {
   const tread_ctx *c = vctx;
   double r = i <= c->n_wall ? c->r_in + c->wall * i / c->n_wall
                             : c->r_in + c->wall + c->groove * (i - c->n_wall) / c->n_groove;
-  double th = 2 * M_PI * j / c->n_theta;
+  double th = 2 * M_PI * j / c->n_theta + c->phase;
   x[0] = r * cos(th); /* rolling plane x-z, axle along y */
   x[1] = -0.5 * c->width + c->width * k / c->n_y;
   x[2] = r * sin(th);
@@ -308,6 +309,7 @@ int fem_gen_tread(fem_mesh *m, const fem_tread_params *p, proto_err *err) {
   c.wall = p->wall;
   c.groove = p->groove_depth;
   c.width = p->width;
+  c.phase = p->phase;
   c.n_wall = (int)fmax(1, lround(2 * p->refine));
   c.n_groove = (int)fmax(1, lround(2 * p->refine));
   c.n_y = (int)fmax(2, lround(12 * p->refine));

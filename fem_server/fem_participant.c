@@ -18,9 +18,14 @@
 #include <string.h>
 
 /* snapshot arrays (snap.<name>) and the mesh arrays written once (mesh.<name>) */
-enum { SNAP_X, SNAP_U, SNAP_V, SNAP_STRAIN, SNAP_STRESS, N_SNAP };
-static const char *const SNAP[N_SNAP] = {"x", "u", "v", "strain", "stress"};
+enum { SNAP_X, SNAP_U, SNAP_V, SNAP_STRAIN, SNAP_STRESS, SNAP_ROAD, N_SNAP };
+static const char *const SNAP[N_SNAP] = {"x", "u", "v", "strain", "stress", "road_force"};
 static const char *const MESH_X0 = "x0", *const MESH_CELLS = "cells";
+/* with a road: the surface it acts on, written once (results.h5 /<name>/mesh/) */
+static const char *const MESH_SURF_NODE = "surface_node", *const MESH_SURF_TRI = "surface_tri",
+                  *const MESH_SURF_X0 = "surface_x0", *const MESH_ROAD_AREA = "road_area";
+/* the series' optional columns: the road's (fem_road.c), the rim's load */
+enum { N_ROAD_COLS = 2, N_REACTION_COLS = 3, MAX_SERIES = FEM_N_SERIES + N_ROAD_COLS + N_REACTION_COLS };
 /* state arrays (state.<name>) */
 static const char *const ST_U = "u", *const ST_V = "v", *const ST_V_HALF = "v_half",
                   *const ST_FINT = "fint", *const ST_SCALARS = "scalars";
@@ -40,11 +45,13 @@ typedef struct server {
   double *surf_x0;      /* [n_surf*3] rim frame, after the static solve */
   double *x_out, *v_out; /* [n_surf*3] world */
   double *f_dense;       /* [n_surf*3] a sparse nodal_force expanded */
-  double series[FEM_N_SERIES];
+  double series[MAX_SERIES];
+  int n_series;         /* FEM_N_SERIES, + the road's, + the reaction's columns */
   double scalars[8];    /* state_save: the scalar part of fem_state */
   /* snapshots */
   int32_t *cells;       /* [n_elems*npe] VTK order */
   double *mesh_x0, *snap_x, *snap_v, *strain, *stress, *voigt;
+  double *snap_road;    /* [n_nodes*3] with a road: its force on each node, world */
 } server;
 
 /* ------------------------------------------------------------- configure */
@@ -129,6 +136,8 @@ static int alloc_snapshots(server *s, proto_err *err) {
   s->strain = malloc(sizeof(double) * ne6);
   s->stress = malloc(sizeof(double) * ne6);
   s->voigt = malloc(sizeof(double) * ne6);
+  if (s->cfg.road && !(s->snap_road = calloc(nn3, sizeof(double))))
+    return proto_fail(err, "out of memory (snapshots)");
   if (!s->cells || !s->mesh_x0 || !s->snap_x || !s->snap_v || !s->strain || !s->stress || !s->voigt)
     return proto_fail(err, "out of memory (snapshots)");
   memcpy(s->mesh_x0, m->x, sizeof(double) * nn3);
@@ -167,8 +176,20 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
             ss.t_factor, ss.t_solve, ss.iterations, ss.residual);
   }
   fem_state_reset(md, &s->st, u0);
+  if (build_surface(s, err) || alloc_snapshots(s, err)) return -1;
+  if (s->cfg.road &&
+      fem_road_init(md, &s->st.road, s->surf_node, s->n_surf, s->surf_tri, s->n_tri, s->surf_x0,
+                    s->cfg.road_k_area, s->cfg.road_z, err))
+    return proto_wrap(err, "%s.road", path);
   if (s->cfg.mode == FEM_EXPLICIT) {
     if (fem_stable_dt(md, &s->st, s->cfg.power_iterations, err)) return -1;
+    if (s->cfg.road) { /* the road's stiffness lowers the stable step */
+      const double bare = s->st.dt_crit;
+      s->st.dt_crit = fem_road_dt(md, &s->st.road, s->st.omega_max);
+      fprintf(stderr, "%s.road: stable step %.4g s without the road, %.4g s with its penalty "
+              "(k_area %.4g N/m^3 on %d nodes)\n", path, bare, s->st.dt_crit, s->cfg.road_k_area,
+              s->st.road.n);
+    }
     double dt = s->cfg.dt_sub > 0 ? s->cfg.dt_sub : s->cfg.safety * s->st.dt_crit;
     if (s->cfg.dt_sub > s->st.dt_crit && !s->cfg.allow_unstable)
       return proto_fail(err, "%s.dt_sub: %.4g s exceeds the stable limit dt_crit = 2/omega_max = "
@@ -179,15 +200,19 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
             md->npe == 10 ? "tet10" : "tet4", s->st.dt_crit, dt, s->cfg.safety,
             s->span > 0 ? (long long)((s->span / dt) + 0.999999) : 0LL, s->span);
   }
-  if (build_surface(s, err) || alloc_snapshots(s, err)) return -1;
 
-  static const char *const cols[FEM_N_SERIES] = {
+  const char *cols[MAX_SERIES] = {
       [FEM_SERIES_T] = "t", [FEM_SERIES_STRAIN] = "strain_energy",
       [FEM_SERIES_KINETIC] = "kinetic_energy", [FEM_SERIES_DT_SUB] = "dt_sub",
       [FEM_SERIES_SUB_STEPS] = "sub_steps"};
-  if (proto_ready_series(ready, PROTO_A_SERIES, FEM_N_SERIES, cols) < 0 ||
+  s->n_series = FEM_N_SERIES;
+  if (s->cfg.road) cols[s->n_series++] = "road_force", cols[s->n_series++] = "road_contacts";
+  if (s->cfg.reaction)
+    cols[s->n_series++] = "reaction_x", cols[s->n_series++] = "reaction_y",
+    cols[s->n_series++] = "reaction_z";
+  if (proto_ready_series(ready, PROTO_A_SERIES, s->n_series, cols) < 0 ||
       proto_ready_snapshot(ready, md->npe == 10 ? "tet10" : "tet4", SNAP[SNAP_X], MESH_CELLS,
-                           4, SNAP + SNAP_U) < 0)
+                           s->cfg.road ? 5 : 4, SNAP + SNAP_U) < 0)
     return proto_fail(err, "out of memory");
   cJSON *h = proto_msg_header(ready);
   cJSON_AddBoolToObject(h, PROTO_H_SPARSE, 1); /* nodal_force may come sparse */
@@ -202,6 +227,16 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
                              s->mesh_x0) ||
       proto_msg_add_prefixed(ready, PROTO_P_MESH, MESH_CELLS, PROTO_I4, md->mesh.n_elems,
                              md->npe, s->cells))
+    return proto_fail(err, "ready message full");
+  if (s->cfg.road &&
+      (proto_msg_add_prefixed(ready, PROTO_P_MESH, MESH_SURF_NODE, PROTO_I4, s->n_surf, 0,
+                              s->surf_node) ||
+       proto_msg_add_prefixed(ready, PROTO_P_MESH, MESH_SURF_TRI, PROTO_I4, s->n_tri, 3,
+                              s->surf_tri) ||
+       proto_msg_add_prefixed(ready, PROTO_P_MESH, MESH_SURF_X0, PROTO_F8, s->n_surf, 3,
+                              s->surf_x0) ||
+       proto_msg_add_prefixed(ready, PROTO_P_MESH, MESH_ROAD_AREA, PROTO_F8, s->n_surf, 0,
+                              s->st.road.area)))
     return proto_fail(err, "ready message full");
   return 0;
 }
@@ -243,6 +278,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   const double *vc = proto_msg_data(req, PROTO_A_RIM_V);
   const double span = info->dt;
   fem_frame_from_rim(&s->st, R, w, vc, span);
+  if (s->cfg.road) fem_road_place(&s->st.road, R, c);
   /* external force in the rim frame: pressure + R^T g m + R^T f, constant
    * over the coupling step (the role table: f is the step's mean force) */
   double g[3];
@@ -262,6 +298,10 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   } else { /* quasi-static: K u = b with the kept factor; steady in the rim
               frame, so no Coriolis; frame loads at the previous u (lag) */
     fem_load_frame(md, &s->st.frame, s->st.u, b);
+    if (s->cfg.road) { /* the road's force at the previous u, lagged like the frame loads */
+      fem_road_force(md, &s->st.road, s->st.u);
+      for (int32_t i = 0; i < md->n_dof; i++) b[i] += s->st.road.force[i];
+    }
     memcpy(s->u_prev, s->st.u, sizeof *s->u_prev * (size_t)md->n_dof);
     if (fem_static_solve(md, &s->factor, s->cfg.solver, 1e-10, b, s->st.u, NULL, err)) return -1;
     for (int32_t i = 0; i < md->n_dof; i++) s->st.v[i] = (s->st.u[i] - s->u_prev[i]) / span;
@@ -284,9 +324,20 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   s->series[FEM_SERIES_DT_SUB] = s->st.dt_sub;
   s->series[FEM_SERIES_SUB_STEPS] =
       s->cfg.mode == FEM_EXPLICIT ? (double)(int64_t)(span / s->st.dt_sub + 0.5) : 1;
+  int col = FEM_N_SERIES;
+  if (s->cfg.road) { /* explicit: at the step's end; quasi-static: the lagged force */
+    s->series[col++] = s->st.road.total;
+    s->series[col++] = s->st.road.contacts;
+  }
+  if (s->cfg.reaction) { /* the tread's load on the rim, world frame */
+    double load[3], world[3];
+    fem_rim_load(md, &s->st, b, s->cfg.mode == FEM_QUASI_STATIC, load);
+    rot(R, load, world);
+    for (int d = 0; d < 3; d++) s->series[col++] = world[d];
+  }
   if (proto_msg_add_f8(reply, PROTO_A_X, s->n_surf, 3, s->x_out) ||
       proto_msg_add_f8(reply, PROTO_A_V, s->n_surf, 3, s->v_out) ||
-      proto_msg_add_f8(reply, PROTO_A_SERIES, FEM_N_SERIES, 0, s->series))
+      proto_msg_add_f8(reply, PROTO_A_SERIES, s->n_series, 0, s->series))
     return proto_fail(err, "reply full");
   if (info->output) {
     const int32_t nn = md->mesh.n_nodes, ne = md->mesh.n_elems;
@@ -300,9 +351,15 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
     fem_element_strain_stress(md, &s->st.work, s->st.u, NULL, s->voigt);
     for (int32_t e = 0; e < ne; e++)
       for (int k = 0; k < 6; k++) s->stress[6 * (size_t)e + k] = s->voigt[6 * (size_t)e + perm[k]];
-    const double *snap[N_SNAP] = {s->snap_x, s->st.u, s->snap_v, s->strain, s->stress};
-    const int64_t rows[N_SNAP] = {nn, nn, nn, ne, ne}, cols[N_SNAP] = {3, 3, 3, 6, 6};
-    for (int a = 0; a < N_SNAP; a++)
+    if (s->cfg.road)
+      for (int32_t i = 0; i < s->st.road.n; i++) {
+        const size_t n3 = 3 * (size_t)s->st.road.node[i];
+        rot(R, s->st.road.force + n3, s->snap_road + n3);
+      }
+    const double *snap[N_SNAP] = {s->snap_x, s->st.u, s->snap_v, s->strain, s->stress,
+                                  s->snap_road};
+    const int64_t rows[N_SNAP] = {nn, nn, nn, ne, ne, nn}, cols[N_SNAP] = {3, 3, 3, 6, 6, 3};
+    for (int a = 0; a < N_SNAP - !s->cfg.road; a++)
       if (proto_msg_add_prefixed(reply, PROTO_P_SNAP, SNAP[a], PROTO_F8, rows[a], cols[a], snap[a]))
         return proto_fail(err, "reply full");
   }
@@ -361,7 +418,7 @@ static void finish(void *user) {
   free(s->surf_node); free(s->surf_tri); free(s->surf_x0);
   free(s->x_out); free(s->v_out); free(s->f_dense);
   free(s->cells); free(s->mesh_x0); free(s->snap_x); free(s->snap_v);
-  free(s->strain); free(s->stress); free(s->voigt);
+  free(s->strain); free(s->stress); free(s->voigt); free(s->snap_road);
   memset(s, 0, sizeof *s);
 }
 

@@ -180,6 +180,34 @@ static void load_rig(void) {
   FAILS_WITH(advance_z(&rim, &s, dt, 80, &err), "scenario.rig_mass");
 }
 
+/* sinkage_depth (README "Scenario keys"): with no load the rim sinks at 0.01 m/s,
+ * dt = 1e-3 s, and stops at the first step that starts 3e-5 m down (the sum of
+ * three steps' 1e-5 m, bit for bit); without the key it keeps sinking. */
+static double rim_sunk(const cpl_rim *rim) { return rim->c0[2] - rim->c[2]; }
+
+static void sinkage_depth(void) {
+  cpl_scenario s = {0};
+  s.kind = CPL_SCN_TIRE_ROAD;
+  s.rim_center[2] = 1;
+  s.sinkage_velocity = 0.01;
+  s.sinkage_force = 80;
+  const double dt = 1e-3;
+  cpl_rim rim, free_rim;
+  proto_err err = {0};
+  cpl_rim_init(&free_rim, &s);
+  for (int k = 0; k < 3; k++) OK(advance_z(&free_rim, &s, dt, 0, &err));
+  s.sinkage_depth = rim_sunk(&free_rim);
+  cpl_rim_init(&rim, &s);
+  for (int k = 0; k < 6; k++) OK(advance_z(&rim, &s, dt, 0, &err));
+  CHECK(rim.travelling, "the rim stops at sinkage_depth without a load");
+  CHECK(rim.c[2] == free_rim.c[2], "at the same height, bit for bit (%.17g, %.17g)", rim.c[2],
+        free_rim.c[2]);
+  s.sinkage_depth = 0;
+  cpl_rim_init(&rim, &s);
+  for (int k = 0; k < 6; k++) OK(advance_z(&rim, &s, dt, 0, &err));
+  CHECK(!rim.travelling && rim.c[2] < free_rim.c[2], "sinkage_depth 0: the load alone stops it");
+}
+
 /* ----------------------------------------------------------- the dbp rig */
 
 /* A dbp scene: omega R = 1 m/s, W = 80 N carried from the first step,
@@ -417,6 +445,7 @@ int main(void) {
   schedules();
   exchange_bookkeeping();
   load_rig();
+  sinkage_depth();
   dbp_resistance();
   dbp_carriage();
   dbp_means();

@@ -21,7 +21,8 @@ import numpy as np
 from common import COSIM, HERE, check, done, scratch
 
 ROOT = os.path.dirname(os.path.dirname(HERE))
-STUB = {"fem_server": "fem_stub", "dem_server": "dem_stub", "contact_block": "block_stub"}
+STUB = {"fem_server": "fem_stub", "dem_server": "dem_stub", "contact_block": "block_stub",
+        "lug_block": "lug_stub"}
 END = "time.end=0.002"  # 40 steps of the default scene
 # The last series row is the step ending at k dt = time.end: the coupler's t is
 # a product, not a running sum, so it is time.end to a few ulps.

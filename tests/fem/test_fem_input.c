@@ -102,6 +102,20 @@ static void config_errors(void) {
      "processes.fem.mesh: give exactly one of", "config empty mesh"},
     {"{\"mesh\":{\"generate\":\"bar\"},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000},\"fixed\":{\"group\":\"xmin\",\"components\":\"xw\"}}",
      "processes.fem.fixed.components", "config components"},
+    {"{\"mesh\":{\"generate\":\"bar\"},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000},\"road\":{\"z\":0}}",
+     "processes.fem.road.k_area: required key is missing", "config road without k_area"},
+    {"{\"mesh\":{\"generate\":\"bar\"},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000},\"road\":{\"k_area\":0}}",
+     "processes.fem.road.k_area: must be a finite penalty per unit area > 0 (N/m^3), got 0", "config road k_area 0"},
+    {"{\"mesh\":{\"generate\":\"bar\"},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000},\"road\":{\"k_area\":1e8,\"height\":0}}",
+     "processes.fem.road.height: unknown key", "config road typo"},
+    {"{\"mesh\":{\"generate\":\"bar\"},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000},\"road\":{\"k_area\":1e8,\"z\":\"low\"}}",
+     "processes.fem.road.z", "config road z not a number"},
+    {"{\"mesh\":{\"generate\":\"bar\"},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000},\"road\":1}",
+     "processes.fem.road", "config road not an object"},
+    {"{\"mesh\":{\"generate\":\"bar\"},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000},\"reaction\":\"rim\"}",
+     "processes.fem.reaction", "config reaction not a bool"},
+    {"{\"mesh\":{\"generate\":\"tread\",\"phase_deg\":400},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000}}",
+     "processes.fem.mesh.phase_deg", "config tread phase"},
   };
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
     proto_err err;
