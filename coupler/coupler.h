@@ -101,6 +101,7 @@ typedef struct cpl_scenario {
   double sinkage_depth;   /* m: or the sinkage below the start that ends it (0: none) */
   double slip;            /* s in v = omega R (1 - s) */
   double omega;           /* rad/s during travel */
+  double spin_up;         /* s: kinematic rig, omega and v rise linearly from 0 (0: at once) */
   double radius;          /* m, rolling radius R */
   int rim_auto;           /* rim_center[2] is "auto": set from the dems' bed_top */
   double auto_gap;        /* m: lowest tread node above the bed top ("auto") */

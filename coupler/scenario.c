@@ -128,6 +128,24 @@ static void carriage_advance(cpl_rim *rim, const cpl_scenario *s, double dt, dou
   rim->travel_time = b;
 }
 
+/* Kinematic spin-up over T = scenario.spin_up: the speeds rise as u(tau) = tau / T to 1
+ * (tau the travel clock), and a step [a, b] moves the rim by the exact integral of the
+ * ramped speed, U(b) - U(a) with U = tau^2 / (2T) in the ramp and tau - T/2 after:
+ * the step's speeds are their means over the step, so x = V tau^2 / (2T) and the angle
+ * omega tau^2 / (2T) during the ramp, to round-off, and not V tau. */
+static double ramp_integral(double T, double tau) {
+  return tau < T ? 0.5 * tau * tau / T : tau - 0.5 * T;
+}
+
+static void spin_up_speeds(cpl_rim *rim, const cpl_scenario *s, double dt) {
+  const double a = rim->travel_time, b = a + dt;
+  const double u = a >= s->spin_up ? 1
+                   : (ramp_integral(s->spin_up, b) - ramp_integral(s->spin_up, a)) / dt;
+  rim->v[0] = s->omega * s->radius * (1 - s->slip) * u;
+  rim->w[1] = s->omega * u;
+  rim->travel_time = b;
+}
+
 int cpl_rim_advance(cpl_rim *rim, const cpl_scenario *s, double dt, const double force[3],
                     proto_err *err) {
   if (!cpl_scenario_rolls(s->kind)) return 0;
@@ -140,6 +158,9 @@ int cpl_rim_advance(cpl_rim *rim, const cpl_scenario *s, double dt, const double
     rim->v[0] = s->omega * s->radius * (1 - s->slip); /* dbp: the carriage's start */
     rim->w[1] = s->omega;
     if (rig_start(rim, s, dt, err) < 0) return -1;
+    if (s->spin_up > 0) spin_up_speeds(rim, s, dt);
+  } else if (rim->travelling && s->spin_up > 0) {
+    spin_up_speeds(rim, s, dt); /* kinematic only (scene.c) */
   } else if (rim->travelling && s->rig != CPL_RIG_KINEMATIC) {
     /* m z'' = F - W - c z': semi-implicit Euler, damping implicit */
     const double m = rim->mass, c = rim->damping;

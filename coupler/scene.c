@@ -274,9 +274,13 @@ static int read_tire_travel(proto_cfg *c, cpl_scenario *sc, double dt) {
       proto_cfg_num(c, "sinkage_depth", PROTO_OPTIONAL, 1e-9, 10, &sc->sinkage_depth) < 0 ||
       proto_cfg_num_below(c, "slip", PROTO_OPTIONAL, -1, 1, &sc->slip) < 0 ||
       proto_cfg_num(c, "omega", PROTO_REQUIRED, -1e4, 1e4, &sc->omega) < 0 ||
+      proto_cfg_num(c, "spin_up", PROTO_OPTIONAL, 0, 1e3, &sc->spin_up) < 0 ||
       proto_cfg_num(c, "radius", PROTO_OPTIONAL, 1e-6, 1e3, &sc->radius) < 0)
     return -1;
   sc->rig = (cpl_rig)rig;
+  if (sc->spin_up > 0 && sc->rig != CPL_RIG_KINEMATIC)
+    return proto_fail(c->err, "%s.spin_up: %g s needs rig \"kinematic\" (the load and dbp "
+                      "rigs start at omega at once)", c->path, sc->spin_up);
   /* the rig keys are read in either mode (a scene switches with one --set) */
   if (sc->rig_mass < 0) {
     if (sc->rig != CPL_RIG_KINEMATIC && !(sc->sinkage_force > 0))

@@ -18,7 +18,8 @@ bench      configs/tire_road_rough_50kmh.json once, under
            flock /tmp/cosim-bench.lock nice -n 0 (the machine is shared: the
            load average before and after is recorded): wall time of the whole
            process and of the coupled loop, the coupler's timing table, blocks
-           in the footprint.
+           in the footprint (during travel and after scenario.spin_up), each
+           passage's impact speed (the face's approach rate at first force).
 passage    the lug passage of the 4x rough run beside the stand-alone block
            (bench_block: the lug's grid, springs, adhesion and layer at the
            same rate) under the thesis' linear and quadratic indentations
@@ -94,7 +95,7 @@ def passage_stats(run):
         F = L["force%d" % p][s]
         if F.max() <= 0:
             continue
-        K = r.series(LUGS[p], "series")["stiffness"][s]
+        K = r.series("lug%d" % p, "series")["stiffness"][s]
         pos = (F[1:] > 0) & (F[:-1] > 0)
         out.append({"lug": j, "process": p, "t0": float(L["t"][s][0]), "peak": float(F.max()),
                     "min": float(F.min()), "chatter": chatter(F),
@@ -197,7 +198,21 @@ def footprint(run):
     k0 = int(np.nonzero(tr["vertical_load"] >= r.scene["scenario"]["sinkage_force"])[0][0])
     loaded = sum((L["force%d" % p][k0:] != 0).astype(int) for p in range(n))
     served = sum((L["lug%d" % p][k0:] >= 0).astype(int) for p in range(n))
-    return {"travel_from": float(L["t"][k0]), "loaded_max": int(loaded.max()),
+    # the revolution after the spin-up, and each passage's impact speed: the face's
+    # approach rate (d_k - d_{k-1}) / dt at its block's first nonzero force
+    k1 = k0 + int(round(r.scene["scenario"].get("spin_up", 0) / r.scene["time"]["dt"]))
+    rev = sum((L["force%d" % p][k1:] != 0).astype(int) for p in range(n))
+    impact = []
+    for p, j, s in passages(L, n):
+        on = np.nonzero(L["force%d" % p][s] != 0)[0]
+        if len(on) and on[0] > 0:
+            d = L["d%d" % p][s]
+            impact.append({"lug": j, "t": float(L["t"][s][on[0]]),
+                           "speed": float((d[on[0]] - d[on[0] - 1]) / r.scene["time"]["dt"])})
+    return {"travel_from": float(L["t"][k0]), "revolution_from": float(L["t"][min(k1, len(L["t"]) - 1)]),
+            "rev_loaded_max": int(rev.max()) if len(rev) else 0,
+            "rev_loaded_mean": float(rev.mean()) if len(rev) else 0.0, "impact": impact,
+            "loaded_max": int(loaded.max()),
             "loaded_mean": float(loaded.mean()), "served_max": int(served.max()),
             "served_mean": float(served.mean()), "passages": passage_stats(run)}
 

@@ -208,6 +208,50 @@ static void sinkage_depth(void) {
   CHECK(!rim.travelling && rim.c[2] < free_rim.c[2], "sinkage_depth 0: the load alone stops it");
 }
 
+/* spin_up (README "Scenario keys"): the kinematic rig's omega = 2 rad/s and
+ * v = omega R (1 - s) = 0.9 m/s rise linearly over T = 10.5 ms (not a multiple of
+ * dt = 1 ms) once the load is reached. x and the angle are the integrals of the
+ * ramped speeds: V tau^2 / (2T) in the ramp, V (tau - T/2) after (tau = n dt the
+ * travel clock); spin_up 0 is the instant start, bit for bit the sum of V dt. */
+static void spin_up(void) {
+  cpl_scenario s = {0};
+  s.kind = CPL_SCN_TIRE_ROAD;
+  s.rim_center[2] = 1;
+  s.sinkage_velocity = 0.01;
+  s.sinkage_force = 80;
+  s.omega = 2;
+  s.radius = 0.5;
+  s.slip = 0.1;
+  const double dt = 1e-3, T = 10.5e-3, V = 0.9;
+  proto_err err = {0};
+  cpl_rim rim;
+  s.spin_up = T;
+  cpl_rim_init(&rim, &s);
+  double err_x = 0, err_a = 0;
+  for (int n = 1; n <= 20; n++) {
+    OK(advance_z(&rim, &s, dt, 80, &err));
+    const double tau = n * dt, U = tau < T ? 0.5 * tau * tau / T : tau - 0.5 * T;
+    err_x = fmax(err_x, fabs(rim.c[0] - V * U) / (V * U));
+    err_a = fmax(err_a, fabs(rim.angle - 2 * U) / (2 * U));
+    if (n == 5) CHECK_REL("speed mid-ramp: the mean over [4, 5] ms", rim.v[0], V * 4.5e-3 / T, 1e-14);
+    if (n == 11) CHECK_REL("omega across the ramp's end", rim.w[1],
+                           2 * (U - 0.5 * 1e-4 / T) / dt, 1e-12);
+  }
+  CHECK(rim.travelling && rim.c[2] == 1, "travel from the first step, height frozen");
+  CHECK(err_x < 1e-13, "x = V tau^2 / (2T) in the ramp, V (tau - T/2) after (rel. %.3g)", err_x);
+  CHECK(err_a < 1e-13, "angle = omega tau^2 / (2T), omega (tau - T/2) (rel. %.3g)", err_a);
+  CHECK(rim.v[0] == V * 1.0 && rim.w[1] == 2, "full speed after the ramp, exactly");
+  s.spin_up = 0;
+  cpl_rim_init(&rim, &s);
+  double x = 0, a = 0;
+  for (int n = 1; n <= 20; n++) {
+    OK(advance_z(&rim, &s, dt, 80, &err));
+    x += 2 * 0.5 * (1 - 0.1) * dt;
+    a += 2 * dt;
+  }
+  CHECK(rim.c[0] == x && rim.angle == a, "spin_up 0: the instant start, bit for bit");
+}
+
 /* ----------------------------------------------------------- the dbp rig */
 
 /* A dbp scene: omega R = 1 m/s, W = 80 N carried from the first step,
@@ -446,6 +490,7 @@ int main(void) {
   exchange_bookkeeping();
   load_rig();
   sinkage_depth();
+  spin_up();
   dbp_resistance();
   dbp_carriage();
   dbp_means();
