@@ -32,14 +32,6 @@ void fem_road_free(fem_road *r) {
   memset(r, 0, sizeof *r);
 }
 
-static double tri_area(const double *a, const double *b, const double *c) {
-  const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-  const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-  double w[3];
-  fem_cross(u, v, w);
-  return 0.5 * sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
-}
-
 /* (surface nodes, triangles, positions) -> (road: nodes, area shares, k_i) */
 int fem_road_init(const fem_model *md, fem_road *r, const int32_t *node, int32_t n,
                   const int32_t *tri, int32_t n_tri, const double *x, double k_area,
@@ -69,7 +61,7 @@ int fem_road_init(const fem_model *md, fem_road *r, const int32_t *node, int32_t
     const double w[3] = {q[0] - a[0], q[1] - a[1], q[2] - a[2]};
     double nt[3];
     fem_cross(u, w, nt);
-    const double A = tri_area(a, b, q), len = 2 * A;
+    const double len = sqrt(nt[0] * nt[0] + nt[1] * nt[1] + nt[2] * nt[2]), A = 0.5 * len;
     r->tri_area[4 * (size_t)t] = A;
     for (int d = 0; d < 3; d++) r->tri_area[4 * (size_t)t + 1 + d] = len > 0 ? nt[d] / len : 0;
   }

@@ -138,19 +138,26 @@ static int advance_z(cpl_rim *rim, const cpl_scenario *s, double dt, double fz, 
   return cpl_rim_advance(rim, s, dt, force, err);
 }
 
-/* Load rig (README "Scenario keys"): dt = 1e-3 s, sinking at 0.01 m/s; the
- * loads 0, 40 (= W/2: the fit starts), 80 (= W: travel) give two fit points
- * dz = 0 and dz = -1e-5 m at F = 40, 80 N, so k = 40 / 1e-5 = 4e6 N/m. Then
- * with F = 88 N: v_z = dt (F - W)/m / (1 + dt c/m) = 1e-3 / 1.00125. */
-static void load_rig(void) {
+/* The rigs' rolling rim: from z = 1 m, sinking at 0.01 m/s until 80 N, then
+ * omega = 2 rad/s on R = 0.5 m at slip 0.1 (v = 0.9 m/s). */
+static cpl_scenario rolling_scene(cpl_scenario_kind kind) {
   cpl_scenario s = {0};
-  s.kind = CPL_SCN_TIRE_TRAVEL;
+  s.kind = kind;
   s.rim_center[2] = 1;
   s.sinkage_velocity = 0.01;
   s.sinkage_force = 80;
   s.omega = 2;
   s.radius = 0.5;
   s.slip = 0.1;
+  return s;
+}
+
+/* Load rig (README "Scenario keys"): dt = 1e-3 s, sinking at 0.01 m/s; the
+ * loads 0, 40 (= W/2: the fit starts), 80 (= W: travel) give two fit points
+ * dz = 0 and dz = -1e-5 m at F = 40, 80 N, so k = 40 / 1e-5 = 4e6 N/m. Then
+ * with F = 88 N: v_z = dt (F - W)/m / (1 + dt c/m) = 1e-3 / 1.00125. */
+static void load_rig(void) {
+  cpl_scenario s = rolling_scene(CPL_SCN_TIRE_TRAVEL);
   s.rig = CPL_RIG_LOAD;
   s.rig_mass = 8;
   s.rig_damping = 10;
@@ -214,14 +221,7 @@ static void sinkage_depth(void) {
  * ramped speeds: V tau^2 / (2T) in the ramp, V (tau - T/2) after (tau = n dt the
  * travel clock); spin_up 0 is the instant start, bit for bit the sum of V dt. */
 static void spin_up(void) {
-  cpl_scenario s = {0};
-  s.kind = CPL_SCN_TIRE_ROAD;
-  s.rim_center[2] = 1;
-  s.sinkage_velocity = 0.01;
-  s.sinkage_force = 80;
-  s.omega = 2;
-  s.radius = 0.5;
-  s.slip = 0.1;
+  cpl_scenario s = rolling_scene(CPL_SCN_TIRE_ROAD);
   const double dt = 1e-3, T = 10.5e-3, V = 0.9;
   proto_err err = {0};
   cpl_rim rim;
@@ -260,14 +260,7 @@ static void spin_up(void) {
  * steps 256 and 257 (0.25 = 256/1024 exactly: on a step), so the kink is
  * moved to 0.2505 s to fall inside a step. */
 static cpl_scenario dbp_scene(void) {
-  cpl_scenario s = {0};
-  s.kind = CPL_SCN_TIRE_TRAVEL;
-  s.rim_center[2] = 1;
-  s.sinkage_velocity = 0.01;
-  s.sinkage_force = 80;
-  s.omega = 2;
-  s.radius = 0.5;
-  s.slip = 0.1;
+  cpl_scenario s = rolling_scene(CPL_SCN_TIRE_TRAVEL);
   s.rig = CPL_RIG_DBP;
   s.rig_mass = 8;
   s.carriage_mass = 8;
