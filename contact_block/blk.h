@@ -139,6 +139,9 @@ typedef struct blk_state {
   double *d_el;     /* [M] layer displacement, m */
   double *d_el_old; /* [M] history part for the NEXT step, m (eq. 5) */
   int *attached;    /* [M] 1: in contact / adhered */
+  double *base;     /* [M] input: the base's offset towards the road per element,
+                       m (a lug face's shape, lug_block); 0 (the default, and
+                       after a reset) is the thesis' flat base */
   /* last step */
   double d_road, total_force, residual;
   double stiffness; /* tangent dF/dd_road of this step's solve, N/m (0: not computed) */

@@ -4,8 +4,10 @@
  * output steps, per-element snapshot arrays. Built with BLK_SERVE_LUGS it
  * is `lug_block` (role "lug", scenario tire_road): the same block under one
  * lug of a rolling tyre at a time; a request's header reset: true (a new
- * lug) starts its history afresh, and the reply adds its centre of
- * pressure cop [2] (relative to the grid's centre). */
+ * lug) starts its history afresh, the request carries the face's shape
+ * base [M] (each element's offset, blk_state.base), and the reply adds its
+ * centre of pressure cop [2] (relative to the grid's centre) and the element
+ * forces cell_force [M]; its ready declares the element centres cell_xy. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -34,6 +36,7 @@ typedef struct server {
   double cop[2];   /* lug_block: centre of pressure (m) */
   int idle;        /* lug_block: it served no lug last step (its state already reset) */
   double *x; /* [M][3] element centres, z = road height */
+  double *cell_xy; /* lug_block: [M][2] element centres about the grid's centre */
   double prev[2]; /* force and d_road of the previous step (stiffness column) */
 } server;
 
@@ -67,6 +70,16 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
     s->x[3 * e + 1] = (e / m->nx + 0.5) * m->dy;
     s->x[3 * e + 2] = m->z_road[e];
   }
+#ifdef BLK_SERVE_LUGS
+  s->cell_xy = malloc((size_t)m->M * 2 * sizeof(double));
+  if (!s->cell_xy) return proto_fail(err, "out of memory");
+  for (int e = 0; e < m->M; e++) {
+    s->cell_xy[2 * e] = s->x[3 * e] - 0.5 * m->nx * m->dx;
+    s->cell_xy[2 * e + 1] = s->x[3 * e + 1] - 0.5 * m->ny * m->dy;
+  }
+  if (proto_msg_add_f8(ready, PROTO_A_CELL_XY, m->M, 2, s->cell_xy))
+    return proto_fail(err, "ready: too many arrays");
+#endif
   if (proto_ready_series(ready, PROTO_A_SERIES, NCOL, columns) < 0 ||
       proto_ready_snapshot(ready, "points", SNAP[SNAP_X], NULL, 3, SNAP + SNAP_FORCE) < 0)
     return proto_fail(err, "out of memory");
@@ -119,6 +132,8 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   const int idle = BLK_ROLE == PROTO_ROLE_LUG &&
                    cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(req->header, PROTO_H_IDLE));
   if (idle && !s->idle) blk_state_reset(m, &s->state); /* once, when it goes idle */
+  if (BLK_ROLE == PROTO_ROLE_LUG && !idle) /* the face's shape under the cells */
+    memcpy(s->state.base, proto_msg_data(req, PROTO_A_BASE), sizeof(double) * (size_t)m->M);
   if (idle) s->state.d_road = d_road[0];
   else if (blk_step(m, &s->state, d_road[0], err)) return -1;
   s->idle = idle;
@@ -141,7 +156,8 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
     return proto_fail(err, "done: too many arrays");
   if (BLK_ROLE == PROTO_ROLE_LUG) {
     centre_of_pressure(m, st, s->cop);
-    if (proto_msg_add_f8(reply, PROTO_A_COP, 2, 0, s->cop))
+    if (proto_msg_add_f8(reply, PROTO_A_COP, 2, 0, s->cop) ||
+        proto_msg_add_f8(reply, PROTO_A_CELL_FORCE, m->M, 0, st->force))
       return proto_fail(err, "done: too many arrays");
   }
   if (info->output) {
@@ -179,6 +195,7 @@ static void finish(void *user) {
   if (s->have_state) blk_state_free(&s->state);
   if (s->have_model) blk_model_free(&s->model);
   free(s->x);
+  free(s->cell_xy);
   memset(s, 0, sizeof *s);
 }
 

@@ -50,11 +50,13 @@ int blk_state_create(const blk_model *m, blk_state *s, proto_err *err) {
   s->d_el = track(w, M, sizeof(double));
   s->d_el_old = track(w, M, sizeof(double));
   s->attached = track(w, M, sizeof(int));
+  s->base = track(w, M, sizeof(double));
   w->kern = track(w, no, sizeof(double));
   w->b = track(w, M, sizeof(double));
   w->CF = track(w, M, sizeof(double));
   w->held = track(w, M, sizeof(int));
-  if (!s->d_rs || !s->force || !s->d_el || !s->d_el_old || !s->attached || !w->kern ||
+  if (!s->d_rs || !s->force || !s->d_el || !s->d_el_old || !s->attached || !s->base ||
+      !w->kern ||
       !w->b || !w->CF || !w->held)
     return proto_fail(err, "out of memory");
   /* compliance of this step's forces: Δt g(0) (eq. 4) or the static sum */
@@ -131,6 +133,7 @@ void blk_state_free(blk_state *s) {
   free(s->d_el);
   free(s->d_el_old);
   free(s->attached);
+  free(s->base);
   memset(s, 0, sizeof *s);
 }
 
@@ -144,6 +147,7 @@ void blk_state_reset(const blk_model *m, blk_state *s) {
   memset(s->d_el, 0, M * sizeof(double));
   memset(s->d_el_old, 0, M * sizeof(double));
   memset(s->attached, 0, M * sizeof(int));
+  memset(s->base, 0, M * sizeof(double));
   s->d_road = s->total_force = s->residual = s->stiffness = 0;
   s->n_contact = s->iterations = s->line_search_cuts = s->products = 0;
   s->converged = 1;
@@ -159,9 +163,10 @@ int blk_step(const blk_model *m, blk_state *s, double d_road, proto_err *err) {
   const int M = m->M;
   if (!isfinite(d_road))
     return proto_fail(err, "step %lld: d_road is not finite", (long long)s->n + 1);
-  /* b = d_road + z_road − z_free − d_el_old (eq. 6, 4) */
+  /* b = d_road + base + z_road − z_free − d_el_old (eq. 6, 4; base: a shaped
+   * base, the lug face's, per element; 0 for the thesis' flat block) */
   for (int e = 0; e < M; e++) {
-    w->b[e] = d_road + m->z_road[e] - m->z_free - s->d_el_old[e];
+    w->b[e] = d_road + s->base[e] + m->z_road[e] - m->z_free - s->d_el_old[e];
     w->held[e] = s->attached[e];
   }
   if (m->periodic && m->rigid && !m->adhesion) {

@@ -73,7 +73,8 @@ static int coupler_state(cpl_runner *r, int64_t *step, double *wall, int64_t *un
   static const char *const field_keys[CPL_N_FIELDS] = {
       "field.surface.x", "field.surface.v", "field.surface.force", "field.rim.R",
       "field.rim.c", "field.rim.omega", "field.rim.v", "field.road.d", "field.road.force",
-      "field.lug.d", "field.lug.force", "field.lug.cop", "field.lug.origin"};
+      "field.lug.d", "field.lug.force", "field.lug.cop", "field.lug.origin",
+      "field.lug.base", "field.lug.cell_force"};
   int n = 0;
   v[n++] = (cpl_stateval){V_STEP, PROTO_I8, step, 1};
   v[n++] = (cpl_stateval){"wall_s", PROTO_F8, wall, 1};

@@ -30,6 +30,8 @@ static const cpl_field_spec shipped_fields[CPL_N_FIELDS] = {
     [CPL_F_LUG_FORCE] = {"lug.force", 1, {1}, 1},
     [CPL_F_LUG_COP] = {"lug.cop", 1, {2}, 1},
     [CPL_F_LUG_ORIGIN] = {"lug.origin", 1, {2}, 1},
+    [CPL_F_LUG_BASE] = {"lug.base", 1, {PROTO_DIM_CELLS}, 1},
+    [CPL_F_LUG_CELL_FORCE] = {"lug.cell_force", 1, {PROTO_DIM_CELLS}, 1},
 };
 
 /* The serial step (seed 000's staggered scheme, PROTOCOL.md "Schedule"): the

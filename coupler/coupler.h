@@ -132,6 +132,10 @@ typedef struct cpl_scenario {
   double lug_engage;      /* m */
   double lug_tolerance;   /* m: a lug-face node lies this close to the outer radius */
   double road_penalty;    /* N/m */
+  int lug_flat;           /* lug_face "flat": each block takes its face as flat at the
+                             face's mean height, its force back at its centre of
+                             pressure; "shaped" (0, the default): the face's shape
+                             under each cell, the cells' forces back (scenario_lugs.c) */
 } cpl_scenario;
 
 typedef struct cpl_scene {
@@ -253,6 +257,15 @@ typedef struct cpl_lugs {
   double *area;         /* [n] m² */
   uint8_t *on_lug;      /* [n_nodes]: 1 for a node of a lug face */
   double outer_radius;  /* m */
+  /* the lug processes' block grid on each face (cpl_lugs_map): cell c of lug
+   * j lies on the face triangle of the nodes cell_node[3 (j cells + c) + 0..2]
+   * with the barycentric weights cell_w[...]; nodes -1: beyond the face */
+  int cells;            /* the grid's cells (0 before cpl_lugs_map) */
+  int32_t *cell_node;   /* [n][cells][3] surface node indices */
+  double *cell_w;       /* [n][cells][3] */
+  double covered;       /* the smallest share of a lug's cells on its face */
+  double beyond;        /* the largest share of a face's area (in the tangent plane)
+                           that no cell covers: 1 - cells on it x cell area / area */
 } cpl_lugs;
 /* Finds the lug faces of a surface (x0 rim frame, tri); tol: how close to
  * the outer radius a face node lies (m). -1 with err if none is found. */
@@ -263,6 +276,9 @@ void cpl_lugs_free(cpl_lugs *L);
  * indentation): road_z minus the area-weighted mean height of its face
  * nodes at the world positions x. */
 double cpl_lug_approach(const cpl_lugs *L, int j, const double *x, double road_z);
+/* The approach of lug j's deepest face node (m): road_z minus their lowest
+ * height. A shaped face (scenario.lug_face) is engaged and released by it. */
+double cpl_lug_reach(const cpl_lugs *L, int j, const double *x, double road_z);
 /* Lug j's area centre, world (x, y) (m), at the positions x. */
 void cpl_lug_centre(const cpl_lugs *L, int j, const double *x, double c[2]);
 /* Adds to f (nodal forces, [n, 3]) a block's normal force F (N, +z, the
@@ -272,6 +288,29 @@ void cpl_lug_centre(const cpl_lugs *L, int j, const double *x, double c[2]);
  * forces sum to F ez and have its moment about p_c (F at p_c + cop). */
 void cpl_lug_spread(const cpl_lugs *L, int j, const double *x, double F, const double cop[2],
                     double *f);
+/* Lays the block grid (cell centres cell_xy [cells][2] about the grid's
+ * centre, x along the rolling direction, y along the axle) on every lug face
+ * of the surface at rest (x0 rim frame, tri; scenario_lugmap.c): the face's
+ * nodes are placed in the plane tangent at its area centre (u along the
+ * tread's circumference, the direction that is +x when the face is at the
+ * bottom; v along the axle), and each cell takes the face triangle it falls
+ * in there. -1 with err if out of memory. */
+int cpl_lugs_map(cpl_lugs *L, const double *x0, const int32_t *tri, int64_t n_tris,
+                 const double *cell_xy, int cells, proto_err *err);
+#define CPL_LUG_BEYOND_WARN 0.05 /* a face's area share beyond the grid that warns */
+#define CPL_LUG_OFF_FACE (-1.0) /* m: the base offset of a cell beyond its face's edge:
+                                   no rubber there, it never meets the road */
+/* Lug j's shape under the cells at the world positions x (m, + = towards
+ * the road): the face's area-weighted mean height minus the face's height
+ * under each cell (linear on its triangle); CPL_LUG_OFF_FACE beyond it. */
+void cpl_lug_base(const cpl_lugs *L, int j, const double *x, double *base);
+/* Adds each cell's normal force (N, +z) to f ([n, 3]) on the nodes of the
+ * triangle under it by its barycentric weights: the transpose of
+ * cpl_lug_base's interpolation, so the nodal forces sum to the cells' and
+ * have their moment (each cell's force where the face is under it). A cell
+ * beyond the face carries none (CPL_LUG_OFF_FACE keeps it off the road);
+ * returns the sum of the forces spread. */
+double cpl_lug_spread_cells(const cpl_lugs *L, int j, const double *cell_force, double *f);
 /* Which lug process serves which lug (-1: none), and reset[s]: process s
  * took a new lug this step (its block starts afresh). */
 #define CPL_LUG_IDLE_D (-1.0) /* m: the approach sent to a process with no lug (far) */

@@ -143,7 +143,7 @@ static int cmd_roles(int argc, char **argv) {
                                   (long long)v);
         else
           len += (size_t)snprintf(shape + len, sizeof shape - len, "%s%s", d ? "," : "",
-                                  v == PROTO_DIM_NODES ? "n" : v == PROTO_DIM_TRIS ? "m" : "k");
+                                  proto_dim_symbol(v));
       }
       snprintf(shape + len, sizeof shape - len, "]");
       printf("  %-8s %-12s %s %-6s %-6s%s%s%s%s\n    %s\n", proto_msg_type(t[i].msg),

@@ -355,6 +355,8 @@ static int welcome_all(cpl_runner *r) {
   const int rim_auto = r->scene->scenario.kind == CPL_SCN_TIRE_TRAVEL &&
                        r->scene->scenario.rim_auto && r->plan->fem >= 0;
   if (r->plan->fem >= 0 && welcome_one(r, r->plan->fem) < 0) return -1;
+  for (int i = 0; i < r->n; i++) /* their grids go onto the lug faces */
+    if (r->peers[i].role == PROTO_ROLE_LUG && welcome_one(r, i) < 0) return -1;
   if (cpl_lugs_setup(r) < 0) return -1;
   if (cpl_fields_init(r, r->plan->surf.n_nodes, &r->err) < 0) return -1;
   const cpl_scenario *sc = &r->scene->scenario;
@@ -365,7 +367,8 @@ static int welcome_all(cpl_runner *r) {
     cpl_rim_place(&r->data.rim, r->plan->surf.x0, r->plan->surf.n_nodes, CPL_AUTO_PARK_Z);
   cpl_fields_from_rim(r);
   for (int i = 0; i < r->n; i++)
-    if (i != r->plan->fem && welcome_one(r, i) < 0) return -1;
+    if (i != r->plan->fem && r->peers[i].role != PROTO_ROLE_LUG && welcome_one(r, i) < 0)
+      return -1;
   return rim_auto ? place_rim(r) : 0;
 }
 

@@ -33,6 +33,8 @@ typedef enum cpl_field_id {
   CPL_F_LUG_FORCE,  /* [P] per lug process: its force on the face */
   CPL_F_LUG_COP,    /* [P,2] per lug process: its centre of pressure */
   CPL_F_LUG_ORIGIN, /* [P,2] per lug process: where its lug's face is (world x, y) */
+  CPL_F_LUG_BASE,   /* [P,c] per lug process: its face's shape under its cells */
+  CPL_F_LUG_CELL_FORCE, /* [P,c] per lug process: its cells' forces */
   CPL_N_FIELDS
 } cpl_field_id;
 
@@ -212,6 +214,7 @@ typedef struct cpl_data {
    * penalty force this step (N) */
   cpl_lug_slots lug;
   double *lug_d;
+  double *lug_reach; /* [lugs] m: the approach of each face's deepest node (shaped faces) */
   double lug_penalty;
   /* implicit scheme (implicit.c) */
   double *xi, *xt;        /* interface vector: iterate and H(iterate) */

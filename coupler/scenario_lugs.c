@@ -33,6 +33,8 @@ void cpl_lugs_free(cpl_lugs *L) {
   free(L->weight);
   free(L->area);
   free(L->on_lug);
+  free(L->cell_node);
+  free(L->cell_w);
   memset(L, 0, sizeof *L);
 }
 
@@ -108,6 +110,12 @@ double cpl_lug_approach(const cpl_lugs *L, int j, const double *x, double road_z
   for (int32_t e = L->start[j]; e < L->start[j + 1]; e++)
     z += L->weight[e] * x[3 * (size_t)L->node[e] + 2];
   return road_z - z / L->area[j];
+}
+
+double cpl_lug_reach(const cpl_lugs *L, int j, const double *x, double road_z) {
+  double z = INFINITY;
+  for (int32_t e = L->start[j]; e < L->start[j + 1]; e++) z = fmin(z, x[3 * (size_t)L->node[e] + 2]);
+  return road_z - z;
 }
 
 void cpl_lug_centre(const cpl_lugs *L, int j, const double *x, double c[2]) {

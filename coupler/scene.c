@@ -335,6 +335,10 @@ static int read_tire_road(proto_cfg *c, cpl_scenario *sc, cpl_scheme scheme) {
       proto_cfg_num(c, "lug_tolerance", PROTO_OPTIONAL, 1e-9, 1, &sc->lug_tolerance) < 0 ||
       proto_cfg_num(c, "road_penalty", PROTO_OPTIONAL, 0, 1e12, &sc->road_penalty) < 0)
     return -1;
+  static const char *const faces[] = {"shaped", "flat", NULL};
+  int face = 0; /* shaped: the face's own shape under the block's cells */
+  if (proto_cfg_enum(c, "lug_face", PROTO_OPTIONAL, faces, &face) < 0) return -1;
+  sc->lug_flat = face == 1;
   if (scheme == CPL_SCHEME_IMPLICIT)
     return proto_fail(c->err, "coupling.scheme: 'implicit' does not iterate the lug blocks "
                       "of tire_road yet; use 'serial' or 'parallel'");

@@ -15,9 +15,11 @@
 #include <string.h>
 
 /* Doubles in one row of a per-process field: the row's literal dims. */
-static int64_t row_len(const proto_array_spec *s) {
+/* The length of one process's row of a per-process field (literal dims, or
+ * the lug processes' cells c). */
+static int64_t row_len(const cpl_runner *r, const proto_array_spec *s) {
   int64_t m = 1;
-  for (int d = 0; d < s->ndim; d++) m *= s->dims[d];
+  for (int d = 0; d < s->ndim; d++) m *= s->dims[d] == PROTO_DIM_CELLS ? r->plan->lugs.cells : s->dims[d];
   return m;
 }
 
@@ -58,7 +60,9 @@ int cpl_fields_init(cpl_runner *r, int64_t n, proto_err *err) {
     fd->name = c->field[f].name;
     fd->len = 1;
     for (int d = 0; d < c->field[f].ndim; d++)
-      fd->len *= c->field[f].dims[d] == PROTO_DIM_NODES ? n : c->field[f].dims[d];
+      fd->len *= c->field[f].dims[d] == PROTO_DIM_NODES   ? n
+                 : c->field[f].dims[d] == PROTO_DIM_CELLS ? r->plan->lugs.cells
+                                                          : c->field[f].dims[d];
     if (c->field[f].per_process) /* a row per process of its role */
       fd->len *= c->field_role[f] >= 0 ? r->plan->n_of_role[c->field_role[f]] : 0;
     size_t bytes = sizeof(double) * (size_t)(fd->len > 0 ? fd->len : 1);
@@ -272,10 +276,11 @@ void cpl_request_build(cpl_runner *r, int i, int64_t k, int iteration, int outpu
     int64_t shape[PROTO_MAX_NDIM];
     for (int d = 0; d < s->ndim; d++)
       shape[d] = s->dims[d] > 0 ? s->dims[d]
-                 : s->dims[d] == PROTO_DIM_NODES ? p->dims.nodes : p->dims.tris;
+                 : s->dims[d] == PROTO_DIM_NODES ? p->dims.nodes
+                 : s->dims[d] == PROTO_DIM_CELLS ? p->dims.cells : p->dims.tris;
     const void *data = r->data.in[bd->field];
     if (r->plan->contract.field[bd->field].per_process) /* its own row */
-      data = r->data.in[bd->field] + (int64_t)p->rank * row_len(s);
+      data = r->data.in[bd->field] + (int64_t)p->rank * row_len(r, s);
     if (s->dims[0] == PROTO_DIM_NODES) {
       p->sp.out_dense += 24.0 * (double)p->dims.nodes;
       p->sp.out_bytes += bd->index && rows >= 0 ? 28.0 * (double)rows : 24.0 * (double)p->dims.nodes;
@@ -374,7 +379,7 @@ static void take_outputs(cpl_runner *r, int i) {
     const double *a = bd->index ? proto_msg_dense(&p->reply, bd->array, f->len / 3, 3, p->sp.dense)
                                 : proto_msg_data(&p->reply, bd->array);
     if (r->plan->contract.field[bd->field].per_process) { /* into its own row */
-      const int64_t m = row_len(bd->spec);
+      const int64_t m = row_len(r, bd->spec);
       memcpy(f->out + (int64_t)p->rank * m, a, sizeof(double) * (size_t)m);
       f->given++;
       continue;

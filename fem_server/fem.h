@@ -276,7 +276,8 @@ typedef struct fem_frame {
 /* A flat road under the body, solved in the FEM alone (fem_road.c): the world
  * plane z = height pushes each node i of a surface below it with
  * f_i = k_area a_i depth_i along its normal (a_i the node's share of the
- * surface area; normal only). n = 0: no road. */
+ * surface area; normal only), or with the exact integral of the penalty over
+ * the triangles (exact). n = 0: no road. */
 typedef struct fem_road {
   int32_t n;            /* surface nodes the road acts on (0: no road) */
   int32_t *node;        /* [n] mesh node of each */
@@ -290,6 +291,9 @@ typedef struct fem_road {
   double *force;        /* [n_dof] the road's force at the last evaluation (frame) */
   double total;         /* its sum along n (the world +z force), N */
   int32_t contacts;     /* nodes below the plane at the last evaluation */
+  int exact;            /* 1: k_area ∫ N_i max(0, depth) over each triangle facing the
+                           road (depth linear on it), instead of k_area a_i depth_i */
+  double *depth;        /* [n] scratch of the exact quadrature: each node's depth */
 } fem_road;
 
 typedef struct fem_state {
@@ -432,6 +436,7 @@ typedef struct fem_config {
   char surface_group[FEM_NAME_LEN]; /* coupled to the grains */
   int road;                  /* a road solved in the FEM (README "road") */
   double road_z, road_k_area; /* world z of the plane (m), penalty per area (N/m^3) */
+  int road_exact;             /* road.quadrature "exact": the penalty integrated (fem_road.c) */
   int reaction;              /* series: the load on the fixed DOFs (the rim) */
 } fem_config;
 

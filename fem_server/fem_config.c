@@ -163,7 +163,8 @@ static int read_pressure(proto_cfg *s, fem_config *c, proto_err *err) {
   return 0;
 }
 
-/* "road": {"z": m, "k_area": N/m^3}: a flat road solved in the FEM (fem_road.c). */
+/* "road": {"z": m, "k_area": N/m^3, "quadrature": "nodes" | "exact"}: a flat
+ * road solved in the FEM (fem_road.c). */
 static int read_road(proto_cfg *s, fem_config *c, proto_err *err) {
   proto_cfg r;
   const int rc = proto_cfg_child(s, "road", PROTO_OPTIONAL, &r);
@@ -172,6 +173,8 @@ static int read_road(proto_cfg *s, fem_config *c, proto_err *err) {
   if (proto_cfg_num(&r, "z", PROTO_OPTIONAL, -1e3, 1e3, &c->road_z) ||
       proto_cfg_num(&r, "k_area", PROTO_REQUIRED, -INFINITY, INFINITY, &c->road_k_area))
     return -1;
+  static const char *const quadratures[] = {"nodes", "exact", NULL};
+  if (proto_cfg_enum(&r, "quadrature", PROTO_OPTIONAL, quadratures, &c->road_exact)) return -1;
   if (!(c->road_k_area > 0) || !isfinite(c->road_k_area))
     return proto_fail(err, "%s.k_area: must be a finite penalty per unit area > 0 (N/m^3), "
                       "got %g", r.path, c->road_k_area);

@@ -181,6 +181,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
       fem_road_init(md, &s->st.road, s->surf_node, s->n_surf, s->surf_tri, s->n_tri, s->surf_x0,
                     s->cfg.road_k_area, s->cfg.road_z, err))
     return proto_wrap(err, "%s.road", path);
+  s->st.road.exact = s->cfg.road_exact;
   if (s->cfg.mode == FEM_EXPLICIT) {
     if (fem_stable_dt(md, &s->st, s->cfg.power_iterations, err)) return -1;
     if (s->cfg.road) { /* the road's stiffness lowers the stable step */

@@ -14,7 +14,15 @@
  * the side walls of lugs and grooves carry nothing. The force is a
  * function of u: the explicit scheme evaluates it at u_n with K u_n and counts
  * it as external work (fem_explicit.c), which keeps the energy balance exact;
- * its stiffness k_i adds at most max k_i / m_i to omega_max^2 (fem_road_dt). */
+ * its stiffness k_i adds at most max k_i / m_i to omega_max^2 (fem_road_dt).
+ *
+ * quadrature "exact": f_i = k_area ∫ N_i max(0, depth) dA over each triangle
+ * facing the road (its projected area, depth linear on it: the penalty of
+ * the surface's interpolated shape, as a lug block integrates it over its
+ * cells), in closed form (tri_wet). The nodal form lumps the same integral
+ * on the nodes and, max(0, .) being convex, is never below it (Jensen); the
+ * two agree where a triangle is wholly in the road. The row sums of the
+ * exact form's stiffness are the k_i, so fem_road_dt holds for both. */
 #include "fem_server/fem.h"
 #include "fem_server/fem_internal.h"
 
@@ -29,6 +37,7 @@ void fem_road_free(fem_road *r) {
   free(r->force);
   free(r->tri);
   free(r->tri_area);
+  free(r->depth);
   memset(r, 0, sizeof *r);
 }
 
@@ -44,7 +53,8 @@ int fem_road_init(const fem_model *md, fem_road *r, const int32_t *node, int32_t
   r->force = calloc((size_t)md->n_dof, sizeof *r->force);
   r->tri = malloc(sizeof *r->tri * 3 * (size_t)(n_tri > 0 ? n_tri : 1));
   r->tri_area = malloc(sizeof *r->tri_area * 4 * (size_t)(n_tri > 0 ? n_tri : 1));
-  if (!r->node || !r->k || !r->area || !r->force || !r->tri || !r->tri_area) {
+  r->depth = malloc(sizeof *r->depth * (size_t)n);
+  if (!r->node || !r->k || !r->area || !r->force || !r->tri || !r->tri_area || !r->depth) {
     fem_road_free(r);
     return proto_fail(err, "out of memory (road)");
   }
@@ -84,6 +94,29 @@ void fem_road_place(fem_road *r, const double R[9], const double c[3]) {
   for (int32_t i = 0; i < r->n; i++) r->k[i] = r->k_area * r->area[i];
 }
 
+/* out[k] = ∫ N_k max(0, g) dA over a triangle of area A whose depth g is
+ * linear with the corner values g[0..2]. ∫ φψ dA = A/12 (Σ φ_i ψ_i + Σφ Σψ)
+ * for linear φ, ψ on a triangle; with one corner o on its own side of g = 0
+ * the part on o's side is the triangle (o, p_a, p_b), p_a = o + t_a (a − o),
+ * t_a = g_o / (g_o − g_a), of area t_a t_b A, where g is (g_o, 0, 0) and N_o,
+ * N_a, N_b are (1, 1 − t_a, 1 − t_b), (0, t_a, 0), (0, 0, t_b). */
+static void tri_wet(const double g[3], double A, double out[3]) {
+  const int wet = (g[0] > 0) + (g[1] > 0) + (g[2] > 0);
+  const double sum = g[0] + g[1] + g[2];
+  for (int k = 0; k < 3; k++) out[k] = wet == 3 ? A / 12 * (g[k] + sum) : 0;
+  if (wet == 0 || wet == 3) return;
+  int o = 0; /* the corner alone on its side: the wet one of one, the dry one of two */
+  for (int k = 0; k < 3; k++)
+    if ((g[k] > 0) == (wet == 1)) o = k;
+  const int a = (o + 1) % 3, b = (o + 2) % 3;
+  const double ta = g[o] / (g[o] - g[a]), tb = g[o] / (g[o] - g[b]);
+  const double c = ta * tb * A * g[o] / 12; /* ∫ N_k g over (o, p_a, p_b) = c (N_k(o) + Σ N_k) */
+  double part[3];
+  part[o] = c * (4 - ta - tb), part[a] = c * ta, part[b] = c * tb;
+  for (int k = 0; k < 3; k++) /* one wet: that part; two: the whole minus the dry part */
+    out[k] = wet == 1 ? part[k] : A / 12 * (g[k] + sum) - part[k];
+}
+
 /* (u) -> (r->force at the road's nodes, its world z sum and contacts) */
 void fem_road_force(const fem_model *md, fem_road *r, const double *u) {
   double total = 0;
@@ -93,12 +126,32 @@ void fem_road_force(const fem_model *md, fem_road *r, const double *u) {
     double nr = 0;
     for (int d = 0; d < 3; d++) nr += r->normal[d] * (md->mesh.x[i0 + d] + u[i0 + d]);
     const double depth = r->h - nr, f = depth > 0 ? r->k[i] * depth : 0;
-    for (int d = 0; d < 3; d++) r->force[i0 + d] = f * r->normal[d];
+    r->depth[i] = depth;
+    for (int d = 0; d < 3; d++) r->force[i0 + d] = r->exact ? 0 : f * r->normal[d];
     total += f;
     on += depth > 0;
   }
-  r->total = total;
   r->contacts = on;
+  if (!r->exact) {
+    r->total = total;
+    return;
+  }
+  total = 0;
+  for (int32_t t = 0; t < r->n_tri; t++) { /* each triangle facing the road, its wet part */
+    const int32_t *v = &r->tri[3 * (size_t)t];
+    const double *gt = &r->tri_area[4 * (size_t)t];
+    const double facing = -(gt[1] * r->normal[0] + gt[2] * r->normal[1] + gt[3] * r->normal[2]);
+    const double g[3] = {r->depth[v[0]], r->depth[v[1]], r->depth[v[2]]};
+    if (!(facing > 0) || !(g[0] > 0 || g[1] > 0 || g[2] > 0)) continue;
+    double w[3];
+    tri_wet(g, gt[0] * facing, w);
+    for (int k = 0; k < 3; k++) {
+      const double f = r->k_area * w[k];
+      for (int d = 0; d < 3; d++) r->force[3 * (size_t)r->node[v[k]] + d] += f * r->normal[d];
+      total += f;
+    }
+  }
+  r->total = total;
 }
 
 double fem_road_dt(const fem_model *md, const fem_road *r, double omega_max) {

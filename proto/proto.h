@@ -76,6 +76,9 @@ typedef enum proto_msg_kind {
 #define PROTO_A_FORCE "force"
 #define PROTO_A_COP "cop"
 #define PROTO_A_ORIGIN "origin"
+#define PROTO_A_CELL_XY "cell_xy"
+#define PROTO_A_BASE "base"
+#define PROTO_A_CELL_FORCE "cell_force"
 /* Sparse form of an [n, ...] array (PROTOCOL.md "Sparse exchange"): the
  * array has k rows, the rows of the nodes listed in "<name>_index" (i4 [k],
  * increasing). Rows not listed are zero (forces) or not carried (positions,
@@ -133,7 +136,11 @@ typedef enum proto_msg_kind {
 /* Symbolic dimensions of the table (a positive dim is literal). */
 enum { PROTO_DIM_NODES = -1, /* n: surface nodes (bound by surface_x0) */
        PROTO_DIM_TRIS = -2,  /* m: surface triangles (bound by surface_tri) */
-       PROTO_DIM_ROWS = -3   /* k: rows of a sparse array (its index, per message) */ };
+       PROTO_DIM_ROWS = -3,  /* k: rows of a sparse array (its index, per message) */
+       PROTO_DIM_CELLS = -4  /* c: a lug block's cells (bound by its cell_xy) */ };
+
+/* "n", "m", "k", "c" ("?" for another value). */
+const char *proto_dim_symbol(int64_t sym);
 
 typedef enum proto_when {
   PROTO_WHEN_ALWAYS = 0,
@@ -184,7 +191,7 @@ cJSON *proto_role_table_json(void);
  * binds it), and the series datasets the participant declared in its ready
  * message, which every done must then carry. */
 typedef struct proto_dims {
-  int64_t nodes, tris; /* -1 until bound */
+  int64_t nodes, tris, cells; /* -1 until bound */
   int surface;         /* a coupled surface exists (WHEN_SURFACE arrays due) */
   int n_series;        /* datasets declared in ready.series */
   char series[PROTO_MAX_SERIES][PROTO_NAME_LEN]; /* their names */

@@ -115,6 +115,11 @@ static const proto_array_spec table[] = {
      "road.force", 1},
     /* ---- lug: a tread block under one lug of the rolling tyre at a time
      * (scenario tire_road): each process has its own row of the fields. */
+    {PROTO_ROLE_LUG, PROTO_MSG_READY, PROTO_A_CELL_XY, PROTO_F8, 2, {PROTO_DIM_CELLS, 2}, "m",
+     PROTO_WHEN_ALWAYS,
+     "centres of its block's cells relative to the grid's centre (x along the "
+     "rolling direction, y along the axle); binds c",
+     NULL, 0},
     {PROTO_ROLE_LUG, PROTO_MSG_STEP, PROTO_A_D_ROAD, PROTO_F8, 1, {1}, "m",
      PROTO_WHEN_ALWAYS,
      "approach of its lug face towards the road at t_k (road height minus the "
@@ -128,6 +133,13 @@ static const proto_array_spec table[] = {
      "lug): where on the road the block is (a road in world coordinates is taken "
      "there when it takes the lug)",
      "lug.origin", 0},
+    {PROTO_ROLE_LUG, PROTO_MSG_STEP, PROTO_A_BASE, PROTO_F8, 1, {PROTO_DIM_CELLS}, "m",
+     PROTO_WHEN_ALWAYS,
+     "the lug face's shape: each cell's base offset towards the road relative to "
+     "the face's mean height at t_{k-1} (the cell's own approach is d_road + "
+     "base); all 0 for a face taken as flat; a cell beyond the face's edge gets "
+     "-1 m (no rubber there: it never touches)",
+     "lug.base", 0},
     {PROTO_ROLE_LUG, PROTO_MSG_DONE, PROTO_A_FORCE, PROTO_F8, 1, {1}, "N",
      PROTO_WHEN_ALWAYS,
      "total normal contact force on its lug face (positive = compression) at "
@@ -138,6 +150,11 @@ static const proto_array_spec table[] = {
      "centre of pressure relative to the block grid's centre (x along the "
      "rolling direction, y along the axle); 0 when the force is 0",
      "lug.cop", 0},
+    {PROTO_ROLE_LUG, PROTO_MSG_DONE, PROTO_A_CELL_FORCE, PROTO_F8, 1, {PROTO_DIM_CELLS}, "N",
+     PROTO_WHEN_ALWAYS,
+     "each cell's normal contact force at t_k (positive = compression): its sum "
+     "is force; the coupler spreads it onto the face's nodes",
+     "lug.cell_force", 0},
 };
 
 const proto_array_spec *proto_role_table(int *n) {
@@ -166,17 +183,17 @@ int proto_msg_kind_parse(const char *type) { return index_of(type, msg_types, PR
 
 void proto_dims_init(proto_dims *d) {
   memset(d, 0, sizeof *d);
-  d->nodes = d->tris = -1;
+  d->nodes = d->tris = d->cells = -1;
 }
 
 static int64_t *dim_slot(proto_dims *d, int64_t sym) { /* NULL: k, per message */
   return sym == PROTO_DIM_NODES ? &d->nodes : sym == PROTO_DIM_TRIS ? &d->tris
-                                                                    : NULL;
+         : sym == PROTO_DIM_CELLS ? &d->cells : NULL;
 }
 
-static const char *dim_symbol(int64_t sym) {
+const char *proto_dim_symbol(int64_t sym) {
   return sym == PROTO_DIM_NODES ? "n" : sym == PROTO_DIM_TRIS ? "m"
-         : sym == PROTO_DIM_ROWS ? "k" : "?";
+         : sym == PROTO_DIM_ROWS ? "k" : sym == PROTO_DIM_CELLS ? "c" : "?";
 }
 
 /* "[n=25, 3]" (or "[n, 3]" while n is unbound). */
@@ -193,9 +210,9 @@ static void want_str(const proto_array_spec *s, const proto_dims *d, char *out,
       int64_t bound = slot ? *slot : -1;
       if (bound >= 0)
         len += (size_t)snprintf(out + len, cap - len, "%s%s=%lld", sep,
-                                dim_symbol(v), (long long)bound);
+                                proto_dim_symbol(v), (long long)bound);
       else
-        len += (size_t)snprintf(out + len, cap - len, "%s%s", sep, dim_symbol(v));
+        len += (size_t)snprintf(out + len, cap - len, "%s%s", sep, proto_dim_symbol(v));
     }
   }
   if (len < cap) snprintf(out + len, cap - len, "]");
@@ -491,6 +508,7 @@ cJSON *proto_role_table_json(void) {
   cJSON_AddStringToObject(dims, "m", "surface triangles (bound by surface_tri)");
   cJSON_AddStringToObject(dims, "k", "rows of a sparse array: the length of its "
                           "<name>_index in the same message");
+  cJSON_AddStringToObject(dims, "c", "a lug block's cells (bound by cell_xy)");
   cJSON *prefixes = cJSON_AddObjectToObject(root, "prefixes");
   cJSON_AddStringToObject(prefixes, PROTO_A_SERIES, "done: the row of the series dataset");
   cJSON_AddStringToObject(prefixes, PROTO_P_SERIES, "done: rows of further datasets");
@@ -512,7 +530,7 @@ cJSON *proto_role_table_json(void) {
       for (int k = 0; k < s->ndim; k++)
         cJSON_AddItemToArray(shape, s->dims[k] > 0
                                         ? cJSON_CreateNumber((double)s->dims[k])
-                                        : cJSON_CreateString(dim_symbol(s->dims[k])));
+                                        : cJSON_CreateString(proto_dim_symbol(s->dims[k])));
       cJSON_AddStringToObject(a, "units", s->units);
       cJSON_AddStringToObject(a, "direction", from_participant[s->msg]
                                                   ? "participant->coupler"

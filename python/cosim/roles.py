@@ -46,7 +46,7 @@ class ArraySpec:
     def __init__(self, row):
         self.name, self.units, self.meaning = row["name"], row["units"], row["meaning"]
         self.dtype = P.DTYPES[row["dtype"]]
-        self.shape = tuple(row["shape"])  # ints, or "n" / "m"
+        self.shape = tuple(row["shape"])  # ints, or "n" / "m" / "k" / "c"
         self.when = row["when"]
 
 

@@ -43,14 +43,19 @@ static void shipped_table_binds(void) {
   int n;
   const proto_array_spec *t = proto_role_table(&n);
   OK(cpl_contract_build(&c, t, n, &err));
-  /* dem: x, v, nodal_force; fem: nodal_force, rim R c omega v, x, v; block: 2; lug: 4 */
-  CHECK(c.n == 16, "16 step/done rows bound, got %d", c.n);
+  /* dem: x, v, nodal_force; fem: nodal_force, rim R c omega v, x, v; block: 2; lug: 6 */
+  CHECK(c.n == 18, "18 step/done rows bound, got %d", c.n);
   const cpl_binding *f = binding_of(&c, PROTO_ROLE_DEM, PROTO_MSG_DONE, PROTO_A_NODAL_FORCE);
   CHECK(f && f->field == CPL_F_SURF_FORCE && f->sum, "dem forces are summed into surface.force");
   f = binding_of(&c, PROTO_ROLE_FEM, PROTO_MSG_DONE, PROTO_A_X);
   CHECK(f && f->field == CPL_F_SURF_X && !f->sum, "the fem's x is copied into surface.x");
   f = binding_of(&c, PROTO_ROLE_BLOCK, PROTO_MSG_DONE, PROTO_A_FORCE);
   CHECK(f && f->field == CPL_F_ROAD_FORCE && f->sum, "block forces summed into road.force");
+  f = binding_of(&c, PROTO_ROLE_LUG, PROTO_MSG_STEP, PROTO_A_BASE);
+  const cpl_binding *g = binding_of(&c, PROTO_ROLE_LUG, PROTO_MSG_DONE, PROTO_A_CELL_FORCE);
+  CHECK(f && f->field == CPL_F_LUG_BASE && g && g->field == CPL_F_LUG_CELL_FORCE && !g->sum &&
+            c.field[CPL_F_LUG_BASE].per_process && c.field[CPL_F_LUG_BASE].dims[0] == PROTO_DIM_CELLS,
+        "a lug's base and cell forces: a row of its cells per process, not summed");
   CHECK(cpl_field_parse("rim.omega") == CPL_F_RIM_OMEGA, "field names parse");
 }
 
@@ -104,7 +109,7 @@ static void newcomer_row(void) {
   rows[nrows - 1].ndim = 2;
   rows[nrows - 1].dims[1] = 3;
   OK(cpl_contract_build(&c, rows, nrows, &err));
-  CHECK(c.n == 17, "the newcomer's row is bound too (%d rows)", c.n);
+  CHECK(c.n == 19, "the newcomer's row is bound too (%d rows)", c.n);
   const cpl_binding *b = binding_of(&c, PROTO_ROLE_DEM, PROTO_MSG_DONE, "heat_flux");
   CHECK(b && b->sum && b->spec == &rows[nrows - 1], "bound to its own row");
 }

@@ -7,7 +7,11 @@
  * pressure given); the lug processes take the nearest lugs, keep a lug
  * until it has left the road with no force, and a lug with no process left
  * is an error naming the fix; the road's penalty acts on nodes off the lug
- * faces only. */
+ * faces only. The block grid laid on the faces (coupler/scenario_lugmap.c):
+ * cells beyond a face's edge are off it, a face height linear along the face
+ * is interpolated exactly (the base is its offset from the mean), a turned
+ * face takes the same map, and the cells' forces spread back sum to theirs
+ * and have their moment. */
 #include <math.h>
 #include <string.h>
 
@@ -171,10 +175,69 @@ static void assignment(void) {
         "with no force left it is freed, and lug 0 takes it afresh (%d)", S.lug[0]);
 }
 
+/* 6 x 4 cells of 2 x 6 mm about the face centre: the pads span u = ±R sin 0.02 =
+ * ±4.9998 mm, y = ±10 mm, so the outer columns (u = ±5 mm) lie beyond the edge. */
+enum { CX = 6, CY = 4, NC = CX * CY };
+static void grid(double *xy) {
+  for (int q = 0; q < NC; q++) xy[2 * q] = (q % CX - 2.5) * 2e-3, xy[2 * q + 1] = (q / CX - 1.5) * 6e-3;
+}
+
+static void face_map(void) {
+  cpl_lugs L;
+  proto_err err = {0};
+  double xy[2 * NC];
+  grid(xy);
+  OK(cpl_lugs_find(x0, NN, tri, NT, 1e-9, &L, &err));
+  OK(cpl_lugs_map(&L, x0, tri, NT, xy, NC, &err));
+  int on = 0, edge = 1;
+  for (int q = 0; q < NC; q++) {
+    const int inside = fabs(xy[2 * q]) < 4.9e-3;
+    on += L.cell_node[3 * q] >= 0;
+    edge &= (L.cell_node[3 * q] >= 0) == inside;
+  }
+  CHECK(on == 16 && edge && fabs(L.covered - 16.0 / NC) < 1e-15,
+        "the 16 inner cells on the face, the outer columns off it (%d on, covered %g)", on, L.covered);
+  double dw = 0;
+  for (int s = 0; s < 3 * NC; s++) /* pad 1 is pad 0 turned by 0.5 rad: the same map */
+    dw = fmax(dw, fabs(L.cell_w[3 * NC + s] - L.cell_w[s]) +
+                      (L.cell_node[3 * NC + s] - (L.cell_node[s] < 0 ? -1 - NPAD : L.cell_node[s]) != NPAD));
+  CHECK(dw < 1e-12, "the turned face takes the same triangles and weights (%.3g)", dw);
+  /* pad 0's heights linear in the face's plane: z = z0 + b u + c y (u = x at the bottom) */
+  double x[3 * NN], cx = 0;
+  memcpy(x, x0, sizeof x);
+  for (int e = L.start[0]; e < L.start[1]; e++) cx += L.weight[e] / L.area[0] * x0[3 * L.node[e]];
+  const double b = 0.03, c = -0.02, z0 = 1e-3;
+  for (int i = 0; i < NPAD; i++) x[3 * i + 2] = z0 + b * (x0[3 * i] - cx) + c * x0[3 * i + 1];
+  double base[NC], worst = 0;
+  cpl_lug_base(&L, 0, x, base);
+  for (int q = 0; q < NC; q++)
+    worst = fmax(worst, L.cell_node[3 * q] < 0 ? fabs(base[q] - CPL_LUG_OFF_FACE)
+                                               : fabs(base[q] + b * xy[2 * q] + c * xy[2 * q + 1]));
+  CHECK(worst < 1e-17, "base = mean height - the face's height under each cell (%.3g m off)", worst);
+  /* the cells' forces back: their sum and moment about the face centre */
+  double F[NC], f[3 * NN] = {0}, sum = 0, mx = 0, my = 0, want[3] = {0, 0, 0}, other = 0;
+  for (int q = 0; q < NC; q++) F[q] = 1 + 0.37 * q;
+  const double spread = cpl_lug_spread_cells(&L, 0, F, f);
+  for (int q = 0; q < NC; q++)
+    if (L.cell_node[3 * q] >= 0)
+      want[0] += F[q], want[1] += F[q] * xy[2 * q], want[2] += F[q] * xy[2 * q + 1];
+  for (int i = 0; i < NN; i++) {
+    sum += f[3 * i + 2], mx += f[3 * i + 2] * (x[3 * i] - cx), my += f[3 * i + 2] * x[3 * i + 1];
+    other += fabs(f[3 * i]) + fabs(f[3 * i + 1]) + (i < NPAD ? 0 : fabs(f[3 * i + 2]));
+  }
+  CHECK(fabs(sum - want[0]) < 1e-13 * want[0] && fabs(spread - want[0]) < 1e-13 * want[0],
+        "the nodal forces sum to the cells' on the face (%.17g, %.17g)", sum, want[0]);
+  CHECK(fabs(mx - want[1]) < 1e-15 * want[0] && fabs(my - want[2]) < 1e-15 * want[0],
+        "and have their moment (%.3g %.3g against %.3g %.3g N m)", mx, my, want[1], want[2]);
+  CHECK(other == 0, "nothing off lug 0's nodes and no tangential force");
+  cpl_lugs_free(&L);
+}
+
 int main(void) {
   build();
   found();
   approach_and_spread();
+  face_map();
   assignment();
   return cosim_test_done("test_lugs");
 }

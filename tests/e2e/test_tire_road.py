@@ -10,7 +10,8 @@ shortened and with smaller block grids:
   processes), and a process gives up a lug only once its force is zero, so
   no force is lost at a handover; the block's history starts afresh there;
 - bad scenes: a dem in tire_road, the implicit scheme, too few lug processes
-  for the lugs near the road — each refused with a message that names it."""
+  for the lugs near the road, lug processes of different grids, an unknown
+  lug_face — each refused with a message that names it."""
 import json
 import os
 
@@ -128,4 +129,16 @@ few["coupling"]["handshake_timeout"] = 120
 rc, out, err = run(few, "--quiet", timeout=300)
 check(rc != 0 and "add processes of role lug" in err,
       f"more lugs near the road than lug processes: named ({err.strip()[-300:]})")
+two = {"fem": procs["fem"], "lug0": procs["lug0"],
+       "lug1": dict(procs["lug1"], grid=dict(procs["lug1"]["grid"], nx=procs["lug1"]["grid"]["nx"] + 1))}
+grids = scene("tire_road_grids", two, scenario=base["scenario"])
+grids["time"] = {"dt": base["time"]["dt"], "end": 0.001}
+grids["coupling"]["handshake_timeout"] = 120
+rc, out, err = run(grids, "--quiet", timeout=300)
+check(rc != 0 and "'lug0' and 'lug1' have different block grids" in err,
+      f"lug processes with different grids: named ({err.strip()[-300:]})")
+bad = scene("tire_road_face", procs, scenario=dict(base["scenario"], lug_face="bulged"))
+rc, out, err = run(bad, cmd="check", timeout=120)
+check(rc != 0 and "lug_face" in err and "bulged" in err,
+      f"an unknown lug_face is refused by name ({err.strip()[-300:]})")
 done()

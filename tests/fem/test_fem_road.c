@@ -6,7 +6,11 @@
  *   F = A delta / (1/k + H/E),
  * reached by the quasi-static fixed point (K u = f_road(u), contraction k H/E)
  * and by the damped explicit scheme at rest; the load on the fixed top (the
- * rim's, fem_rim_load) is F too, and each bottom node carries k a_i depth. */
+ * rim's, fem_rim_load) is F too, and each bottom node carries k a_i depth.
+ * The exact quadrature (road.quadrature "exact") on the bottom tilted so that
+ * the road's edge crosses its triangles: depth = alpha (x0 - x) for x < x0,
+ * F = k L_y alpha x0^2 / 2 and its moment about x = 0, k L_y alpha x0^3 / 6,
+ * to round-off; the nodal form is above it (Jensen). */
 #include "fem_test.h"
 
 #include <stdlib.h>
@@ -101,6 +105,33 @@ int main(void) {
          ex.t, ex.road.total, load[2], ex.energy, ex.work_ext);
   CHECK_REL("explicit road force at rest", ex.road.total, F_exact, 1e-9);
   CHECK_REL("explicit rim load at rest", load[2], F_exact, 1e-9);
+
+  /* exact quadrature: the bottom tilted, the road's edge at x0 inside its triangles */
+  const double x_edge = 0.75 * L[0], alpha = DELTA / x_edge;
+  double F_nodes = 0;
+  for (int exact = 0; exact < 2; exact++) {
+    fem_state q;
+    OK(fem_state_init(&md, &q, &err));
+    OK(fem_road_init(&md, &q.road, node, n, tri, nt, x, K_AREA, 0.0, &err));
+    q.road.exact = exact;
+    for (int32_t i = 0; i < n; i++) /* z = alpha (x - x0): depth alpha (x0 - x) */
+      q.u[3 * (size_t)node[i] + 2] = alpha * (x[3 * i] - x_edge) - x[3 * i + 2];
+    fem_road_force(&md, &q.road, q.u);
+    double moment = 0;
+    for (int32_t i = 0; i < n; i++) moment += q.road.force[3 * (size_t)node[i] + 2] * x[3 * i];
+    const double F_int = K_AREA * L[1] * alpha * x_edge * x_edge / 2;
+    const double M_int = K_AREA * L[1] * alpha * x_edge * x_edge * x_edge / 6;
+    printf("tilted bottom, %s: road %.15g N (integral %.15g), moment %.15g N m (%.15g)\n",
+           exact ? "exact" : "nodes", q.road.total, F_int, moment, M_int);
+    if (exact) {
+      CHECK_REL("exact quadrature: the penalty's integral", q.road.total, F_int, 1e-13);
+      CHECK_REL("exact quadrature: its moment", moment, M_int, 1e-13);
+      CHECK(F_nodes > q.road.total, "the nodal form is above the integral (%.6g > %.6g N)",
+            F_nodes, q.road.total);
+    }
+    F_nodes = q.road.total;
+    fem_state_free(&q);
+  }
 
   fem_factor_free(&fac);
   fem_state_free(&st);

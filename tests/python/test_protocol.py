@@ -84,6 +84,12 @@ check(d.sizes == {"n": 25, "m": 1}, f"ready binds n and m: {d.sizes}")
 raises(lambda: table.check("fem", "done", {"x": np.zeros((24, 3)), "v": np.zeros((25, 3))}, d),
        "array 'x': expected f8 [n=25, 3] (surface node positions at t_k, world frame), "
        "got f8 [24, 3]", "shape bound by n")
+d = Dims()
+table.check("lug", "ready", {"cell_xy": np.zeros((6, 2))}, d)
+check(d.sizes == {"c": 6}, f"a lug's ready binds c: {d.sizes}")
+raises(lambda: table.check("lug", "step", {"d_road": np.zeros(1), "origin": np.zeros(2),
+                                           "base": np.zeros(5)}, d),
+       "array 'base': expected f8 [c=6]", "shape bound by c")
 raises(lambda: table.check("block", "done", {}, Dims()), "missing array 'force': expected f8 [1]",
        "missing array")
 
