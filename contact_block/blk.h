@@ -56,7 +56,7 @@ typedef enum {
   BLK_HIST_FFT = 0,       /* per spatial frequency, partitioned in time (full g) */
   BLK_HIST_DIRECT = 1,    /* the plain double sum (reference) */
   BLK_HIST_SEPARABLE = 2, /* g = g_time ⊗ g_space: time sums per element, one FFT */
-  BLK_HIST_AUTO = 3       /* separable when g is and the grid is large, else fft */
+  BLK_HIST_AUTO = 3       /* fft, or separable where fft's memory would pass 1 GiB */
 } blk_history_kind;
 
 typedef struct blk_solver_opts {
@@ -103,6 +103,12 @@ typedef struct blk_model {
   int road_world;
   double road_rms;
   uint64_t road_seed;
+  /* or the heights of a surface file (road.file, `cosim road` or a measured
+   * map), tiled periodically over the world, its mean removed: point (i, j)
+   * at world ((i + 1/2) map_dx, (j + 1/2) map_dy); NULL: the hashed field */
+  double *road_map; /* [map_ny][map_nx] m (owned) */
+  int map_nx, map_ny;
+  double map_dx, map_dy;
   /* roughness springs: monotone piecewise-cubic Hermite tables, knots
    * d[t][0..K-1] (d[0] = 0), F, k = dF/dd; linear beyond the last. Element e
    * uses table spr_table[e] scaled in force by spr_scale[e]. rigid: no
@@ -221,10 +227,17 @@ int blk_road_random(blk_model *m, double rms, uint64_t seed, proto_err *err);
 /* The road of road.kind "world" under a block centred at world (x, y) (m):
  * a Gaussian height field of rms road_rms on the world grid of dx x dy cells,
  * element (i, j) taking the height of the cell its centre lies in (hashed
- * from road_seed and the cell's indices), mean 0, not shifted: the same road
+ * from road_seed and the cell's indices; or the map's, blk_road_world_map),
+ * mean 0, not shifted: the same road
  * wherever a block lands on it. Called between passages (nothing in
  * contact), never inside a step. */
 void blk_road_world(blk_model *m, double x, double y);
+/* road.kind "world" from a surface file (grn_surface_read_h5: /road/heights,
+ * dx, dy): its heights, mean removed, become the world's road, repeated with
+ * the map's period; each element takes the height at its world cell's centre
+ * (the map's own point when the pitches agree, else bilinear between its
+ * four points). */
+int blk_road_world_map(blk_model *m, const char *path, proto_err *err);
 
 /* Full validation before a run (shapes, finiteness, monotone springs). */
 int blk_model_check(const blk_model *m, proto_err *err);

@@ -135,17 +135,31 @@ static double qp_solve(const blk_model *m, blk_work *w, const double *F, double 
   return viol;
 }
 
-/* J at F with d(F) warm-started from d_io (updated), Dk = 1/k, u = C F
- * given; g = u − b + d(F) into g (may be NULL). */
+/* J at F with d(F) warm-started from d_io (updated), Dk = 1/k, Ψ per
+ * element into psi, u = C F given; g = u − b + d(F) into g (may be NULL). */
 static double dual_value(const blk_model *m, blk_work *w, const double *F, const double *u,
-                         double *d_io, double *Dk, double *g) {
+                         double *d_io, double *Dk, double *psi, double *g) {
   double J = 0;
   for (int e = 0; e < m->M; e++) {
     double de;
-    const double psi = blk_dual_element(m, w, e, F[e], d_io[e], &de, &Dk[e]);
+    psi[e] = blk_dual_element(m, w, e, F[e], d_io[e], &de, &Dk[e]);
     d_io[e] = de;
     if (g) g[e] = u[e] - w->b[e] + de;
-    J += F[e] * (0.5 * u[e] - w->b[e]) + psi;
+    J += F[e] * (0.5 * u[e] - w->b[e]) + psi[e];
+  }
+  return J;
+}
+
+/* J and g at the F just accepted by the line search, with the exact u = C F:
+ * d(F), 1/k and Ψ are the trial's (they depend on F alone), so the spring
+ * inverses are not solved again. */
+static double dual_value_at_trial(const blk_model *m, blk_work *w, const double *F,
+                                  const double *u, const double *d, const double *psi,
+                                  double *g) {
+  double J = 0;
+  for (int e = 0; e < m->M; e++) {
+    g[e] = u[e] - w->b[e] + d[e];
+    J += F[e] * (0.5 * u[e] - w->b[e]) + psi[e];
   }
   return J;
 }
@@ -169,7 +183,7 @@ int blk_cg_solve(const blk_model *m, blk_state *s, int *conv, double *rmax, int 
     if (bounded(m, w, e) && F[e] < 0) F[e] = 0;
   blk_fft_apply(&w->fft, &w->C_hat, F, u);
   (*products)++;
-  double J = dual_value(m, w, F, u, d, w->Dk, w->g);
+  double J = dual_value(m, w, F, u, d, w->Dk, w->psi, w->g);
   const int quadratic = m->rigid; /* Ψ = 0: the model is exact */
   int it = 0;
   double eta = BLK_CG_FORCING, viol_prev = 0;
@@ -199,7 +213,7 @@ int blk_cg_solve(const blk_model *m, blk_state *s, int *conv, double *rmax, int 
         w->dn[e] = d[e];
         w->un[e] = u[e] + lambda * w->wC[e];
       }
-      Jn = dual_value(m, w, w->Fn, w->un, w->dn, w->Dk, NULL);
+      Jn = dual_value(m, w, w->Fn, w->un, w->dn, w->Dk, w->psi, NULL);
       /* near the solution the decrease of J drops below its round-off */
       if (Jn <= J + BLK_ARMIJO * lambda * slope || !(slope < 0) ||
           -lambda * slope < BLK_DECREASE_ROUNDOFF * fabs(J))
@@ -210,7 +224,7 @@ int blk_cg_solve(const blk_model *m, blk_state *s, int *conv, double *rmax, int 
     memcpy(d, w->dn, (size_t)M * sizeof(double));
     blk_fft_apply(&w->fft, &w->C_hat, F, u); /* exact C F: no drift */
     (*products)++;
-    J = dual_value(m, w, F, u, d, w->Dk, w->g);
+    J = dual_value_at_trial(m, w, F, u, d, w->psi, w->g);
   }
   /* the thesis' variables: compression where loaded, else the geometric
    * overlap b − C F (≤ 0: a gap); w->CF = C F */

@@ -170,11 +170,20 @@ static int read_road(blk_model *m, proto_cfg *sec, proto_err *err) {
   } else if (kind == 5) { /* lug_block: the heights follow the lug (blk_road_world) */
     double rms = 2e-5;
     int64_t seed = 1;
-    if (proto_cfg_num(&c, "rms", PROTO_OPTIONAL, 0.0, 1.0, &rms) ||
-        proto_cfg_int(&c, "seed", PROTO_OPTIONAL, 0, INT64_MAX, &seed))
-      return -1;
-    m->road_world = 1, m->road_rms = rms, m->road_seed = (uint64_t)seed;
-    blk_road_world(m, 0, 0);
+    char path[1024] = "";
+    if (proto_cfg_str(&c, "file", PROTO_OPTIONAL, path, sizeof path)) return -1;
+    if (path[0]) { /* a surface file: no hashed field beside it */
+      if (proto_cfg_raw(&c, "rms", PROTO_OPTIONAL) || proto_cfg_raw(&c, "seed", PROTO_OPTIONAL))
+        return proto_fail(err, "%s: 'file' gives the road's heights; 'rms' and 'seed' (the "
+                          "hashed road's) cannot be given with it", c.path);
+      rc = blk_road_world_map(m, path, err);
+    } else {
+      if (proto_cfg_num(&c, "rms", PROTO_OPTIONAL, 0.0, 1.0, &rms) ||
+          proto_cfg_int(&c, "seed", PROTO_OPTIONAL, 0, INT64_MAX, &seed))
+        return -1;
+      m->road_world = 1, m->road_rms = rms, m->road_seed = (uint64_t)seed;
+      blk_road_world(m, 0, 0);
+    }
   } else if (kind == 0) {
     for (int e = 0; e < m->M; e++) m->z_road[e] = 0;
   } else if (kind == 3) { /* the springs file's heights, highest point at 0 */

@@ -160,9 +160,18 @@ static void level_block(blk_history *h, blk_level *lv) {
   fftw_execute(lv->tinv);
 }
 
-/* Grids from this size up use the separable history when g is separable
- * (auto): measured, bench/results/block.md "history". */
-enum { BLK_HIST_SEPARABLE_MIN = 1024 };
+/* auto, separable g: the partitioned `fft` history costs O(M log Qh) per
+ * step against the separable ring's O(M Qh), and was as fast or faster at
+ * every size measured (32²-128², Qh 256-2048: bench/results/block.md
+ * "History against the memory length"; 64², Qh 2048: 1.3 against 3.0 ms per
+ * step), but it keeps about BLK_HIST_FFT_BYTES_PER_LAG bytes per element per
+ * lag against the ring's 8 (the force ring, the top level's delay line and
+ * segment spectra). So auto takes `fft` while that stays under
+ * BLK_HIST_FFT_MAX_BYTES (1 GiB: four lug processes of 64² at Qh 2048 keep
+ * 1 GB on a 24 GiB machine; 512² at Qh 256 would need 2.1 GB) and the
+ * separable ring beyond it. */
+#define BLK_HIST_FFT_BYTES_PER_LAG 32.0       /* bytes / (element lag), measured 31 */
+#define BLK_HIST_FFT_MAX_BYTES (1024.0 * 1024 * 1024) /* bytes */
 
 static void *track(blk_history *h, size_t n, size_t size) {
   void *p = calloc(n ? n : 1, size);
@@ -261,12 +270,14 @@ int blk_history_init(const blk_model *m, blk_work *w, blk_history *h, proto_err 
   memset(h, 0, sizeof *h);
   if (m->solver.quasi_static || (!m->g && !m->g_time)) return 0;
   h->kind = m->solver.history;
+  h->Qh = truncated_length(m);
   if (h->kind == BLK_HIST_AUTO)
-    h->kind = m->g_time && m->M >= BLK_HIST_SEPARABLE_MIN ? BLK_HIST_SEPARABLE : BLK_HIST_FFT;
+    h->kind = m->g_time && BLK_HIST_FFT_BYTES_PER_LAG * m->M * h->Qh > BLK_HIST_FFT_MAX_BYTES
+                  ? BLK_HIST_SEPARABLE
+                  : BLK_HIST_FFT;
   if (h->kind == BLK_HIST_SEPARABLE && !m->g_time)
     return proto_fail(err, "solver.history = separable needs a separable Green's function "
                       "(the synthetic layer); this one (%s) is stored in full", m->green_model);
-  h->Qh = truncated_length(m);
   h->dt = 1.0 / m->rate;
   if (h->Qh < 2) return 0; /* instantaneous response only: no history */
   if (h->kind == BLK_HIST_DIRECT || h->kind == BLK_HIST_SEPARABLE)

@@ -141,7 +141,7 @@ struct blk_work {
   int *fact_act;
   double *fact_sk;
   /* matrix-free (blk_cg.c) */
-  double *g, *Dk, *dF, *wC, *rho, *z, *t, *q, *qc, *Fn, *dn, *un, *prec;
+  double *g, *Dk, *dF, *wC, *rho, *z, *t, *q, *qc, *Fn, *dn, *un, *prec, *psi;
   blk_history hist;
 };
 

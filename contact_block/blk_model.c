@@ -60,6 +60,7 @@ static void springs_release(blk_model *m) {
 
 void blk_model_free(blk_model *m) {
   free(m->z_road);
+  free(m->road_map);
   springs_release(m);
   free(m->g);
   free(m->g_time);
@@ -119,16 +120,59 @@ int blk_road_random(blk_model *m, double rms, uint64_t seed, proto_err *err) {
   return 0;
 }
 
+static int64_t wrap(int64_t i, int64_t n) { return ((i % n) + n) % n; }
+
+/* The map's height at world cell (ci, cj): its own point when the pitches
+ * agree, else bilinear between the four points around the cell's centre. */
+static double map_height(const blk_model *m, int64_t ci, int64_t cj) {
+  const int64_t nx = m->map_nx, ny = m->map_ny;
+  if (m->dx == m->map_dx && m->dy == m->map_dy)
+    return m->road_map[wrap(cj, ny) * nx + wrap(ci, nx)];
+  const double u = (ci + 0.5) * m->dx / m->map_dx - 0.5, v = (cj + 0.5) * m->dy / m->map_dy - 0.5;
+  const double fu = floor(u), fv = floor(v), a = u - fu, b = v - fv;
+  const int64_t i0 = wrap((int64_t)fu, nx), j0 = wrap((int64_t)fv, ny);
+  const int64_t i1 = wrap(i0 + 1, nx), j1 = wrap(j0 + 1, ny);
+  const double *z = m->road_map;
+  return (1 - b) * ((1 - a) * z[j0 * nx + i0] + a * z[j0 * nx + i1]) +
+         b * ((1 - a) * z[j1 * nx + i0] + a * z[j1 * nx + i1]);
+}
+
 void blk_road_world(blk_model *m, double x, double y) {
   for (int j = 0; j < m->ny; j++)
     for (int i = 0; i < m->nx; i++) {
       const double xw = x + (i + 0.5 - 0.5 * m->nx) * m->dx;
       const double yw = y + (j + 0.5 - 0.5 * m->ny) * m->dy;
       const int64_t ci = (int64_t)floor(xw / m->dx), cj = (int64_t)floor(yw / m->dy);
+      if (m->road_map) {
+        m->z_road[j * m->nx + i] = map_height(m, ci, cj);
+        continue;
+      }
       uint64_t s = m->road_seed ^ ((uint64_t)ci * 0x9E3779B97F4A7C15ull) ^
                    ((uint64_t)cj * 0xC2B2AE3D27D4EB4Full);
       m->z_road[j * m->nx + i] = m->road_rms * gauss(&s);
     }
+}
+
+int blk_road_world_map(blk_model *m, const char *path, proto_err *err) {
+  grn_surface sf;
+  if (grn_surface_read_h5(path, &sf, err)) return -1;
+  double mean = 0;
+  const size_t n = (size_t)sf.Nx * (size_t)sf.Ny;
+  for (size_t e = 0; e < n; e++) {
+    if (!isfinite(sf.z[e])) {
+      grn_surface_free(&sf);
+      return proto_fail(err, "%s: /road/heights[%zu] is not finite", path, e);
+    }
+    mean += sf.z[e];
+  }
+  mean /= (double)n;
+  for (size_t e = 0; e < n; e++) sf.z[e] -= mean;
+  free(m->road_map);
+  m->road_map = sf.z; /* owned from here */
+  m->map_nx = sf.Nx, m->map_ny = sf.Ny, m->map_dx = sf.dx, m->map_dy = sf.dy;
+  m->road_world = 1;
+  blk_road_world(m, 0, 0);
+  return 0;
 }
 
 /* ----------------------------------------------------------- springs */

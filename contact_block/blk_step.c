@@ -88,7 +88,7 @@ int blk_state_create(const blk_model *m, blk_state *s, proto_err *err) {
   w->bytes += blk_fft_bytes(&w->fft) + blk_kspec_bytes(&w->fft, &w->C_hat);
   /* matrix-free solver and tangent stiffness vectors */
   double **cg[] = {&w->g, &w->Dk, &w->dF, &w->wC, &w->rho, &w->z, &w->t, &w->q, &w->qc,
-                   &w->Fn, &w->dn, &w->un, &w->prec};
+                   &w->Fn, &w->dn, &w->un, &w->prec, &w->psi};
   for (size_t i = 0; i < sizeof cg / sizeof *cg; i++)
     if (!(*cg[i] = track(w, M, sizeof(double)))) return proto_fail(err, "out of memory");
   if (w->method != BLK_CG && (w->method != BLK_AUTO || w->auto_dense)) {
@@ -118,7 +118,7 @@ void blk_state_free(blk_state *s) {
     blk_kspec_free(&w->C_hat);
     blk_fft_free(&w->fft);
     double *v[] = {w->kern, w->b, w->CF, w->g, w->Dk, w->dF, w->wC, w->rho, w->z,
-                   w->t, w->q, w->qc, w->Fn, w->dn, w->un, w->prec, w->r, w->delta,
+                   w->t, w->q, w->qc, w->Fn, w->dn, w->un, w->prec, w->psi, w->r, w->delta,
                    w->d_try, w->F_try, w->k_try, w->sk, w->y, w->col_f, w->fact_sk, w->A};
     for (size_t i = 0; i < sizeof v / sizeof *v; i++) free(v[i]);
     free(w->held);

@@ -2,10 +2,12 @@
  * per process, one JSON line on stdout (bench/block/run_scale.py drives it).
  *
  *   bench_scale hertz N METHOD            quasi-static rigid Hertz, one cold solve
- *   bench_scale ramp N METHOD DYN STEPS [HIST [SAG]]  stiffening springs on a
+ *   bench_scale ramp N METHOD DYN STEPS [HIST [SAG [RATE]]]  stiffening springs on a
  *                                         crowned rough road (edge sag SAG, default
  *                                         0.15 mm), STEPS steps of a ramp (DYN 1:
- *                                         synthetic ZOH layer; HIST separable|fft|auto)
+ *                                         synthetic ZOH layer at RATE x 51.2 kHz with
+ *                                         RATE x 256 samples, the same 5 ms memory;
+ *                                         HIST separable|fft|auto)
  *   bench_scale bumpy N DX R A LAMBDA D METHOD  the road of pk_numpy.py
  *   bench_scale rough ROAD.h5 METHOD FRAC [periodic]  rigid road from `cosim road` (one
  *                                         element per road point), the approach
@@ -116,7 +118,8 @@ static void hertz(int n, blk_method me) {
 /* Stiffening springs (the default scene's law) on a curved rough road,
  * 1 mm elements: a ramp of `steps` steps to 0.2 mm; dynamic: synthetic ZOH
  * layer at 51.2 kHz. extra = mean contact fraction at the end. */
-static void ramp(int n, blk_method me, int dyn, int steps, blk_history_kind hist, double sag) {
+static void ramp(int n, blk_method me, int dyn, int steps, blk_history_kind hist, double sag,
+                 int rate) {
   double t0 = cpu();
   blk_model m;
   OK(blk_model_init(&m, n, n, 1e-3, 1e-3, &err));
@@ -129,7 +132,7 @@ static void ramp(int n, blk_method me, int dyn, int steps, blk_history_kind hist
       m.z_road[j * n + i] -= (x * x + y * y) / (2 * R);
     }
   OK(blk_springs_stiffening(&m, 3e5, 1.5e-6, 0.5, 2, 5e-4, 33, &err));
-  blk_synth sy = {.E = 25e6, .nu = 0.49, .rate = 51200, .Q = 256, .f_mode = 2000,
+  blk_synth sy = {.E = 25e6, .nu = 0.49, .rate = 51200.0 * rate, .Q = 256 * rate, .f_mode = 2000,
                   .zeta = 0.1, .beta = 0.0, .tau_fast = 2e-5, .point_sampling = 0};
   OK(blk_green_synthetic(&m, &sy, &err));
   m.solver.quasi_static = !dyn;
@@ -229,14 +232,14 @@ int main(int argc, char **argv) {
          argc > 6 && strcmp(argv[6], "auto")
              ? (!strcmp(argv[6], "separable") ? BLK_HIST_SEPARABLE : BLK_HIST_FFT)
              : BLK_HIST_AUTO,
-         argc > 7 ? atof(argv[7]) : 1.5e-4);
+         argc > 7 ? atof(argv[7]) : 1.5e-4, argc > 8 ? atoi(argv[8]) : 1);
   else if (argc >= 9 && !strcmp(argv[1], "bumpy"))
     bumpy(atoi(argv[2]), atof(argv[3]), atof(argv[4]), atof(argv[5]), atof(argv[6]),
           atof(argv[7]), method_of(argv[8]));
   else if (argc >= 5 && !strcmp(argv[1], "rough"))
     rough(argv[2], method_of(argv[3]), atof(argv[4]), argc > 5 && !strcmp(argv[5], "periodic"));
   else {
-    fprintf(stderr, "usage: bench_scale hertz N METHOD | ramp N METHOD DYN STEPS [HIST] | "
+    fprintf(stderr, "usage: bench_scale hertz N METHOD | ramp N METHOD DYN STEPS [HIST [SAG [RATE]]] | "
                     "bumpy N DX R A LAMBDA D METHOD | rough ROAD.h5 METHOD FRAC\n");
     return 2;
   }

@@ -217,19 +217,38 @@ def footprint(run):
             "served_mean": float(served.mean()), "passages": passage_stats(run)}
 
 
+def phases(run, fp):
+    """Loop wall time of the sinkage, the spin-up, the revolution after it and the rest
+    (the coupler's per-step timing 'wall')."""
+    r = Results(run)
+    T = r.series("coupler", "timing")
+    t, w = T["t"], T["wall"]
+    rev_end = fp["revolution_from"] + 2 * np.pi / r.scene["scenario"]["omega"]
+    edges = [("sinkage", 0.0, fp["travel_from"]), ("spin_up", fp["travel_from"], fp["revolution_from"]),
+             ("revolution", fp["revolution_from"], rev_end), ("rest", rev_end, np.inf)]
+    return {name: {"from": float(lo), "to": float(min(hi, t[-1])), "steps": int(np.sum((t >= lo) & (t < hi))),
+                   "wall_loop": float(np.sum(w[(t >= lo) & (t < hi)]))} for name, lo, hi in edges}
+
+
+def summary(out, wall, stdout, before, after):
+    """The bench entry of one finished run of the 50 km/h scene in out."""
+    m = re.search(r"finished: (\d+) steps, t = ([\d.e+-]+) s, ([\d.]+) s wall", stdout)
+    r = Results(out)
+    T = r.series("coupler", "timing")
+    per = {k: float(np.sum(T[k])) for k in T.keys() if k not in ("t",)}
+    fp = footprint(out)
+    return {"wall_process": wall, "steps": int(m.group(1)), "t_end": float(m.group(2)),
+            "wall_loop": float(m.group(3)), "load_before": before, "load_after": after,
+            "timing_sums": per, "stdout": stdout[-6000:], "footprint": fp, "phases": phases(out, fp)}
+
+
 def bench(a):
     out = os.path.join(a.work, "bench50")
     before = open("/proc/loadavg").read().split()[:3]
     wall, stdout = cosim(a.bin, FAST, out, [], quiet=False,
                          prefix=("flock", "/tmp/cosim-bench.lock", "nice", "-n", "0"))
     after = open("/proc/loadavg").read().split()[:3]
-    m = re.search(r"finished: (\d+) steps, t = ([\d.e+-]+) s, ([\d.]+) s wall", stdout)
-    r = Results(out)
-    T = r.series("coupler", "timing")
-    per = {k: float(np.sum(T[k])) for k in T.keys() if k not in ("t",)}
-    return {"bench": {"wall_process": wall, "steps": int(m.group(1)), "t_end": float(m.group(2)),
-                      "wall_loop": float(m.group(3)), "load_before": before, "load_after": after,
-                      "timing_sums": per, "stdout": stdout[-6000:], "footprint": footprint(out)}}
+    return {"bench": summary(out, wall, stdout, before, after)}
 
 
 # -------------------------------------------------------------------- passage
