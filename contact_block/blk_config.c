@@ -168,8 +168,6 @@ static int read_road(blk_model *m, proto_cfg *sec, proto_err *err) {
     }
     rc = blk_road_set(m, m->z_road, err);
   } else if (kind == 5) { /* lug_block: the heights follow the lug (blk_road_world) */
-    double rms = 2e-5;
-    int64_t seed = 1;
     char path[1024] = "";
     if (proto_cfg_str(&c, "file", PROTO_OPTIONAL, path, sizeof path)) return -1;
     if (path[0]) { /* a surface file: no hashed field beside it */
@@ -178,6 +176,8 @@ static int read_road(blk_model *m, proto_cfg *sec, proto_err *err) {
                           "hashed road's) cannot be given with it", c.path);
       rc = blk_road_world_map(m, path, err);
     } else {
+      double rms = 2e-5;
+      int64_t seed = 1;
       if (proto_cfg_num(&c, "rms", PROTO_OPTIONAL, 0.0, 1.0, &rms) ||
           proto_cfg_int(&c, "seed", PROTO_OPTIONAL, 0, INT64_MAX, &seed))
         return -1;

@@ -217,11 +217,9 @@ def footprint(run):
             "served_mean": float(served.mean()), "passages": passage_stats(run)}
 
 
-def phases(run, fp):
+def phases(r, T, fp):
     """Loop wall time of the sinkage, the spin-up, the revolution after it and the rest
-    (the coupler's per-step timing 'wall')."""
-    r = Results(run)
-    T = r.series("coupler", "timing")
+    (the coupler's per-step timing 'wall', T, of the run r)."""
     t, w = T["t"], T["wall"]
     rev_end = fp["revolution_from"] + 2 * np.pi / r.scene["scenario"]["omega"]
     edges = [("sinkage", 0.0, fp["travel_from"]), ("spin_up", fp["travel_from"], fp["revolution_from"]),
@@ -239,7 +237,7 @@ def summary(out, wall, stdout, before, after):
     fp = footprint(out)
     return {"wall_process": wall, "steps": int(m.group(1)), "t_end": float(m.group(2)),
             "wall_loop": float(m.group(3)), "load_before": before, "load_after": after,
-            "timing_sums": per, "stdout": stdout[-6000:], "footprint": fp, "phases": phases(out, fp)}
+            "timing_sums": per, "stdout": stdout[-6000:], "footprint": fp, "phases": phases(r, T, fp)}
 
 
 def bench(a):
