@@ -107,18 +107,23 @@ static void screen_block_asleep(const dem_model *m, const dem_state *s, struct d
   b->n = q;
 }
 
-/* The rest of the inputs of entries q0.. (all of row i). */
-static void batch_fill(const dem_model *m, const dem_state *s, pair_batch *restrict b, int i, int q0,
-                       int one_law) {
+/* The rest of the inputs of entries q0.. (all of row i). For asleep
+ * partners (asleep = 1: the end of an awake row) v_j = ω_j = 0, as dem_sleep.c
+ * zeroes them when j falls asleep: the same values, bit for bit (x - 0.0 is
+ * x), without loading them (the asleep block lies far from the awake rows in
+ * memory: those loads were cache misses). Inlined with a constant asleep. */
+static inline __attribute__((always_inline)) void batch_fill(const dem_model *m, const dem_state *s,
+                                                              pair_batch *restrict b, int i, int q0, int one_law,
+                                                              int asleep) {
   const struct dem_work *w = s->work;
   const double *vi = &s->v[3 * i], *oi = &s->omega[3 * i], ri = s->radius[i], imi = s->inv_mass[i];
   for (int q = q0; q < b->n; q++) {
     const int j = b->j[q], k = b->k[q];
     b->i[q] = i;
     for (int a = 0; a < 3; a++) {
-      b->dv[a][q] = vi[a] - s->v[3 * j + a];
+      b->dv[a][q] = vi[a] - (asleep ? 0.0 : s->v[3 * j + a]);
       b->oi[a][q] = oi[a];
-      b->oj[a][q] = s->omega[3 * j + a];
+      b->oj[a][q] = asleep ? 0.0 : s->omega[3 * j + a];
       b->sh[a][q] = w->nl_shear[3 * k + a];
     }
     b->ri[q] = ri;
@@ -263,9 +268,13 @@ static void pair_rows(const dem_model *m, dem_state *s, int lo, int hi, dem_chun
       const int k1 = lim - k0 > DEM_ROW_BLOCK ? k0 + DEM_ROW_BLOCK : lim;
       if (b.n + (k1 - k0) > DEM_BATCH) batch_flush(m, s, &b, &r, hi, sum);
       const int q0 = b.n;
-      if (k0 < kas) screen_block(s, w, i, k0, k1, &b);
-      else screen_block_asleep(m, s, w, i, k0, k1, &b);
-      batch_fill(m, s, &b, i, q0, one_law);
+      if (k0 < kas) {
+        screen_block(s, w, i, k0, k1, &b);
+        batch_fill(m, s, &b, i, q0, one_law, 0);
+      } else {
+        screen_block_asleep(m, s, w, i, k0, k1, &b);
+        batch_fill(m, s, &b, i, q0, one_law, 1);
+      }
       found += b.n - q0;
       k0 = k1;
     }

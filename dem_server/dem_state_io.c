@@ -37,7 +37,7 @@ static const char *const io_part_name[IO_NPARTS] = {
     [IO_M_WALLS] = "walls (planes: point, normal, material)",
     [IO_M_MESHES] = "meshes (node and triangle counts, triangles, material; the coupled surface included)",
     [IO_M_SKIN] = "skin",
-    [IO_M_SLEEP] = "sleep (on/off and its thresholds)"};
+    [IO_M_SLEEP] = "sleep (on or off)"};
 _Static_assert(IO_NPARTS <= (int)(sizeof ((struct dem_work *)0)->io_model / sizeof(int64_t)),
                "io_model holds the parts");
 
@@ -121,7 +121,8 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
 
 /* FNV-1a over what a state's arrays depend on and what a continued run
  * needs unchanged: grains, materials, walls, mesh topology, skin (the list's
- * validity), sleep. Not dt nor gravity (a restart may change them). Fields one
+ * validity), sleep on or off. Not dt, gravity nor the sleep thresholds (a
+ * restart may change them). Fields one
  * by one: struct padding is not hashed. */
 static uint64_t fnv(uint64_t h, const void *p, size_t n) {
   const unsigned char *b = p;
@@ -167,10 +168,10 @@ static void model_parts(const dem_model *m, int64_t *part) {
   }
   part[IO_M_MESHES] = (int64_t)h;
   part[IO_M_SKIN] = (int64_t)FNV_VAL(FNV0, m->skin);
-  const dem_sleep_config *sl = &m->sleep;
-  const double sv[] = {sl->velocity, sl->time, sl->distance, sl->overlap, sl->displacement};
-  h = FNV_VAL(FNV0, sl->on); /* also the set of arrays */
-  part[IO_M_SLEEP] = (int64_t)(sl->on ? fnv(h, sv, sizeof sv) : h);
+  /* sleep on or off: the set of arrays. Not its thresholds: they decide only
+   * which grains fall asleep or wake from now on, as dt and gravity decide
+   * only the steps from now on (a saved bed serves runs that differ in them) */
+  part[IO_M_SLEEP] = (int64_t)FNV_VAL(FNV0, m->sleep.on);
 }
 
 static int64_t model_fingerprint(const int64_t *part) {

@@ -174,6 +174,10 @@ int main(void) {
   /* sleep thresholds under which part of the bed falls asleep within N steps (68 of 436 grains) */
   /* a bed still settling, put to sleep by its speed alone (displacement 1: a radius) to have asleep grains to save */
   continues("{\"velocity\":0.06,\"time\":0.01,\"distance\":0.005,\"displacement\":1}", 0, 3000, 1000, path);
+  { /* other thresholds: they decide only what falls asleep from now on, so the saved state continues */
+    const variant t = {1, 0, "0.6", "1", "{\"velocity\":0.03,\"time\":0.02,\"overlap\":0.05}", bed(path, NULL), NULL};
+    expect(&t, 0, NULL, 1, "other sleep thresholds");
+  }
   continues("false", 1, 1500, 1000, path); /* the file now holds this bed */
 
   /* mismatches: refused, naming the part; or positions only when asked */
