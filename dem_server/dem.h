@@ -101,6 +101,8 @@ typedef struct dem_sleep_config {
   int on;
   double velocity, time, distance, overlap;
   double displacement; /* at rest: moved less than this fraction of the radius over `time` */
+  double wake_velocity; /* an awake grain faster than this wakes its listed asleep neighbours (m/s;
+                           "wake_velocity", default DEM_WAKE_FACTOR x velocity) */
 } dem_sleep_config;
 
 /* Preparation of a packing ("particles.prepare" of a generated bed; terra's

@@ -306,14 +306,16 @@ static int read_wall(dem_model *m, proto_cfg *c, int i, void *ctx) {
   return proto_cfg_end(c);
 }
 
-/* "sleep": false | true (defaults) | {"velocity", "time", "distance", "overlap", "displacement"}. */
+/* "sleep": false | true (defaults) | {"velocity", "time", "distance", "overlap", "displacement",
+ * "wake_velocity"}. */
 static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
   const cJSON *j = proto_cfg_raw(c, "sleep", PROTO_OPTIONAL);
   *sl = (dem_sleep_config){0, DEM_SLEEP_VELOCITY, DEM_SLEEP_TIME, DEM_SLEEP_DISTANCE, DEM_SLEEP_OVERLAP,
-                           DEM_SLEEP_DISPLACEMENT};
+                           DEM_SLEEP_DISPLACEMENT, DEM_WAKE_FACTOR * DEM_SLEEP_VELOCITY};
   if (!j || cJSON_IsFalse(j)) return 0;
   sl->on = 1;
   if (cJSON_IsTrue(j)) return 0;
+  sl->wake_velocity = 0; /* from velocity, unless given */
   char p[320];
   proto_cfg_subpath(c, "sleep", -1, p, sizeof p);
   if (!cJSON_IsObject(j)) return proto_fail(c->err, "%s: expected true, false or an object", p);
@@ -323,8 +325,13 @@ static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
       proto_cfg_num(&sc, "time", PROTO_OPTIONAL, 0.0, 1e6, &sl->time) ||
       proto_cfg_num(&sc, "distance", PROTO_OPTIONAL, 0.0, 1e6, &sl->distance) ||
       proto_cfg_num(&sc, "overlap", PROTO_OPTIONAL, 0.0, 1.0, &sl->overlap) ||
-      proto_cfg_num(&sc, "displacement", PROTO_OPTIONAL, 0.0, 1e6, &sl->displacement))
+      proto_cfg_num(&sc, "displacement", PROTO_OPTIONAL, 0.0, 1e6, &sl->displacement) ||
+      proto_cfg_num(&sc, "wake_velocity", PROTO_OPTIONAL, 0.0, 1e3, &sl->wake_velocity))
     return -1;
+  if (sl->wake_velocity == 0) sl->wake_velocity = DEM_WAKE_FACTOR * sl->velocity;
+  else if (sl->wake_velocity < sl->velocity)
+    return proto_fail(c->err, "%s.wake_velocity: %g m/s is below velocity %g m/s (a grain that may fall asleep "
+                      "would wake its neighbours)", p, sl->wake_velocity, sl->velocity);
   return proto_cfg_end(&sc);
 }
 

@@ -78,7 +78,7 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
 /* screen_block for the asleep partners of awake grain i (the end of its
  * row: slots >= n_active): such a contact is evaluated as with a fixed grain
  * (its share is not added to the asleep one), and the asleep grain is woken
- * when i moves faster than DEM_WAKE_FACTOR × the sleep velocity (listed: within r_i + r_j +
+ * when i moves faster than sleep.wake_velocity (default DEM_WAKE_FACTOR × the sleep velocity; listed: within r_i + r_j +
  * skin at the last rebuild, so before they touch) or presses into it beyond
  * sleep.overlap of the smaller radius (a sleeping grain is a fixed one: under
  * a slowly growing load its overlap would grow without bound instead of the
@@ -86,7 +86,7 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
 static void screen_block_asleep(const dem_model *m, const dem_state *s, struct dem_work *w, int i, int k0, int k1,
                                 pair_batch *restrict b) {
   const double *restrict x = s->x, *restrict rad = s->radius;
-  const double vw = DEM_WAKE_FACTOR * m->sleep.velocity, vs2 = vw * vw, wake_ov = m->sleep.overlap;
+  const double vw = m->sleep.wake_velocity, vs2 = vw * vw, wake_ov = m->sleep.overlap;
   const double xi0 = x[3 * i], xi1 = x[3 * i + 1], xi2 = x[3 * i + 2], ri = rad[i];
   const int fast = dem_dot(&s->v[3 * i], &s->v[3 * i]) > vs2;
   int q = b->n;

@@ -6,7 +6,8 @@
  * one). Then the drifting grains' state goes through an export and import
  * half way (the rest anchors travel: the same steps at rest after it).
  * And the wake batch: an asleep cluster next to a fast grain wakes as one
- * (the grains within one cell of a woken grain wake with it). */
+ * (the grains within one cell of a woken grain wake with it), and with a
+ * wake_velocity above the grain's speed only when it presses in. */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 
@@ -69,13 +70,18 @@ static void rest_not_slow(void) {
 
 /* A 4 x 4 x 4 cluster at rest (touching nothing), asleep; a grain launched
  * at it wakes the 4 grains listed with it, and with each of them every asleep
- * grain within one cell (2 r + skin) wakes at once (16 in the first wake). */
-static void wake_batch(void) {
+ * grain within one cell (2 r + skin) wakes at once (16 in the first wake).
+ * With `wake` (extra sleep keys) a wake_velocity above the launch speed: the
+ * listing wakes nothing, the first wake comes when the grain presses into the
+ * cluster beyond sleep.overlap of a radius. *first and *gap get the step of
+ * the first wake and the lone grain's smallest gap to the cluster then (m,
+ * negative: overlap). */
+static void wake_batch(const char *wake, int *first_out, double *gap_out) {
   static char json[20000];
   int len = snprintf(json, sizeof json,
                      "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.5}],"
                      "\"gravity\":[0,0,0],\"dt\":%g,\"skin\":0.001,\"threads\":1,"
-                     "\"sleep\":{\"velocity\":%g,\"time\":%g},\"particles\":[", DT, V_SLEEP, T_SLEEP);
+                     "\"sleep\":{\"velocity\":%g,\"time\":%g%s},\"particles\":[", DT, V_SLEEP, T_SLEEP, wake);
   const double pitch = 2 * R + 1e-4, cell = 2 * R + 0.001;
   enum { NC = 64, NG = NC + 1 };
   for (int a = 0; a < NC; a++)
@@ -101,30 +107,58 @@ static void wake_batch(void) {
     CHECK(dem_step(&m, &s, &err) == 0, "step: %s", err.msg);
     if (s.sleeping == NC) continue; /* none of the cluster woke yet */
     first = k;
-    double x[3 * NG];
+    double x[3 * NG], gap = 1;
     uint8_t asleep[NG];
     for (int i = 0; i < s.n; i++) {
       asleep[s.id[i]] = s.work->asleep[i];
       memcpy(&x[3 * s.id[i]], &s.x[3 * i], sizeof(double) * 3);
     }
     for (int a = 0; a < NC; a++) {
+      const double *g = &x[3 * NC], e0 = x[3 * a] - g[0], e1 = x[3 * a + 1] - g[1], e2 = x[3 * a + 2] - g[2];
+      gap = fmin(gap, sqrt(e0 * e0 + e1 * e1 + e2 * e2) - 2 * R);
       woke_first += !asleep[a];
       for (int q = 0; q < 4; q++) {
         const double *p = &x[3 * struck[q]], d0 = x[3 * a] - p[0], d1 = x[3 * a + 1] - p[1], d2 = x[3 * a + 2] - p[2];
         missed += asleep[a] && d0 * d0 + d1 * d1 + d2 * d2 < cell * cell;
       }
     }
+    *gap_out = gap;
   }
-  printf("the cluster's first wake (step %d, %lld wake rebuilds): %d grains, %d within a cell of the 4 struck ones "
-         "left asleep\n", first, (long long)(s.work->wake_rebuilds - wakes0), woke_first, missed);
+  printf("the cluster's first wake%s (step %d, %lld wake rebuilds, gap %.3g R): %d grains, %d within a cell of the "
+         "4 struck ones left asleep\n", wake, first, (long long)(s.work->wake_rebuilds - wakes0), *gap_out / R,
+         woke_first, missed);
   /* the 4 struck, their 8 neighbours in the layer and the 4 behind them */
   CHECK(first >= 0 && missed == 0 && woke_first == 16, "the first wake took %d grains, left %d", woke_first, missed);
+  *first_out = first;
   dem_state_free(&s);
   dem_model_free(&m);
 }
 
+/* sleep.wake_velocity below velocity: refused by name. */
+static void wake_below_velocity(void) {
+  cJSON *j = cJSON_Parse("{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,"
+                         "\"friction\":0.5}],\"sleep\":{\"velocity\":0.01,\"wake_velocity\":0.005},"
+                         "\"particles\":[{\"x\":[0,0,0],\"r\":0.005}]}");
+  dem_model m;
+  proto_err err = {{0}};
+  const int rc = dem_model_from_json(&m, j, "processes.dem", &err);
+  cJSON_Delete(j);
+  printf("wake_velocity 0.005 < velocity 0.01 -> %s\n", rc ? err.msg : "accepted");
+  CHECK(rc != 0, "wake_velocity below velocity accepted");
+  if (rc) CHECK_MSG(err, "processes.dem.sleep.wake_velocity");
+  else dem_model_free(&m);
+}
+
 int main(void) {
   rest_not_slow();
-  wake_batch();
+  int first_listed, first_pressed;
+  double gap_listed, gap_pressed;
+  wake_batch("", &first_listed, &gap_listed);
+  wake_batch(",\"wake_velocity\":2", &first_pressed, &gap_pressed); /* launched at 1 m/s */
+  CHECK(gap_listed > 0, "the default wake came at a gap of %g R, not before the contact", gap_listed / R);
+  CHECK(gap_pressed <= -0.02 * R && first_pressed > first_listed,
+        "with wake_velocity above the launch speed the first wake came at step %d (%d by default), gap %g R: "
+        "expected it when the overlap passes sleep.overlap 0.02 R", first_pressed, first_listed, gap_pressed / R);
+  wake_below_velocity();
   return cosim_test_done("test_dem_sleep_rest");
 }
