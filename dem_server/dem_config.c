@@ -315,7 +315,7 @@ static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
   if (!j || cJSON_IsFalse(j)) return 0;
   sl->on = 1;
   if (cJSON_IsTrue(j)) return 0;
-  sl->wake_velocity = 0; /* from velocity, unless given */
+  sl->wake_velocity = -1; /* from velocity, unless given */
   char p[320];
   proto_cfg_subpath(c, "sleep", -1, p, sizeof p);
   if (!cJSON_IsObject(j)) return proto_fail(c->err, "%s: expected true, false or an object", p);
@@ -326,9 +326,9 @@ static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
       proto_cfg_num(&sc, "distance", PROTO_OPTIONAL, 0.0, 1e6, &sl->distance) ||
       proto_cfg_num(&sc, "overlap", PROTO_OPTIONAL, 0.0, 1.0, &sl->overlap) ||
       proto_cfg_num(&sc, "displacement", PROTO_OPTIONAL, 0.0, 1e6, &sl->displacement) ||
-      proto_cfg_num(&sc, "wake_velocity", PROTO_OPTIONAL, 0.0, 1e3, &sl->wake_velocity))
+      proto_cfg_num(&sc, "wake_velocity", PROTO_OPTIONAL, 1e-12, 1e3, &sl->wake_velocity))
     return -1;
-  if (sl->wake_velocity == 0) sl->wake_velocity = DEM_WAKE_FACTOR * sl->velocity;
+  if (sl->wake_velocity < 0) sl->wake_velocity = DEM_WAKE_FACTOR * sl->velocity;
   else if (sl->wake_velocity < sl->velocity)
     return proto_fail(c->err, "%s.wake_velocity: %g m/s is below velocity %g m/s (a grain that may fall asleep "
                       "would wake its neighbours)", p, sl->wake_velocity, sl->velocity);

@@ -78,8 +78,9 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
 /* screen_block for the asleep partners of awake grain i (the end of its
  * row: slots >= n_active): such a contact is evaluated as with a fixed grain
  * (its share is not added to the asleep one), and the asleep grain is woken
- * when i moves faster than sleep.wake_velocity (default DEM_WAKE_FACTOR × the sleep velocity; listed: within r_i + r_j +
- * skin at the last rebuild, so before they touch) or presses into it beyond
+ * when i moves faster than sleep.wake_velocity (default DEM_WAKE_FACTOR × the
+ * sleep velocity; listed: within r_i + r_j + skin at the last rebuild, so
+ * before they touch) or presses into it beyond
  * sleep.overlap of the smaller radius (a sleeping grain is a fixed one: under
  * a slowly growing load its overlap would grow without bound instead of the
  * load spreading into the bed). */

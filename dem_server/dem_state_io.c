@@ -122,8 +122,7 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
 /* FNV-1a over what a state's arrays depend on and what a continued run
  * needs unchanged: grains, materials, walls, mesh topology, skin (the list's
  * validity), sleep on or off. Not dt, gravity nor the sleep thresholds (a
- * restart may change them). Fields one
- * by one: struct padding is not hashed. */
+ * restart may change them). Fields one by one: struct padding is not hashed. */
 static uint64_t fnv(uint64_t h, const void *p, size_t n) {
   const unsigned char *b = p;
   for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 0x100000001b3ull;
