@@ -103,6 +103,7 @@ static void wake_batch(const char *wake, int *first_out, double *gap_out) {
   const int struck[4] = {1 * 4 + 1 * 16, 2 * 4 + 1 * 16, 1 * 4 + 2 * 16, 2 * 4 + 2 * 16};
   const int64_t wakes0 = s.work->wake_rebuilds;
   int first = -1, woke_first = 0, missed = 0;
+  *gap_out = 1; /* no wake: no gap */
   for (int k = 0; k < 400 && first < 0; k++) {
     CHECK(dem_step(&m, &s, &err) == 0, "step: %s", err.msg);
     if (s.sleeping == NC) continue; /* none of the cluster woke yet */
