@@ -17,6 +17,9 @@
 #include <string.h>
 
 #define POLL_MS 100
+/* Between messages the children are looked at (waitpid) at most this
+ * often (s): once per message is two system calls per step for nothing. */
+#define CHILD_CHECK_S 0.05
 /* The most one look credits (a little more than a poll): a longer gap is
  * the coupler's own pause, or its own work between two waits. */
 #define WATCH_MAX_GAP_S 0.25
@@ -85,10 +88,12 @@ int cpl_check_silence(cpl_runner *r, double now) {
 
 /* Large arrays through the peer's segment once it took the offer (run.c). */
 int cpl_send(cpl_runner *r, int peer, const proto_msg *m) {
-  const cpl_peer *p = &r->peers[peer];
+  cpl_peer *p = &r->peers[peer];
   if (proto_send_via(r->router, p->proc->name, m, 0, p->shm_on ? p->shm_out : NULL,
-                     &r->err) == 0)
+                     &r->err) == 0) {
+    r->peers[peer].awaited = 1;
     return 0;
+  }
   r->failed_peer = peer;
   /* its connection is gone: if it died, say how (waitpid may need a moment) */
   for (int tries = 0; tries < 10; tries++) {
@@ -202,25 +207,54 @@ static proto_shm *segment_of(void *ctx, const char *identity) {
   return i >= 0 ? r->peers[i].shm_in : NULL;
 }
 
-/* (sockets, children, watch clock) -> (the next message, or the culprit named) */
+/* The segments whose senders owe a reply (expect, or every awaited peer):
+ * their bells are watched beside the socket. Returns how many. */
+static int bells_of(cpl_runner *r, int expect, proto_shm **rds, int *who) {
+  int n = 0;
+  for (int i = 0; i < r->n; i++) {
+    const cpl_peer *p = &r->peers[i];
+    if (!p->shm_on || !(expect >= 0 ? i == expect : p->awaited)) continue;
+    rds[n] = p->shm_in;
+    who[n++] = i;
+  }
+  return n;
+}
+
+/* (sockets, bells, children, watch clock) -> (the next message, or the culprit named) */
 int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
                 proto_msg *m, int *from) {
   const double start = cpl_watch(r);
   while (1) {
     if (cpl_interrupted)
       return proto_fail(&r->err, "interrupted by signal %d", cpl_interrupted);
-    if (check_children(r) < 0) return -1;
     const double now = cpl_watch(r);
+    /* the process table at most every CHILD_CHECK_S: a wait that goes on
+     * looks at it again after each slice of the socket's poll */
+    if (now - r->children_checked >= CHILD_CHECK_S || now < r->children_checked) {
+      if (check_children(r) < 0) return -1;
+      r->children_checked = now;
+    }
     if (cpl_check_silence(r, now) < 0) return -1;
     double since = start;
     if (expect >= 0 && r->peers[expect].progressed > since) since = r->peers[expect].progressed;
     const double left = since + timeout_s - now;
     if (left <= 0) return timed_out(r, expect, timeout_s, key);
-    if (proto_poll_in(r->router, left > POLL_MS * 1e-3 ? POLL_MS : (int)(left * 1e3) + 1) <= 0)
-      continue;
+    proto_shm *rds[CPL_MAX_PROCS];
+    int who[CPL_MAX_PROCS];
+    const int nb = bells_of(r, expect, rds, who);
+    const int got = proto_wait_in(r->router, rds, nb,
+                                  left > POLL_MS * 1e-3 ? POLL_MS : (int)(left * 1e3) + 1);
+    if (got <= 0) continue;
     char identity[PROTO_NAME_LEN] = {0};
     proto_msg *dst = m ? m : &r->inbox;
-    int rc = proto_recv_via(r->router, dst, identity, segment_of, r, &r->err);
+    int rc;
+    if (got >= 2) { /* posted in the segment of who[got - 2] */
+      cpl_peer *p = &r->peers[who[got - 2]];
+      snprintf(identity, sizeof identity, "%s", p->proc->name);
+      rc = proto_shm_take(p->shm_in, dst, &r->err);
+    } else {
+      rc = proto_recv_via(r->router, dst, identity, segment_of, r, &r->err);
+    }
     int sender = peer_of(r, identity);
     if (sender < 0) {
       stranger(r, identity);
@@ -236,6 +270,7 @@ int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
       take_heartbeat(r, sender, dst);
       continue;
     }
+    r->peers[sender].awaited = 0;
     if (!m) { /* swap into the sender's slot; its old buffers are reused */
       proto_msg t = r->peers[sender].reply;
       r->peers[sender].reply = r->inbox;

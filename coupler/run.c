@@ -275,7 +275,10 @@ static void shm_settle(cpl_peer *p) {
   const cJSON *e = cJSON_GetObjectItemCaseSensitive(p->reply.header, PROTO_H_SHM_ERROR);
   p->shm_on = p->shm_out && proto_shm_attached(p->shm_in) && cJSON_IsString(t) &&
               strcmp(t->valuestring, "shm") == 0;
-  if (p->shm_on) return;
+  if (p->shm_on) { /* it maps our segment: post whole messages there */
+    proto_shm_ring(p->shm_out);
+    return;
+  }
   if (p->shm_out) {
     char text[sizeof p->shm_why];
     cpl_printable(text, sizeof text, cJSON_IsString(e) ? e->valuestring
@@ -440,12 +443,19 @@ static void say_stop(cpl_runner *r) {
     if (proto_send_to(r->router, r->peers[i].proc->name, &m, &ignore) == 0) {
       /* wait briefly for the bye; the process table is the final judge */
       double until = proto_now() + 2.0;
-      while (proto_now() < until && proto_poll_in(r->router, 100) > 0) {
+      proto_shm *bell = r->peers[i].shm_on ? r->peers[i].shm_in : NULL;
+      int got;
+      while (proto_now() < until && (got = proto_wait_in(r->router, &bell, 1, 100)) > 0) {
         char id[PROTO_NAME_LEN];
-        if (proto_recv(r->router, &reply, id, &ignore) == 0 &&
-            strcmp(id, r->peers[i].proc->name) == 0 &&
-            strcmp(reply.type, proto_msg_type(PROTO_MSG_BYE)) == 0)
+        if (got >= 2) { /* posted in its segment */
+          if (proto_shm_take(bell, &reply, &ignore) == 0 &&
+              strcmp(reply.type, proto_msg_type(PROTO_MSG_BYE)) == 0)
+            break;
+        } else if (proto_recv(r->router, &reply, id, &ignore) == 0 &&
+                   strcmp(id, r->peers[i].proc->name) == 0 &&
+                   strcmp(reply.type, proto_msg_type(PROTO_MSG_BYE)) == 0) {
           break;
+        }
       }
     }
     r->peers[i].stopped = 1;
@@ -471,6 +481,7 @@ static void teardown(cpl_runner *r, int ok) {
   for (int i = 0; i < r->n; i++) proto_msg_free(&r->peers[i].reply);
   proto_msg_free(&r->inbox);
   for (int i = 0; i < r->n; i++) { /* after every message that may point into them */
+    proto_shm_bells(r->peers[i].shm_out, &r->peers[i].shm_sent, &r->peers[i].shm_posted);
     proto_shm_free(r->peers[i].shm_out);
     proto_shm_free(r->peers[i].shm_in);
     r->peers[i].shm_out = r->peers[i].shm_in = NULL;

@@ -172,6 +172,9 @@ typedef struct cpl_peer {
   int same_host;
   proto_shm *shm_out, *shm_in;
   int shm_on;
+  int awaited; /* a request went out and its reply has not come (cpl_send) */
+  uint64_t shm_sent, shm_posted; /* messages to it through our segment, posted whole
+                                    (read at teardown, for the timing table) */
   char shm_why[160]; /* why it keeps the socket, for the schedule printout */
 } cpl_peer;
 
@@ -242,6 +245,7 @@ typedef struct cpl_runner {
   char ctl_endpoint[CPL_PATH_LEN];
   cpl_bus_eps bus_eps; /* as bound (port 0 resolved) */
   int n;
+  double children_checked; /* cpl_watch time of the last waitpid round (liveness.c) */
   cpl_peer peers[CPL_MAX_PROCS];
   cpl_child children[CPL_MAX_PROCS];
   int nchildren;

@@ -111,4 +111,11 @@ void cpl_timing_print(const cpl_runner *r, FILE *f) {
     for (int w = 0; w < N_TP; w++) line(f, t->names[col(i, w)], t->total[col(i, w)], loop, t->steps);
   line(f, fixed_cols[TM_MAP], t->total[TM_MAP], loop, t->steps);
   line(f, fixed_cols[TM_OUTPUT], t->total[TM_OUTPUT], loop, t->steps);
+  for (int i = 0; i < r->n; i++) { /* the doorbell (PROTOCOL.md "Shared memory") */
+    const uint64_t sent = r->peers[i].shm_sent, posted = r->peers[i].shm_posted;
+    if (!r->peers[i].shm_on) continue;
+    fprintf(f, "  shm %s: %llu of %llu messages to it posted in the segment (the rest "
+            "on the socket)\n", r->peers[i].proc->name, (unsigned long long)posted,
+            (unsigned long long)sent);
+  }
 }

@@ -280,36 +280,52 @@ static int send_frame(void *s, const void *data, size_t n, int more, int copy,
   return 0;
 }
 
-/* w (may be NULL): arrays of PROTO_SHM_MIN_BYTES or more go into its
- * segment and travel as an empty frame plus their descriptor. */
-static int send_msg(void *s, const proto_msg *m, int flags, int copy,
-                    proto_shm *w, proto_err *err) {
-  proto_shm_place pl;
-  if (w && proto_shm_place_msg(w, m, &pl, err) < 0) return -1;
-  char *hdr = header_json(m, w, w && pl.seq ? &pl : NULL);
-  if (!hdr) return proto_fail(err, "cannot encode header of '%s'", m->type);
+/* The frames of m with its encoded header; arrays placed in a segment (pl)
+ * travel as empty frames. */
+static int send_frames(void *s, const proto_msg *m, const char *hdr,
+                       const proto_shm_place *pl, int flags, int copy, proto_err *err) {
   int rc = send_frame(s, m->topic, strlen(m->topic), 1, 1, flags, err);
-  if (rc == 0)
-    rc = send_frame(s, hdr, strlen(hdr), m->narrays > 0, 1, flags, err);
-  free(hdr);
+  if (rc == 0) rc = send_frame(s, hdr, strlen(hdr), m->narrays > 0, 1, flags, err);
   for (int i = 0; rc == 0 && i < m->narrays; i++) {
-    const int in_shm = w && pl.seq && pl.offset[i] >= 0;
+    const int in_shm = pl && pl->offset[i] >= 0;
     rc = send_frame(s, m->arrays[i].data, in_shm ? 0 : m->arrays[i].nbytes,
                     i + 1 < m->narrays, copy, flags, err);
   }
   return rc;
 }
 
-int proto_send(void *socket, const proto_msg *m, int flags, proto_err *err) {
-  return send_msg(socket, m, flags, 0, NULL, err);
+static int send_msg(void *s, const proto_msg *m, int flags, int copy, proto_err *err) {
+  char *hdr = header_json(m, NULL, NULL);
+  if (!hdr) return proto_fail(err, "cannot encode header of '%s'", m->type);
+  int rc = send_frames(s, m, hdr, NULL, flags, copy, err);
+  free(hdr);
+  return rc;
 }
 
+int proto_send(void *socket, const proto_msg *m, int flags, proto_err *err) {
+  return send_msg(socket, m, flags, 0, err);
+}
+
+/* w (may be NULL): arrays of PROTO_SHM_MIN_BYTES or more go into its
+ * segment and travel as an empty frame plus their descriptor; a ringing
+ * writer posts the whole message there instead (shm.c). */
 int proto_send_via(void *socket, const char *identity, const proto_msg *m,
                    int flags, proto_shm *w, proto_err *err) {
-  if (identity && send_frame(socket, identity, strlen(identity), 1, 1, flags, err) < 0)
-    return proto_wrap(err, "to '%s'", identity);
-  if (send_msg(socket, m, flags, 0, w, err) < 0)
+  proto_shm_place pl;
+  if (w && proto_shm_place_msg(w, m, &pl, err) < 0)
     return identity ? proto_wrap(err, "to '%s'", identity) : -1;
+  const proto_shm_place *placed = w && pl.seq ? &pl : NULL;
+  char *hdr = header_json(m, w, placed);
+  if (!hdr) return proto_fail(err, "cannot encode header of '%s'", m->type);
+  int rc = 0;
+  if (placed && proto_shm_post(w, placed, m, hdr)) {
+    free(hdr);
+    return 0;
+  }
+  if (identity) rc = send_frame(socket, identity, strlen(identity), 1, 1, flags, err);
+  if (rc == 0) rc = send_frames(socket, m, hdr, placed, flags, 0, err);
+  free(hdr);
+  if (rc < 0) return identity ? proto_wrap(err, "to '%s'", identity) : -1;
   return 0;
 }
 
@@ -321,7 +337,7 @@ int proto_send_to(void *router, const char *identity, const proto_msg *m,
 int proto_publish(void *pub, const proto_msg *m) {
   /* Copies: queued bus messages may outlive the caller's buffers. PUB drops
    * at the high-water mark instead of blocking. */
-  return send_msg(pub, m, ZMQ_DONTWAIT, 1, NULL, NULL);
+  return send_msg(pub, m, ZMQ_DONTWAIT, 1, NULL);
 }
 
 /* ------------------------------------------------------------------ decode */
@@ -605,6 +621,13 @@ int proto_recv_via(void *socket, proto_msg *m, char *identity,
   return 0;
 }
 
+int proto_shm_take(proto_shm *rd, proto_msg *m, proto_err *err) {
+  const void *data[PROTO_MAX_ARRAYS + 2];
+  size_t size[PROTO_MAX_ARRAYS + 2];
+  int n = proto_shm_frames(rd, data, size, err);
+  return n < 0 ? -1 : proto_decode_via(m, n, data, size, rd, err);
+}
+
 int proto_socket_limits(void *socket) {
   int64_t max = (int64_t)(PROTO_MAX_FRAME_BYTES > PROTO_MAX_HEADER_BYTES
                               ? PROTO_MAX_FRAME_BYTES : PROTO_MAX_HEADER_BYTES);
@@ -616,4 +639,26 @@ int proto_poll_in(void *socket, int timeout_ms) {
   int rc = zmq_poll(&item, 1, timeout_ms);
   if (rc < 0) return -1;
   return rc > 0 ? 1 : 0;
+}
+
+int proto_wait_in(void *socket, proto_shm *const *rds, int n, int timeout_ms) {
+  int first = -1;
+  for (int i = 0; i < n; i++)
+    if (proto_shm_attached(rds[i]) && first < 0) first = i;
+  if (first < 0) return proto_poll_in(socket, timeout_ms);
+  const double until = proto_now() + 1e-3 * timeout_ms;
+  while (1) {
+    for (int i = 0; i < n; i++)
+      if (proto_shm_pending(rds[i])) return 2 + i;
+    const double left = until - proto_now();
+    /* sleep on the first reader's bell (a futex waits on one word), then
+     * look at the socket. The bell comes first: a process that just woke its
+     * peer should be asleep before the peer needs the core */
+    const double slice = PROTO_BELL_SLICE_S;
+    if (left > 0) proto_shm_wait(rds[first], (int)(1e6 * (left < slice ? left : slice)) + 1);
+    for (int i = 0; i < n; i++)
+      if (proto_shm_pending(rds[i])) return 2 + i;
+    int r = proto_poll_in(socket, 0);
+    if (r != 0 || left <= 0) return r;
+  }
 }

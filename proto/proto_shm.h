@@ -14,7 +14,14 @@
  * release store of s into the segment header before the ZeroMQ send; the
  * reader's acquire load after the receive must find that s (C11
  * <stdatomic.h>), or the message is refused. A segment that is too small for
- * a message is replaced by a larger one, announced in that message. */
+ * a message is replaced by a larger one, announced in that message.
+ *
+ * The doorbell: once its reader maps the segment, a writer that rings
+ * (proto_shm_ring) posts each whole message in it (topic, header and small
+ * frames after the arrays), bumps the header's bell word and wakes the
+ * reader with a futex: no ZeroMQ message at all, one wake-up instead of
+ * libzmq's four thread hops. Messages that announce a segment, or do not
+ * fit, still travel on the socket. */
 #ifndef COSIM_PROTO_SHM_H
 #define COSIM_PROTO_SHM_H
 #ifndef COSIM_PROTO_H
@@ -32,6 +39,16 @@ typedef struct proto_shm proto_shm; /* one direction: a writer or a reader */
 /* The largest buffer a writer makes and a reader accepts (bytes): what does
  * not fit travels as frames (the largest frame is PROTO_MAX_FRAME_BYTES). */
 #define PROTO_SHM_MAX_BUFFER_BYTES ((size_t)1 << 30)
+
+/* Waiting for a posted message, the socket is looked at between futex
+ * waits of this length: a heartbeat, or a control message that takes the
+ * socket (stop, a segment announced), waits at most this long (s). Short
+ * slices cost a wake-up each, and a process woken while it waits takes a
+ * core from a peer that computes. With several readers the futex sleeps on
+ * the first: a message posted in another is taken when the first's comes
+ * or the slice ends, which costs nothing when (as in a stage) every reply
+ * is needed before the coupler goes on. */
+#define PROTO_BELL_SLICE_S 20e-3
 
 /* Header fields (PROTOCOL.md "Shared memory"). */
 #define PROTO_H_HOST "host"           /* hello: {name, boot_id}: it can map segments */
@@ -65,6 +82,27 @@ void *proto_shm_next(proto_shm *w, size_t nbytes);
  * copy, since it was made (tests, timing). */
 void proto_shm_counts(const proto_shm *w, uint64_t *copied_bytes, uint64_t *in_place);
 
+/* The doorbell (PROTOCOL.md "Shared memory"). A writer rings once its
+ * reader is known to map its segment; from then on proto_send_via posts
+ * every message it can in the segment instead of sending it. */
+void proto_shm_ring(proto_shm *w);
+int proto_shm_rings(const proto_shm *w);
+/* Writer: messages sent through it (proto_send_via), and how many of them
+ * were posted whole (the rest went on the socket). */
+void proto_shm_bells(const proto_shm *w, uint64_t *sent, uint64_t *posted);
+/* Reader: 1 if a posted message waits to be taken. */
+int proto_shm_pending(const proto_shm *rd);
+/* Reader: sleeps until a message is posted or timeout_us passes (a futex
+ * on the bell word); 1 if one is pending. */
+int proto_shm_wait(const proto_shm *rd, int timeout_us);
+/* Reader: the posted message into m (decoded and checked as a received
+ * one: proto_decode_via); -1 with err naming the defect. */
+int proto_shm_take(proto_shm *rd, proto_msg *m, proto_err *err);
+/* Waits up to timeout_ms for the socket (1) or a message posted in readers
+ * rds[i] (2 + i); 0 on timeout, -1 on a poll error. NULL readers are
+ * skipped. */
+int proto_wait_in(void *socket, proto_shm *const *rds, int n, int timeout_ms);
+
 /* proto_send / proto_send_to through a writer (NULL: plain frames).
  * identity: the ROUTER identity, or NULL on a DEALER. */
 int proto_send_via(void *socket, const char *identity, const proto_msg *m,
@@ -88,6 +126,13 @@ typedef struct proto_shm_place {
 int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,
                         proto_err *err);
 char *proto_shm_descriptor_json(const proto_shm *w); /* malloc'd */
+/* The frames of the posted message (pointing into the segment, checked to
+ * lie in its buffer): their count, or -1 with err; proto_shm_take decodes
+ * them. data and size hold PROTO_MAX_ARRAYS + 2. */
+int proto_shm_frames(proto_shm *rd, const void **data, size_t *size, proto_err *err);
+/* 1: posted whole (the bell rung), 0: send it on the socket */
+int proto_shm_post(proto_shm *w, const proto_shm_place *pl, const proto_msg *m,
+                   const char *header);
 int proto_shm_resolve(proto_shm *rd, proto_array *a, const cJSON *desc,
                       size_t frame_bytes, proto_err *err);
 

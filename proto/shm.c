@@ -4,8 +4,11 @@
  * number published with a release store; an offset per array for the
  * header). Receive side: (a descriptor, a reader's mapping) -> (the array
  * pointing into the read-only mapping, after an acquire load of the
- * buffer's message number and bounds checks). Segments are memfds: no name
- * in /dev/shm, nothing left when a process dies. */
+ * buffer's message number and bounds checks). Doorbell: (a whole message,
+ * a ringing writer) -> (its frames after the arrays, a frame table, the bell
+ * word bumped and woken by a futex); (a reader's bell) -> (the frames,
+ * bounds-checked, for proto_decode_via). Segments are memfds: no name in
+ * /dev/shm, nothing left when a process dies. */
 #define _GNU_SOURCE
 #include "proto.h"
 
@@ -16,13 +19,17 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <limits.h>
+#include <linux/futex.h>
 #include <sys/mman.h>
 #include <sys/random.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
+#include <time.h>
 #include <unistd.h>
 
 #define SHM_MAGIC 0x314d48534d534f43ULL /* "COSMSHM1" read little-endian */
-#define SHM_VERSION 1u
+#define SHM_VERSION 2u /* 2: the doorbell (bell, post_seq, post_off) */
 #define SHM_PAGE ((size_t)4096)      /* buffers start on pages */
 #define SHM_HEAD_BYTES SHM_PAGE      /* the header page */
 #define SHM_ALIGN ((size_t)64)       /* arrays start on cache lines */
@@ -42,7 +49,20 @@ typedef struct seg_head {
   uint64_t writer_pid;
   unsigned char nonce[SHM_NONCE_BYTES];
   _Atomic uint64_t seq[2]; /* the message number each buffer holds (0: none) */
+  /* the doorbell: whole messages posted in the segment (PROTOCOL.md) */
+  _Atomic uint32_t bell;      /* messages posted so far: the futex word */
+  uint32_t pad;
+  _Atomic uint64_t post_seq;  /* the number of the last message posted */
+  uint64_t post_off[2];       /* per buffer: its posted message's frame table */
 } seg_head;
+
+/* A posted message's frame table, at post_off in its buffer: topic, header
+ * and the array frames (empty for arrays placed in the segment), each
+ * frame 8-byte aligned inside the same buffer. */
+typedef struct post_table {
+  uint64_t nframes;
+  uint64_t off[PROTO_MAX_ARRAYS + 2], len[PROTO_MAX_ARRAYS + 2];
+} post_table;
 
 typedef struct seg {
   unsigned char *base; /* the mapping, NULL if none */
@@ -58,7 +78,10 @@ struct proto_shm {
                     last message may still be held by the reader) */
   uint64_t seq;  /* writer: the last message number placed */
   int announced; /* writer: cur's descriptor went out */
+  int ring;      /* writer: whole messages are posted (the reader maps cur) */
+  uint32_t rung; /* reader: the bells of cur taken */
   uint64_t copied, in_place;
+  uint64_t sent, posted; /* writer: messages sent through it, and posted whole */
 };
 
 static size_t round_up(size_t n, size_t to) { return (n + to - 1) / to * to; }
@@ -120,6 +143,8 @@ static int seg_make(seg *s, size_t buffer_bytes, proto_err *err) {
   memcpy(h->nonce, s->nonce, sizeof s->nonce);
   atomic_init(&h->seq[0], 0);
   atomic_init(&h->seq[1], 0);
+  atomic_init(&h->bell, 0);
+  atomic_init(&h->post_seq, 0);
   return 0;
 }
 
@@ -157,6 +182,11 @@ void proto_shm_free(proto_shm *s) {
 }
 
 int proto_shm_attached(const proto_shm *rd) { return rd && rd->cur.base; }
+
+void proto_shm_bells(const proto_shm *w, uint64_t *sent, uint64_t *posted) {
+  *sent = w && w->writer ? w->sent : 0;
+  *posted = w && w->writer ? w->posted : 0;
+}
 
 void proto_shm_counts(const proto_shm *w, uint64_t *copied_bytes, uint64_t *in_place) {
   if (copied_bytes) *copied_bytes = w ? w->copied : 0;
@@ -272,6 +302,7 @@ int proto_shm_attach(proto_shm *rd, const cJSON *d, proto_err *err) {
   seg_drop(&rd->prev);
   rd->prev = rd->cur;
   rd->cur = s;
+  rd->rung = atomic_load_explicit(&head_of(&rd->cur)->bell, memory_order_acquire);
   return 0;
 }
 
@@ -324,6 +355,20 @@ static size_t layout(const proto_msg *m, const unsigned char *buf, size_t bb, in
   return end;
 }
 
+/* Room a posted message takes after its arrays besides its small frames:
+ * the frame table, the topic and the header (bytes). A header that does not
+ * fit sends that message on the socket instead. */
+#define SHM_POST_RESERVE (sizeof(post_table) + (size_t)16384)
+
+/* The bytes a whole message needs after its arrays: its small frames (each
+ * rounded to 8) and the reserve. */
+static size_t post_extra(const proto_msg *m) {
+  size_t n = SHM_POST_RESERVE;
+  for (int i = 0; i < m->narrays; i++)
+    if (!eligible(&m->arrays[i])) n += round_up(m->arrays[i].nbytes, 8);
+  return n;
+}
+
 int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,
                         proto_err *err) {
   (void)err;
@@ -332,16 +377,20 @@ int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,
   for (int i = 0; i < m->narrays; i++) pl->offset[i] = -1;
   int any = 0;
   for (int i = 0; i < m->narrays; i++) any |= eligible(&m->arrays[i]);
-  if (!w || !w->writer || !any) return 0;
+  if (!w || !w->writer) return 0;
+  w->sent++;
+  if (!any && !w->ring) return 0;
+  /* a ringing writer numbers every message: each may be posted whole */
+  const size_t extra = w->ring ? post_extra(m) : 0;
   const uint64_t seq = w->seq + 1;
   const int b = (int)(seq & 1);
   size_t need = layout(m, buffer_of(&w->cur, b), w->cur.buffer_bytes, 0, pl->offset);
   seg old = {0};
   old.fd = -1;
-  if (need > w->cur.buffer_bytes) {
+  if (need + extra > w->cur.buffer_bytes) {
     /* a larger segment, announced in this message; the old one stays mapped
      * here until the copies below are done (arrays may point into it) */
-    size_t all = layout(m, NULL, 0, 0, pl->offset);
+    size_t all = layout(m, NULL, 0, 0, pl->offset) + extra;
     size_t want = all + all / 4;
     if (want > PROTO_SHM_MAX_BUFFER_BYTES) want = PROTO_SHM_MAX_BUFFER_BYTES;
     seg fresh;
@@ -368,7 +417,7 @@ int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,
     placed++;
   }
   seg_drop(&old);
-  if (!placed) return 0;
+  if (!placed && !w->ring) return 0;
   /* release: every byte written above is visible to whoever acquires seq */
   atomic_store_explicit(&head_of(&w->cur)->seq[b], seq, memory_order_release);
   w->seq = seq;
@@ -376,6 +425,111 @@ int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,
   pl->announce = !w->announced;
   w->announced = 1;
   return 0;
+}
+
+/* -------------------------------------------------------------- doorbell */
+
+void proto_shm_ring(proto_shm *w) {
+  if (w && w->writer) w->ring = 1;
+}
+
+int proto_shm_rings(const proto_shm *w) { return w && w->writer && w->ring; }
+
+static long futex(_Atomic uint32_t *word, int op, uint32_t val, const struct timespec *ts) {
+  return syscall(SYS_futex, (uint32_t *)(void *)word, op, val, ts, NULL, 0);
+}
+
+int proto_shm_post(proto_shm *w, const proto_shm_place *pl, const proto_msg *m,
+                   const char *header) {
+  if (!proto_shm_rings(w) || !pl->seq || pl->announce) return 0;
+  const int b = (int)(pl->seq & 1);
+  const size_t bb = w->cur.buffer_bytes;
+  unsigned char *buf = buffer_of(&w->cur, b);
+  size_t end = 0;
+  for (int i = 0; i < m->narrays; i++)
+    if (pl->offset[i] >= 0 && (size_t)pl->offset[i] + m->arrays[i].nbytes > end)
+      end = (size_t)pl->offset[i] + m->arrays[i].nbytes;
+  const size_t table_at = round_up(end, SHM_ALIGN);
+  post_table t = {.nframes = (uint64_t)m->narrays + 2};
+  const void *src[PROTO_MAX_ARRAYS + 2] = {m->topic, header};
+  t.len[0] = strlen(m->topic);
+  t.len[1] = strlen(header);
+  for (int i = 0; i < m->narrays; i++) {
+    src[i + 2] = m->arrays[i].data;
+    t.len[i + 2] = pl->offset[i] >= 0 ? 0 : m->arrays[i].nbytes;
+  }
+  size_t at = table_at + sizeof t;
+  for (uint64_t f = 0; f < t.nframes; f++) {
+    at = round_up(at, 8);
+    if (at > bb || t.len[f] > bb - at) return 0; /* does not fit: the socket */
+    t.off[f] = at;
+    at += t.len[f];
+  }
+  if (table_at > bb || sizeof t > bb - table_at) return 0;
+  for (uint64_t f = 0; f < t.nframes; f++)
+    if (t.len[f]) memcpy(buf + t.off[f], src[f], t.len[f]);
+  memcpy(buf + table_at, &t, sizeof t);
+  seg_head *h = head_of(&w->cur);
+  h->post_off[b] = table_at;
+  atomic_store_explicit(&h->post_seq, pl->seq, memory_order_relaxed);
+  /* release: the table, the frames and post_seq before the bell */
+  atomic_fetch_add_explicit(&h->bell, 1, memory_order_release);
+  futex(&h->bell, FUTEX_WAKE, INT_MAX, NULL);
+  w->posted++;
+  return 1;
+}
+
+int proto_shm_pending(const proto_shm *rd) {
+  return rd && !rd->writer && rd->cur.base &&
+         atomic_load_explicit(&head_of(&rd->cur)->bell, memory_order_acquire) != rd->rung;
+}
+
+int proto_shm_wait(const proto_shm *rd, int timeout_us) {
+  if (!rd || rd->writer || !rd->cur.base) return 0;
+  if (proto_shm_pending(rd)) return 1;
+  if (timeout_us <= 0) return 0;
+  struct timespec ts = {timeout_us / 1000000, (long)(timeout_us % 1000000) * 1000};
+  /* returns at once when the bell is no longer what we last took */
+  futex(&head_of(&rd->cur)->bell, FUTEX_WAIT, rd->rung, &ts);
+  return proto_shm_pending(rd);
+}
+
+int proto_shm_frames(proto_shm *rd, const void **data, size_t *size, proto_err *err) {
+  if (!proto_shm_pending(rd)) return proto_fail(err, "no message posted in the segment");
+  seg_head *h = head_of(&rd->cur);
+  const uint32_t bell = atomic_load_explicit(&h->bell, memory_order_acquire);
+  if (bell != rd->rung + 1u)
+    return proto_fail(err, "the sender posted %u messages in its segment since the last "
+                      "one read (expected one: lock-step)", bell - rd->rung);
+  rd->rung = bell;
+  const uint64_t seq = atomic_load_explicit(&h->post_seq, memory_order_relaxed);
+  const int b = (int)(seq & 1);
+  const size_t bb = rd->cur.buffer_bytes;
+  const uint64_t at = h->post_off[b];
+  if (seq == 0 || atomic_load_explicit(&h->seq[b], memory_order_acquire) != seq)
+    return proto_fail(err, "posted message %llu is not the one its buffer %d holds",
+                      (unsigned long long)seq, b);
+  post_table t; /* a copy: the writer's memory is not ours to trust twice */
+  if (at % 8 != 0 || at > bb || sizeof t > bb - at)
+    return proto_fail(err, "posted message %llu: frame table at offset %llu is outside "
+                      "the buffer of %zu bytes", (unsigned long long)seq,
+                      (unsigned long long)at, bb);
+  const unsigned char *buf = buffer_of(&rd->cur, b);
+  memcpy(&t, buf + at, sizeof t);
+  if (t.nframes < 2 || t.nframes > PROTO_MAX_ARRAYS + 2)
+    return proto_fail(err, "posted message %llu: %llu frames (expected 2 to %d)",
+                      (unsigned long long)seq, (unsigned long long)t.nframes,
+                      PROTO_MAX_ARRAYS + 2);
+  for (uint64_t f = 0; f < t.nframes; f++) {
+    if (t.off[f] > bb || t.len[f] > bb - t.off[f] || (f >= 2 && t.len[f] && t.off[f] % 8))
+      return proto_fail(err, "posted message %llu: frame %llu (%llu bytes at %llu) is "
+                        "outside the buffer of %zu bytes or not 8-byte aligned",
+                        (unsigned long long)seq, (unsigned long long)f,
+                        (unsigned long long)t.len[f], (unsigned long long)t.off[f], bb);
+    data[f] = buf + t.off[f];
+    size[f] = (size_t)t.len[f];
+  }
+  return (int)t.nframes;
 }
 
 /* --------------------------------------------------------------- receive */

@@ -53,11 +53,22 @@ def schedule_says(text, tag, want):
           f"{tag}: the schedule says {want} for every process: {lines}")
 
 
+def doorbell_says(text, tag):
+    """The timing table's 'shm NAME: P of S messages to it posted in the
+    segment': the doorbell carried (nearly) every message of the loop."""
+    import re
+    rows = re.findall(r"shm (\S+): (\d+) of (\d+) messages to it posted", text)
+    check(rows and all(int(p) > 0 and int(p) >= 0.9 * int(s) for _, p, s in rows),
+          f"{tag}: the doorbell carried the messages: {rows}")
+
+
 def same(config, tag, extra=(), want_shm=True):
     a, ta = run(config, "auto", tag + "-auto", extra)
     b, tb = run(config, "socket", tag + "-socket", extra)
     if want_shm:
         schedule_says(ta, tag + " auto", "shm")
+        doorbell_says(ta, tag + " auto")
+    check("messages to it posted" not in tb, f"{tag} socket: nothing posted")
     schedule_says(tb, tag + " socket", "tcp/ipc")
     check('coupling.transport is "socket"' in tb, f"{tag}: the socket run says why")
     diff, n = differences(a, b)

@@ -4,8 +4,14 @@
  * while the next arrives); an array computed in the next buffer is sent
  * without a copy; a message too large for the segment announces a larger
  * one; and every malformed or oversized descriptor is refused with a
- * message that names the defect. Segments are memfds: no name in /dev/shm. */
+ * message that names the defect. Segments are memfds: no name in /dev/shm.
+ * The doorbell: a ringing writer posts whole messages in the segment (no
+ * socket message), a reader in another process sleeping on the bell wakes
+ * for it, a message that announces a new segment still takes the socket,
+ * and a reader that finds two posts where lock-step allows one refuses. */
 #include <dirent.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <zmq.h>
@@ -20,18 +26,45 @@ static proto_shm *the_reader(void *ctx, const char *identity) {
   return ctx;
 }
 
+/* x [rows,3] (in the segment when large) and rim_R (a small frame); with
+ * announce the writer's descriptor; with note a header field of that name. */
 static int send_x(void *s, proto_shm *w, const double *x, int64_t rows, int announce,
-                  proto_err *err) {
+                  const char *note, proto_err *err) {
   proto_msg m = {0};
   /* static: proto_send_via sends arrays zero-copy (they must outlive the send) */
   static const double rim[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-  proto_msg_reset(&m, "tyre", "done", 1, 0);
+  proto_msg_reset(&m, "tyre", "done", 7, 0.25);
   proto_msg_add_f8(&m, "x", rows, 3, x);
   proto_msg_add_f8(&m, "rim_R", 3, 3, rim);
   if (announce) proto_shm_announce(w, proto_msg_header(&m));
+  if (note) cJSON_AddStringToObject(proto_msg_header(&m), "note", note);
   int rc = proto_send_via(s, NULL, &m, 0, w, err);
   proto_msg_free(&m);
   return rc;
+}
+
+/* Two PAIR sockets over inproc, a writer and a reader. */
+typedef struct pair {
+  void *ctx, *a, *b;
+  proto_shm *w, *rd;
+} pair;
+
+static void pair_open(pair *p, const char *endpoint) {
+  proto_err err = {{0}};
+  p->ctx = zmq_ctx_new();
+  p->a = zmq_socket(p->ctx, ZMQ_PAIR);
+  p->b = zmq_socket(p->ctx, ZMQ_PAIR);
+  CHECK(zmq_bind(p->a, endpoint) == 0 && zmq_connect(p->b, endpoint) == 0);
+  p->w = proto_shm_writer(PROTO_SHM_INITIAL_BYTES, &err);
+  p->rd = proto_shm_reader();
+  CHECK(p->w && p->rd, "writer and reader: %s", err.msg);
+}
+
+static void pair_close(pair *p) {
+  proto_shm_free(p->w);
+  proto_shm_free(p->rd);
+  zmq_close(p->a), zmq_close(p->b);
+  zmq_ctx_term(p->ctx);
 }
 
 static int same_bits(const void *a, const void *b, size_t n) { return memcmp(a, b, n) == 0; }
@@ -57,19 +90,17 @@ static int mapped_memfds(void) {
 
 static void test_round_trip(void) {
   proto_err err = {{0}};
-  void *ctx = zmq_ctx_new();
-  void *a = zmq_socket(ctx, ZMQ_PAIR), *b = zmq_socket(ctx, ZMQ_PAIR);
-  CHECK(zmq_bind(a, "inproc://shm") == 0 && zmq_connect(b, "inproc://shm") == 0);
   int shm_before = dev_shm_entries();
-  proto_shm *w = proto_shm_writer(PROTO_SHM_INITIAL_BYTES, &err);
-  proto_shm *rd = proto_shm_reader();
-  CHECK(w && rd, "writer and reader: %s", err.msg);
+  pair P;
+  pair_open(&P, "inproc://shm");
+  void *a = P.a, *b = P.b;
+  proto_shm *w = P.w, *rd = P.rd;
   static double x1[3 * N_NODES], x2[3 * N_NODES];
   for (int i = 0; i < 3 * N_NODES; i++) x1[i] = 0.1 * i, x2[i] = -1.0 / (i + 1);
 
   /* 1: the first message announces the segment; x by shm, rim_R as a frame */
   proto_msg m1 = {0}, m2 = {0}, m3 = {0};
-  CHECK(send_x(a, w, x1, N_NODES, 1, &err) == 0, "%s", err.msg);
+  CHECK(send_x(a, w, x1, N_NODES, 1, NULL, &err) == 0, "%s", err.msg);
   CHECK(proto_recv_via(b, &m1, NULL, the_reader, rd, &err) == 0, "%s", err.msg);
   CHECK(proto_shm_attached(rd));
   const proto_array *ax = proto_msg_find(&m1, "x");
@@ -83,7 +114,7 @@ static void test_round_trip(void) {
   CHECK(mapped_memfds() >= 2, "the writer's and the reader's mappings are memfds");
 
   /* 2: the other buffer; message 1 is still intact while 2 is read */
-  CHECK(send_x(a, w, x2, N_NODES, 0, &err) == 0, "%s", err.msg);
+  CHECK(send_x(a, w, x2, N_NODES, 0, NULL, &err) == 0, "%s", err.msg);
   CHECK(proto_recv_via(b, &m2, NULL, the_reader, rd, &err) == 0, "%s", err.msg);
   const proto_array *ax2 = proto_msg_find(&m2, "x");
   CHECK(ax2 && same_bits(ax2->data, x2, sizeof x2));
@@ -94,7 +125,7 @@ static void test_round_trip(void) {
   double *next = proto_shm_next(w, sizeof x1);
   CHECK(next != NULL);
   for (int i = 0; i < 3 * N_NODES; i++) next[i] = x1[i] + 1;
-  CHECK(send_x(a, w, next, N_NODES, 0, &err) == 0, "%s", err.msg);
+  CHECK(send_x(a, w, next, N_NODES, 0, NULL, &err) == 0, "%s", err.msg);
   CHECK(proto_recv_via(b, &m3, NULL, the_reader, rd, &err) == 0, "%s", err.msg);
   proto_shm_counts(w, &copied, &in_place);
   CHECK(copied == 2 * sizeof x1 && in_place == 1, "in place: %llu", (unsigned long long)in_place);
@@ -107,14 +138,14 @@ static void test_round_trip(void) {
   double *xb = malloc(sizeof(double) * 3 * (size_t)big);
   for (int64_t i = 0; i < 3 * big; i++) xb[i] = (double)i * 1e-3;
   proto_msg m4 = {0};
-  CHECK(send_x(a, w, xb, big, 0, &err) == 0, "%s", err.msg);
+  CHECK(send_x(a, w, xb, big, 0, NULL, &err) == 0, "%s", err.msg);
   CHECK(proto_recv_via(b, &m4, NULL, the_reader, rd, &err) == 0, "%s", err.msg);
   const double *g4 = proto_msg_get_f8(&m4, "x", big, 3, &err);
   CHECK(g4 && same_bits(g4, xb, sizeof(double) * 3 * (size_t)big));
   CHECK(proto_msg_get_f8(&m3, "x", N_NODES, 3, &err)[3] == x1[3] + 1);
 
   /* 5: without a reader a descriptor is refused */
-  CHECK(send_x(a, w, x1, N_NODES, 0, &err) == 0, "%s", err.msg);
+  CHECK(send_x(a, w, x1, N_NODES, 0, NULL, &err) == 0, "%s", err.msg);
   proto_msg m5 = {0};
   CHECK(proto_recv(b, &m5, NULL, &err) < 0);
   CHECK_MSG(err, "in shared memory, but this sender announced no segment");
@@ -122,10 +153,7 @@ static void test_round_trip(void) {
   proto_msg_free(&m1), proto_msg_free(&m2), proto_msg_free(&m3), proto_msg_free(&m4);
   proto_msg_free(&m5);
   free(xb);
-  proto_shm_free(w);
-  proto_shm_free(rd);
-  zmq_close(a), zmq_close(b);
-  zmq_ctx_term(ctx);
+  pair_close(&P);
 }
 
 /* One crafted message through proto_decode_via; 0 or -1 with err. */
@@ -230,8 +258,95 @@ static void test_descriptors_refused(void) {
   proto_shm_free(rd);
 }
 
+static void test_doorbell(void) {
+  proto_err err = {{0}};
+  pair P;
+  pair_open(&P, "inproc://bell");
+  void *a = P.a, *b = P.b;
+  proto_shm *w = P.w, *rd = P.rd;
+  static double x1[3 * N_NODES], x2[3 * N_NODES];
+  for (int i = 0; i < 3 * N_NODES; i++) x1[i] = 0.5 * i, x2[i] = 1.0 / (i + 3);
+  proto_msg m1 = {0}, m2 = {0}, m3 = {0}, m4 = {0}, m5 = {0};
+
+  /* 1: before ringing, the announcing message takes the socket */
+  CHECK(send_x(a, w, x1, N_NODES, 1, NULL, &err) == 0, "%s", err.msg);
+  CHECK(!proto_shm_pending(rd));
+  CHECK(proto_recv_via(b, &m1, NULL, the_reader, rd, &err) == 0, "%s", err.msg);
+  CHECK(!proto_shm_pending(rd), "nothing posted before the writer rings");
+
+  /* 2: ringing: posted whole, nothing on the socket, the same bits */
+  proto_shm_ring(w);
+  CHECK(proto_shm_rings(w));
+  CHECK(send_x(a, w, x2, N_NODES, 0, "two", &err) == 0, "%s", err.msg);
+  CHECK(proto_poll_in(b, 0) == 0, "no socket message for a posted one");
+  CHECK(proto_shm_pending(rd) && proto_wait_in(b, &rd, 1, 0) == 2);
+  CHECK(proto_shm_take(rd, &m2, &err) == 0, "%s", err.msg);
+  CHECK(strcmp(m2.type, "done") == 0 && strcmp(m2.topic, "tyre") == 0 && m2.step == 7 &&
+        m2.t == 0.25);
+  const cJSON *note = cJSON_GetObjectItemCaseSensitive(m2.header, "note");
+  CHECK(cJSON_IsString(note) && strcmp(note->valuestring, "two") == 0);
+  const proto_array *ax = proto_msg_find(&m2, "x");
+  CHECK(ax && same_bits(ax->data, x2, sizeof x2));
+  const double *rim = proto_msg_get_f8(&m2, "rim_R", 3, 3, &err);
+  CHECK(rim && rim[0] == 1 && rim[4] == 1 && rim[1] == 0, "the small frame posted too");
+  CHECK(same_bits(proto_msg_find(&m1, "x")->data, x1, sizeof x1), "message 1 intact");
+  CHECK(!proto_shm_pending(rd));
+  CHECK(proto_shm_take(rd, &m3, &err) < 0);
+  CHECK_MSG(err, "no message posted");
+
+  /* 3: a reader in another process, asleep on the bell, wakes for a post */
+  fflush(stdout);
+  pid_t child = fork();
+  if (child == 0) {
+    proto_msg mc = {0};
+    proto_err e = {{0}};
+    /* one wait of 20 s: back well before it, the futex woke it (not a
+     * timeout followed by a look) */
+    const double t0 = proto_now();
+    int woke = proto_shm_wait(rd, 20000000) && proto_now() - t0 < 10;
+    int ok = woke && proto_shm_take(rd, &mc, &e) == 0 &&
+             same_bits(proto_msg_find(&mc, "x")->data, x1, sizeof x1);
+    _exit(ok ? 0 : 1);
+  }
+  CHECK(child > 0);
+  usleep(50000);
+  CHECK(send_x(a, w, x1, N_NODES, 0, "three", &err) == 0, "%s", err.msg);
+  int status = -1;
+  CHECK(waitpid(child, &status, 0) == child && WIFEXITED(status) &&
+        WEXITSTATUS(status) == 0, "the child woke on the bell and read the post");
+  CHECK(proto_shm_take(rd, &m3, &err) == 0, "%s", err.msg); /* ours, too */
+
+  /* 4: a message larger than the segment: announced, so on the socket; the
+   * next one is posted in the new segment */
+  const int64_t big = 40000;
+  double *xb = malloc(sizeof(double) * 3 * (size_t)big);
+  for (int64_t i = 0; i < 3 * big; i++) xb[i] = (double)i * 1e-3;
+  CHECK(send_x(a, w, xb, big, 0, "four", &err) == 0, "%s", err.msg);
+  CHECK(!proto_shm_pending(rd) && proto_poll_in(b, 100) == 1);
+  CHECK(proto_recv_via(b, &m4, NULL, the_reader, rd, &err) == 0, "%s", err.msg);
+  CHECK(same_bits(proto_msg_find(&m4, "x")->data, xb, sizeof(double) * 3 * (size_t)big));
+  CHECK(send_x(a, w, xb, big, 0, "five", &err) == 0, "%s", err.msg);
+  CHECK(proto_shm_take(rd, &m5, &err) == 0, "%s", err.msg);
+  CHECK(same_bits(proto_msg_find(&m5, "x")->data, xb, sizeof(double) * 3 * (size_t)big));
+  uint64_t sent, posted;
+  proto_shm_bells(w, &sent, &posted);
+  CHECK(sent == 5 && posted == 3, "sent %llu, posted %llu", (unsigned long long)sent,
+        (unsigned long long)posted);
+
+  /* 5: two posts where lock-step allows one: refused, named */
+  CHECK(send_x(a, w, x1, N_NODES, 0, "six", &err) == 0, "%s", err.msg);
+  CHECK(send_x(a, w, x2, N_NODES, 0, "seven", &err) == 0, "%s", err.msg);
+  CHECK(proto_shm_take(rd, &m3, &err) < 0);
+  CHECK_MSG(err, "posted 2 messages");
+  proto_msg_free(&m1), proto_msg_free(&m2), proto_msg_free(&m3), proto_msg_free(&m4);
+  proto_msg_free(&m5);
+  free(xb);
+  pair_close(&P);
+}
+
 int main(void) {
   test_round_trip();
+  test_doorbell();
   test_descriptors_refused();
   return cosim_test_done("test_shm");
 }
