@@ -25,6 +25,7 @@ WORK = os.environ.get("DEM_BENCH_WORK", "/tmp/dem_bench_work")
 LOCK = os.environ.get("DEM_BENCH_LOCK", "/tmp/cosim-bench.lock")
 PY = "/usr/bin/python3"
 os.makedirs(WORK, exist_ok=True)
+os.makedirs(OUT, exist_ok=True)
 MPI = ["mpirun", "--allow-run-as-root", "-np", "2"]
 
 
