@@ -91,7 +91,7 @@ int cpl_send(cpl_runner *r, int peer, const proto_msg *m) {
   cpl_peer *p = &r->peers[peer];
   if (proto_send_via(r->router, p->proc->name, m, 0, p->shm_on ? p->shm_out : NULL,
                      &r->err) == 0) {
-    r->peers[peer].awaited = 1;
+    p->awaited = 1;
     return 0;
   }
   r->failed_peer = peer;
@@ -247,14 +247,9 @@ int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
     if (got <= 0) continue;
     char identity[PROTO_NAME_LEN] = {0};
     proto_msg *dst = m ? m : &r->inbox;
-    int rc;
-    if (got >= 2) { /* posted in the segment of who[got - 2] */
-      cpl_peer *p = &r->peers[who[got - 2]];
-      snprintf(identity, sizeof identity, "%s", p->proc->name);
-      rc = proto_shm_take(p->shm_in, dst, &r->err);
-    } else {
-      rc = proto_recv_via(r->router, dst, identity, segment_of, r, &r->err);
-    }
+    if (got >= 2) /* posted in the segment of who[got - 2] */
+      snprintf(identity, sizeof identity, "%s", r->peers[who[got - 2]].proc->name);
+    int rc = proto_recv_found(r->router, got, rds, dst, identity, segment_of, r, &r->err);
     int sender = peer_of(r, identity);
     if (sender < 0) {
       stranger(r, identity);

@@ -447,15 +447,11 @@ static void say_stop(cpl_runner *r) {
       int got;
       while (proto_now() < until && (got = proto_wait_in(r->router, &bell, 1, 100)) > 0) {
         char id[PROTO_NAME_LEN];
-        if (got >= 2) { /* posted in its segment */
-          if (proto_shm_take(bell, &reply, &ignore) == 0 &&
-              strcmp(reply.type, proto_msg_type(PROTO_MSG_BYE)) == 0)
-            break;
-        } else if (proto_recv(r->router, &reply, id, &ignore) == 0 &&
-                   strcmp(id, r->peers[i].proc->name) == 0 &&
-                   strcmp(reply.type, proto_msg_type(PROTO_MSG_BYE)) == 0) {
+        snprintf(id, sizeof id, "%s", r->peers[i].proc->name); /* posted: from it */
+        if (proto_recv_found(r->router, got, &bell, &reply, id, NULL, NULL, &ignore) == 0 &&
+            strcmp(id, r->peers[i].proc->name) == 0 &&
+            strcmp(reply.type, proto_msg_type(PROTO_MSG_BYE)) == 0)
           break;
-        }
       }
     }
     r->peers[i].stopped = 1;

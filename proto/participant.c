@@ -305,12 +305,10 @@ static int wait_message(proto_peer *p, proto_msg *m, const char *phase,
     if (proto_now() - p->last_sent >= HEARTBEAT_DUE_S) heartbeat_locked(p);
     proto_shm *bell = p->shm_on ? p->shm_in : NULL;
     int r = proto_wait_in(p->dealer, &bell, 1, slice), rc = 0;
-    if (r >= 2) { /* posted in the coupler's segment: it maps ours, so post too */
-      rc = proto_shm_take(bell, m, err);
-      proto_shm_ring(p->shm_out);
-    } else if (r > 0) {
-      rc = proto_recv_via(p->dealer, m, NULL, p->shm_on ? coupler_segment : NULL, p, err);
-    }
+    if (r > 0)
+      rc = proto_recv_found(p->dealer, r, &bell, m, NULL, p->shm_on ? coupler_segment : NULL,
+                            p, err);
+    if (r >= 2) proto_shm_ring(p->shm_out); /* the coupler posts: it maps ours, so post too */
     pthread_mutex_unlock(&p->io);
     if (r > 0) return rc;
     /* the launcher (or a wrapper between it and us, e.g. mpirun) is gone */

@@ -628,6 +628,12 @@ int proto_shm_take(proto_shm *rd, proto_msg *m, proto_err *err) {
   return n < 0 ? -1 : proto_decode_via(m, n, data, size, rd, err);
 }
 
+int proto_recv_found(void *socket, int found, proto_shm *const *rds, proto_msg *m,
+                     char *identity, proto_shm_lookup reader_of, void *ctx, proto_err *err) {
+  if (found >= 2) return proto_shm_take(rds[found - 2], m, err);
+  return proto_recv_via(socket, m, identity, reader_of, ctx, err);
+}
+
 int proto_socket_limits(void *socket) {
   int64_t max = (int64_t)(PROTO_MAX_FRAME_BYTES > PROTO_MAX_HEADER_BYTES
                               ? PROTO_MAX_FRAME_BYTES : PROTO_MAX_HEADER_BYTES);

@@ -113,6 +113,11 @@ int proto_send_via(void *socket, const char *identity, const proto_msg *m,
 typedef proto_shm *(*proto_shm_lookup)(void *ctx, const char *identity);
 int proto_recv_via(void *socket, proto_msg *m, char *identity,
                    proto_shm_lookup reader_of, void *ctx, proto_err *err);
+/* Receives what proto_wait_in found (found >= 1, its return value): the
+ * message posted in rds[found - 2], or the socket's (proto_recv_via: identity,
+ * reader_of and ctx as there; identity is left as it is for a posted one). */
+int proto_recv_found(void *socket, int found, proto_shm *const *rds, proto_msg *m,
+                     char *identity, proto_shm_lookup reader_of, void *ctx, proto_err *err);
 /* proto_decode with a reader (NULL: descriptors are refused). */
 int proto_decode_via(proto_msg *m, int nframes, const void *const *frames,
                      const size_t *sizes, proto_shm *rd, proto_err *err);
@@ -121,6 +126,7 @@ int proto_decode_via(proto_msg *m, int nframes, const void *const *frames,
 typedef struct proto_shm_place {
   int64_t offset[PROTO_MAX_ARRAYS]; /* < 0: as a frame */
   uint64_t seq;                     /* the message number; 0: no array placed */
+  size_t end;                       /* bytes of the buffer the placed arrays take */
   int announce;                     /* a new segment: its descriptor in the header */
 } proto_shm_place;
 int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,

@@ -374,6 +374,7 @@ int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,
   (void)err;
   pl->seq = 0;
   pl->announce = 0;
+  pl->end = 0;
   for (int i = 0; i < m->narrays; i++) pl->offset[i] = -1;
   int any = 0;
   for (int i = 0; i < m->narrays; i++) any |= eligible(&m->arrays[i]);
@@ -400,7 +401,7 @@ int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,
       w->cur = fresh;
       w->announced = 0;
     }
-    layout(m, buffer_of(&w->cur, b), w->cur.buffer_bytes, 1, pl->offset);
+    need = layout(m, buffer_of(&w->cur, b), w->cur.buffer_bytes, 1, pl->offset);
   }
   unsigned char *buf = buffer_of(&w->cur, b);
   int placed = 0;
@@ -418,6 +419,7 @@ int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,
   }
   seg_drop(&old);
   if (!placed && !w->ring) return 0;
+  pl->end = placed ? need : 0;
   /* release: every byte written above is visible to whoever acquires seq */
   atomic_store_explicit(&head_of(&w->cur)->seq[b], seq, memory_order_release);
   w->seq = seq;
@@ -445,11 +447,7 @@ int proto_shm_post(proto_shm *w, const proto_shm_place *pl, const proto_msg *m,
   const int b = (int)(pl->seq & 1);
   const size_t bb = w->cur.buffer_bytes;
   unsigned char *buf = buffer_of(&w->cur, b);
-  size_t end = 0;
-  for (int i = 0; i < m->narrays; i++)
-    if (pl->offset[i] >= 0 && (size_t)pl->offset[i] + m->arrays[i].nbytes > end)
-      end = (size_t)pl->offset[i] + m->arrays[i].nbytes;
-  const size_t table_at = round_up(end, SHM_ALIGN);
+  const size_t table_at = round_up(pl->end, SHM_ALIGN);
   post_table t = {.nframes = (uint64_t)m->narrays + 2};
   const void *src[PROTO_MAX_ARRAYS + 2] = {m->topic, header};
   t.len[0] = strlen(m->topic);

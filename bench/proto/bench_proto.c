@@ -54,8 +54,7 @@ static int shm_recv(void *s, int router, proto_shm *rd, proto_msg *m, proto_err 
   while ((got = proto_wait_in(s, &rd, 1, 1000)) == 0) {
   }
   char who[PROTO_NAME_LEN];
-  if (got == 1) return proto_recv_via(s, m, router ? who : NULL, reader_ctx, rd, err);
-  return got < 0 ? -1 : proto_shm_take(rd, m, err);
+  return got < 0 ? -1 : proto_recv_found(s, got, &rd, m, router ? who : NULL, reader_ctx, rd, err);
 }
 
 /* The participant side: answers every request with an array of the same

@@ -10,6 +10,7 @@ Usage: test_shm.py [stubs|scenes|kill ...] (default: all three)."""
 import glob
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
