@@ -7,10 +7,16 @@
  * exchange (PROTOCOL.md): when the request says sparse it sends the force as
  * (index, force) of the nodes that carry one (dense beyond a third of them);
  * it gives no reach box, so it always gets every node (its snapshot echoes
- * them all).
+ * them all). With drag_x each such node also gets -drag_x v_x, v_x its
+ * velocity along x over the step (the request's v, constant over the step,
+ * so the impulse is exact; not ramped): on fem_stub's wheel, whose nodes
+ * move at v_x = V - omega r cos(theta) for a carriage speed V, the traction
+ * is linear in the slip s = 1 - V / (omega r), a known force-slip law for
+ * the drawbar-pull rig.
  * Config: {"exec": "dem_stub", "force_per_node": [fx, fy, fz],
- *          "ramp_time": 0.0, "bed_top": z}; other keys (a dem_server
- * section) are named in the log and ignored (then the force is zero). */
+ *          "ramp_time": 0.0, "bed_top": z, "drag_x": c}; other keys (a
+ * dem_server section) are named in the log and ignored (then the force is
+ * zero). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,6 +32,7 @@ typedef struct dem_stub {
   double force_per_node[3]; /* N */
   double ramp_time;         /* s */
   double bed_top;           /* m: only nodes below it get the force */
+  double drag_x;            /* N s/m per node: -drag_x v_x along x */
   int32_t *index;           /* [n] sparse reply: the nodes that carry a force */
   double *rows;             /* [n*3] their forces */
   int64_t n_nodes;
@@ -44,7 +51,8 @@ static int configure(void *user, const proto_run_info *info,
       proto_cfg_vec(&c, "force_per_node", PROTO_OPTIONAL, s->force_per_node, 3,
                     3, NULL) < 0 ||
       proto_cfg_num(&c, "ramp_time", PROTO_OPTIONAL, 0, 1e9, &s->ramp_time) < 0 ||
-      proto_cfg_num(&c, "bed_top", PROTO_OPTIONAL, -1e9, 1e9, &s->bed_top) < 0)
+      proto_cfg_num(&c, "bed_top", PROTO_OPTIONAL, -1e9, 1e9, &s->bed_top) < 0 ||
+      proto_cfg_num(&c, "drag_x", PROTO_OPTIONAL, 0, 1e9, &s->drag_x) < 0)
     return -1;
   return stub_cfg_end(&c, "dem_stub");
 }
@@ -81,14 +89,14 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
                  ramp_integral(info->t, s->ramp_time)) / info->dt;
   double total[3] = {0, 0, 0};
   if (s->n_nodes > 0) {
-    const double *x = proto_msg_data(req, PROTO_A_X);
+    const double *x = proto_msg_data(req, PROTO_A_X), *v = proto_msg_data(req, PROTO_A_V);
     int64_t k = 0;
     for (int64_t i = 0; i < s->n_nodes; i++) {
       const int below = x[3 * i + 2] < s->bed_top;
-      for (int a = 0; a < 3; a++) {
+      for (int a = 0; a < 3; a++)
         s->force[3 * i + a] = below ? ramp * s->force_per_node[a] : 0;
-        total[a] += s->force[3 * i + a];
-      }
+      if (below && s->drag_x > 0) s->force[3 * i] -= s->drag_x * v[3 * i];
+      for (int a = 0; a < 3; a++) total[a] += s->force[3 * i + a];
       if (below) { /* rows of +0.0 may be sent too: the coupler expands to +0.0 */
         s->index[k] = (int32_t)i;
         memcpy(&s->rows[3 * k++], &s->force[3 * i], 3 * sizeof(double));

@@ -1,7 +1,7 @@
 """The figure and table of a dbp-rig run (scenario.rig = "dbp", coupler/README.md).
 
     python3 -m cosim.fig_dbp RUN_DIR [--png PATH] [--csv PATH] [--bin-width W]
-                             [--slip-points SLIPS.csv]
+                             [--slip-points SLIPS.csv] [--reference REF.csv]
 
 results.h5 (/coupler/traction, /coupler/dbp) -> RUN_DIR/dbp_curve.csv (the
 curve binned by the measured slip, 95 % batch-means intervals:
@@ -11,7 +11,12 @@ averages of /coupler/dbp as thin lines), right, the carriage speed, the
 resistive force and the slip against time. --slip-points draws slip-controlled
 runs' points for the cross-check (a CSV with columns slip, T_H_mean, T_H_ci95,
 T_R_mean, T_R_ci95, T_P_mean, T_P_ci95: e.g. a `cosim sweep` summary.csv over
-scenario.slip). Exit codes: 0 ok, 1 bad usage or a run that is not a dbp run.
+scenario.slip). --reference draws a terramechanics reference dashed beside the
+curve (a `cosim terra curve` record for the scene's wheel and load: T/r as T_H,
+T/r - DP as |T_R|, DP as T_P, and the band over its packings faint;
+terra/README.md "Files and how to call the reference"); its load must be the
+scene's sinkage_force. Exit codes: 0 ok, 1 bad usage or a run that is not a dbp
+run.
 """
 import argparse
 import csv
@@ -45,7 +50,39 @@ def read_points(path):
     return out
 
 
-def plot(path, results, curve, points=None):
+def read_reference(path, load):
+    """A `cosim terra curve` record as {column: array} (its `# key: value`
+    lines skipped), refused unless it was made for `load` N."""
+    with open(path) as f:
+        lines = list(f)
+    meta = dict(l[2:].split(": ", 1) for l in lines if l.startswith("# ") and ": " in l)
+    if "load_N" not in meta:
+        raise CosimError(f"{path}: not a terra curve record (no '# load_N:' line)")
+    if abs(float(meta["load_N"]) - float(load)) > 1e-6 * abs(float(load)):
+        raise CosimError(f"{path}: made for a load of {meta['load_N'].strip()} N, the run's "
+                         f"scenario.sinkage_force is {float(load):g} N")
+    rows = list(csv.DictReader(l for l in lines if not l.startswith("#")))
+    need = ("s", "T_over_r", "DP")
+    if not rows or any(c not in rows[0] for c in need):
+        raise CosimError(f"{path}: needs the columns {', '.join(need)} and at least one row")
+    return {c: np.array([float(r[c]) for r in rows]) for c in rows[0]}
+
+
+def draw_reference(ax, ref):
+    """The reference's T/r, T/r - DP and DP dashed in the colours of T_H,
+    |T_R|, T_P; the band (min..max over its packings) faint where it has one."""
+    s = ref["s"]
+    curves = {"T_H": (ref["T_over_r"], ref.get("T_over_r_lo"), ref.get("T_over_r_hi"), "T/r"),
+              "T_P": (ref["DP"], ref.get("DP_lo"), ref.get("DP_hi"), "DP")}
+    rr = ref["T_over_r"] - ref["DP"]
+    curves["T_R"] = (rr, None, None, "T/r − DP")
+    for q, (y, lo, hi, label) in curves.items():
+        ax.plot(s, y, "--", lw=1.2, color=COLORS[q], label=f"terramechanics {label}")
+        if lo is not None and hi is not None and np.any(hi > lo):
+            ax.fill_between(s, lo, hi, color=COLORS[q], alpha=0.1, lw=0)
+
+
+def plot(path, results, curve, points=None, ref=None):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -72,11 +109,14 @@ def plot(path, results, curve, points=None):
                             yerr=[p.get(f"{q}_ci95", 0) if not math.isnan(
                                 p.get(f"{q}_ci95", math.nan)) else 0],
                             fmt="s", mfc="none", ms=8, capsize=4, color=COLORS[q])
+    if ref is not None:
+        draw_reference(ax, ref)
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("slip (measured)")
     ax.set_ylabel("force (N)")
     ax.set_title(f"dbp rig: load {sc['sinkage_force']} N; lines: running averages over "
-                 f"{sc.get('dbp_window', 0.1)} s" + ("; squares: slip-controlled" if points else ""),
+                 f"{sc.get('dbp_window', 0.1)} s" + ("; squares: slip-controlled" if points else "")
+                 + ("; dashed: terramechanics" if ref is not None else ""),
                  fontsize=9)
     ax.legend(fontsize=8)
     travel = d["phase"] > 0
@@ -106,6 +146,8 @@ def main(argv):
     ap.add_argument("--csv", help=f"default RUN_DIR/{CURVE_FILE}")
     ap.add_argument("--bin-width", type=float, default=traction.DBP_BIN_WIDTH)
     ap.add_argument("--slip-points", help="CSV of slip-controlled runs' means to draw")
+    ap.add_argument("--reference", help="a `cosim terra curve` record for the scene's wheel "
+                    "and load, drawn dashed")
     a = ap.parse_args(argv)
     if not a.bin_width > 0:
         ap.error(f"--bin-width: must be > 0, got {a.bin_width}")
@@ -119,9 +161,11 @@ def main(argv):
             csv_path = a.csv or os.path.join(base, CURVE_FILE)
             traction.write_dbp_curve(csv_path, curve, r.scene)
             points = read_points(a.slip_points) if a.slip_points else None
+            ref = (read_reference(a.reference, r.scene["scenario"]["sinkage_force"])
+                   if a.reference else None)
             png = a.png or os.path.join(base, PLOT_FILE)
-            plot(png, r, curve, points)
-    except (CosimError, KeyError, OSError) as e:
+            plot(png, r, curve, points, ref)
+    except (CosimError, KeyError, OSError, ValueError) as e:
         print(f"cosim.fig_dbp: {e}", file=sys.stderr)
         return 1
     print(f"cosim.fig_dbp: {len(curve)} slip bins -> {csv_path}, {png}")

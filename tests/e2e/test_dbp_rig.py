@@ -11,7 +11,10 @@ over 0.1 s).
    mean of the last dbp_window of rows (to the bins' 1/32). Parallel: the same
    balance with the last step's force. Python: Results.traction_summary()
    carries the curve, cosim.fig_dbp writes dbp_curve.csv (one row per slip
-   bin) and dbp.png.
+   bin) and dbp.png, and draws a terramechanics reference made for the run's
+   load (one made for another load is refused).
+   law: a soil with a known force-slip law (dem_stub drag_x on fem_stub's
+   wheel: T_P = B s) is recovered row by row and in the binned curve.
 2. restart: 2N steps straight equal N steps, a checkpoint in the ramp and a
    restart for N more, row for row in /coupler/dbp and /coupler/traction (the
    carriage, the ramp's clock and the running sums are in the checkpoint).
@@ -25,7 +28,7 @@ import sys
 
 import numpy as np
 
-from common import HERE, check, columns, done, h5, no_orphans, run, scene
+from common import COSIM, HERE, check, columns, done, h5, no_orphans, run, scene
 
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "python"))
@@ -157,6 +160,90 @@ def python_part(s):
     bad = subprocess.run([sys.executable, "-m", "cosim.fig_dbp", d, "--bin-width", "0"],
                          capture_output=True, text=True, cwd=os.path.join(ROOT, "python"))
     check(bad.returncode != 0 and "--bin-width" in bad.stderr, "fig_dbp: a bad --bin-width named")
+    reference_part(d, s["scenario"]["sinkage_force"])
+
+
+def reference_part(d, load):
+    """fig_dbp --reference: a `cosim terra curve` record for the run's load is
+    drawn; one made for another load is refused, naming both loads."""
+    params = os.path.join(ROOT, "bench", "results", "tire_soil_terra_params_deep.json")
+    refs = {}
+    for w in (load, 2 * load):
+        refs[w] = os.path.join(d, f"ref_W{w:g}.csv")
+        rc = subprocess.run([COSIM, "terra", "curve", "--params", params, "--radius", str(RADIUS),
+                             "--width", "0.165", "--load", str(w), "--slips", "0:0.3:0.05",
+                             "--out", refs[w]], capture_output=True, text=True, timeout=60)
+        check(rc.returncode == 0, f"cosim terra curve at {w:g} N ({rc.stderr[-300:]})")
+    png = os.path.join(d, "dbp_ref.png")
+    rc = subprocess.run([sys.executable, "-m", "cosim.fig_dbp", d, "--png", png, "--reference",
+                         refs[load]], capture_output=True, text=True,
+                        cwd=os.path.join(ROOT, "python"), timeout=120)
+    check(rc.returncode == 0 and os.path.getsize(png) > 10000,
+          f"fig_dbp --reference at the run's {load:g} N drew {png} ({rc.stderr[-300:]})")
+    bad = subprocess.run([sys.executable, "-m", "cosim.fig_dbp", d, "--png", png + ".bad.png",
+                          "--reference", refs[2 * load]], capture_output=True, text=True,
+                         cwd=os.path.join(ROOT, "python"), timeout=120)
+    check(bad.returncode == 1 and f"{2 * load:g} N" in bad.stderr and f"{load:g} N" in bad.stderr
+          and not os.path.exists(png + ".bad.png"),
+          f"fig_dbp: a reference for {2 * load:g} N refused for a {load:g} N run ({bad.stderr.strip()})")
+
+
+# A known force-slip law (dem_stub drag_x on fem_stub's wheel): every node gets
+# fx0 - c v_x, and the wheel's nodes move at v_x = V - omega R cos(phi_i), so the
+# soil's pull on the wheel is T_P = N fx0 + c (omega R sum cos(phi_i) - N V); with
+# fx0 = c omega R (1 - mean cos(phi_i)) that is T_P = B s, B = c N omega R, for the
+# slip s = 1 - V / (omega R). The rig's measured curve must recover it.
+LAW_N = (8, 2)  # wheel cells: 9 x 3 nodes at phi = pi (i / 8 - 1/2)
+LAW_B = 10.0    # N per unit slip: the ramp (-1 .. 5.8 N) sweeps the slip from 0 to 0.2
+
+
+def law_coefficients():
+    nx, ny = LAW_N
+    phi = np.pi * (np.arange(nx + 1) / nx - 0.5)
+    n = (nx + 1) * (ny + 1)
+    c = LAW_B / (n * OMEGA * RADIUS)
+    fx0 = c * OMEGA * RADIUS * (1 - np.cos(phi).mean())
+    return n, c, fx0
+
+
+def law_scene(name, scheme):
+    s = stub_scene(name, scheme)
+    n, c, fx0 = law_coefficients()
+    s["processes"]["fem"]["surface"] = {"wheel": {"radius": RADIUS, "width": 0.165, "n": list(LAW_N)}}
+    s["processes"]["dem"].update(force_per_node=[fx0, 0.0, FZ / n], drag_x=c)
+    return s
+
+
+def law_part():
+    """The rig on a soil with a known force-slip law T_P = B s recovers it:
+    row by row (a step's force comes from the wheel's velocity the step
+    starts with: the slip of the row before, to round-off) and in the binned
+    curve (each bin's mean T_P = B x its mean slip, within B x the slip's
+    largest change over one step), over a slip range of several bins."""
+    for scheme in ("serial", "parallel"):
+        s = law_scene(f"dbp_law_{scheme}", scheme)
+        rc, out, err = run(s, timeout=120)
+        check(rc == 0, f"law {scheme}: run ok ({err[-300:]})")
+        no_orphans(s, f"dbp law {scheme}")
+        if rc:
+            continue
+        tr, db = table(s, "traction"), table(s, "dbp")
+        k = np.nonzero(db["phase"] == traction.DBP_PHASE_RAMP)[0][1:]
+        slip = db["slip"]
+        dev = np.abs(tr["T_P"][k] - LAW_B * slip[k - 1]).max()
+        check(dev < 1e-9 * LAW_B, f"law {scheme}: T_P = B s of the step's start, row by row "
+              f"(largest deviation {dev:.3g} N)")
+        step = np.abs(np.diff(slip[k])).max()
+        with cosim.Results(s["output"]["dir"]) as r:
+            curve = traction.dbp_curve(r)
+        worst = max(abs(c["T_P_mean"] - LAW_B * c["slip_mean"]) for c in curve)
+        span = max(c["slip_mean"] for c in curve) - min(c["slip_mean"] for c in curve)
+        print(f"law {scheme}: slip {slip[k[0]]:.3g} .. {slip[k[-1]]:.3g} in {len(curve)} bins; "
+              f"bins' |T_P - B s| up to {worst:.3g} N (one step moves the slip {step:.2g})")
+        check(len(curve) >= 8 and span > 0.15, f"law {scheme}: the ramp sweeps the slip over "
+              f"{len(curve)} bins, {span:.3g} (the test bites)")
+        check(worst <= LAW_B * step * (1 + 1e-9), f"law {scheme}: each bin's T_P is B x its mean "
+              f"slip within B x one step's slip change ({worst:.3g} against {LAW_B * step:.3g} N)")
 
 
 def restart_part():
@@ -222,7 +309,9 @@ def bad_part():
     check(rc == 0, f"load rig: dbp_force_rate not needed ({err.strip()[-200:]})")
 
 
-parts = sys.argv[1:] or ["stub", "restart", "bad"]
+parts = sys.argv[1:] or ["stub", "law", "restart", "bad"]
+if "law" in parts:
+    law_part()
 if "stub" in parts:
     stub_part()
 if "restart" in parts:
