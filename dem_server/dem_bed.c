@@ -84,12 +84,36 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err) {
 
 /* ------------------------------------------------------------ settling */
 
-int dem_settle_placed(const dem_model *m, dem_state *s, double ke_per_grain, int64_t max_steps,
-                      dem_progress_fn progress, void *ctx, proto_err *err) {
+/* dem_settle's progress over a span of a longer settling: its fraction of
+ * [k0, k0 + n) of `total` steps, under `what` (so a settling of two
+ * dem_settle calls, or two settlings, reads 0 to 100 % once each, named). */
+typedef struct settle_span {
+  dem_progress_fn progress;
+  void *ctx;
+  const char *what;
+  double k0, n, total;
+} settle_span;
+
+static void span_progress(void *ctx, double fraction, const char *what) {
+  const settle_span *sp = ctx;
+  sp->progress(sp->ctx, (sp->k0 + fraction * sp->n) / sp->total, sp->what ? sp->what : what);
+}
+
+static int settle_placed(const dem_model *m, dem_state *s, double ke_per_grain, int64_t max_steps,
+                         dem_progress_fn progress, void *ctx, const char *what, proto_err *err) {
   int64_t n_min = (int64_t)ceil(DEM_SETTLE_MIN_TIME / s->dt);
   if (n_min > max_steps) n_min = max_steps;
-  if (n_min > 0 && dem_settle(m, s, 0.0, n_min, progress, ctx, err)) return -1;
-  return max_steps > n_min ? dem_settle(m, s, ke_per_grain, max_steps - n_min, progress, ctx, err) : 0;
+  settle_span sp = {progress, ctx, what, 0, (double)n_min, fmax((double)max_steps, 1)};
+  dem_progress_fn fn = progress ? span_progress : NULL;
+  if (n_min > 0 && dem_settle(m, s, 0.0, n_min, fn, &sp, err)) return -1;
+  sp.k0 = (double)n_min;
+  sp.n = (double)(max_steps - n_min);
+  return max_steps > n_min ? dem_settle(m, s, ke_per_grain, max_steps - n_min, fn, &sp, err) : 0;
+}
+
+int dem_settle_placed(const dem_model *m, dem_state *s, double ke_per_grain, int64_t max_steps,
+                      dem_progress_fn progress, void *ctx, proto_err *err) {
+  return settle_placed(m, s, ke_per_grain, max_steps, progress, ctx, NULL, err);
 }
 
 int dem_bed_settle(const dem_model *m, dem_state *s, dem_progress_fn progress, void *ctx, int64_t *steps,
@@ -105,13 +129,16 @@ int dem_bed_settle(const dem_model *m, dem_state *s, dem_progress_fn progress, v
     if (!prepared) return proto_fail(err, "%s.particles.prepare: out of memory", m->key_path);
     *prepared = *m;
     dem_prep_laws(prepared, &c->prep);
-    rc = dem_settle_placed(prepared, s, c->settle_ke, max_steps, progress, ctx, err);
+    rc = settle_placed(prepared, s, c->settle_ke, max_steps, progress, ctx,
+                       "settling the bed with the preparation's laws (1 of 2)", err);
     free(prepared);
     if (rc) return proto_wrap(err, "%s.particles.prepare (friction %g, rolling friction %g)", m->key_path,
                               c->prep.friction, c->prep.rolling);
   }
   /* the scene's laws: its tangential springs and rolling torques build up */
-  if (dem_settle_placed(m, s, c->settle_ke, max_steps, progress, ctx, err)) return -1;
+  if (settle_placed(m, s, c->settle_ke, max_steps, progress, ctx,
+                    c->prep.on ? "settling the bed with the scene's laws (2 of 2)" : NULL, err))
+    return -1;
   if (steps) *steps = s->step - k0;
   s->t = 0;
   s->step = 0;

@@ -164,6 +164,28 @@ static void not_in_free_fall(void) {
   dem_model_free(&m);
 }
 
+/* The progress a prepared settling reports: each of its two settlings reads
+ * 0 to 100 % once, named by its laws (it read 0-90 %, 0-40 %, 0-60 % when
+ * each dem_settle call counted its own steps, unnamed). */
+typedef struct progress_log {
+  int n, names, backwards, outside;
+  double last;
+  char what[128];
+} progress_log;
+
+static void record_progress(void *ctx, double fraction, const char *what) {
+  progress_log *p = ctx;
+  if (p->n == 0 || strcmp(p->what, what)) {
+    snprintf(p->what, sizeof p->what, "%s", what);
+    p->names++;
+    p->last = -1;
+  }
+  p->backwards += fraction < p->last;
+  p->outside += !(fraction >= 0 && fraction <= 1);
+  p->last = fraction;
+  p->n++;
+}
+
 int main(void) {
   char path[] = "/tmp/test_dem_prepare_XXXXXX";
   close(mkstemp(path));
@@ -180,7 +202,12 @@ int main(void) {
   snprintf(parts, sizeof parts, GEN, SETTLE_STEPS, PREPARE);
   OK(make("0.2", parts, &m1, &s1, &err));
   CHECK(m1.cfg.prep.on && m1.cfg.prep.friction == 0.1 && m1.cfg.prep.rolling == 0, "prepare read");
-  OK(dem_bed_settle(&m1, &s1, NULL, NULL, &n1, &err));
+  progress_log pl = {0};
+  OK(dem_bed_settle(&m1, &s1, record_progress, &pl, &n1, &err));
+  CHECK(pl.names == 2 && strstr(pl.what, "scene's laws (2 of 2)") && pl.backwards == 0 && pl.outside == 0 &&
+            pl.last == 1.0,
+        "progress: %d settlings named (last '%s'), %d steps back, %d outside [0, 1], ends at %g", pl.names, pl.what,
+        pl.backwards, pl.outside, pl.last);
   const double phi0 = solid_fraction(&m0, &s0), phi1 = solid_fraction(&m1, &s1);
   printf("%d grains, %lld / %lld steps: solid fraction %.4f with the scene's laws, %.4f prepared "
          "(friction 0.1, no rolling friction, then the scene's)\n",
