@@ -148,10 +148,21 @@ static double rate(const dem_state *s, int64_t k0, double t0) {
   return (double)s->n * (double)(s->step - k0) / fmax(proto_now() - t0, 1e-9);
 }
 
-/* dem_settle's progress on the log (a deep bed settles for minutes) */
+/* dem_settle's progress on the log (a deep bed settles for minutes): a line
+ * each time the whole percent of settle_max_steps grows (dem_settle reports
+ * every 50 steps: that repeated each percent 3-40 times) */
+typedef struct {
+  FILE *log;
+  int shown; /* last percent written, -1 before the first */
+} settle_log;
+
 static void settle_progress(void *ctx, double fraction, const char *what) {
-  fprintf(ctx, "terra: %s: %.0f %%\n", what, 100 * fraction);
-  fflush(ctx);
+  settle_log *sl = ctx;
+  const int pct = (int)floor(100 * fraction);
+  if (pct <= sl->shown) return;
+  sl->shown = pct;
+  fprintf(sl->log, "terra: %s: %d %%\n", what, pct);
+  fflush(sl->log);
 }
 
 static int settle(const dem_model *m, dem_state *s, double ke, int64_t max_steps, FILE *log,
@@ -161,11 +172,16 @@ static int settle(const dem_model *m, dem_state *s, double ke, int64_t max_steps
   /* grains placed at rest on the lattice start with no kinetic energy: the KE
    * test alone stopped a 9 us-step bed after 101 steps, still in free fall
    * (dem.h DEM_SETTLE_MIN_TIME, the rule dem_server's beds settle by too) */
-  if (dem_settle_placed(m, s, ke, max_steps, log ? settle_progress : NULL, log, err)) return -1;
+  settle_log sl = {log, -1};
+  if (dem_settle_placed(m, s, ke, max_steps, log ? settle_progress : NULL, &sl, err)) return -1;
   if (log)
     fprintf(log, "terra: %d grains settled in %lld steps of %.3g s (%.1f s wall, %.3g grain-steps/s), "
             "KE %.3g J per grain\n", s->n, (long long)(s->step - k0), s->dt, proto_now() - t0,
             rate(s, k0, t0), s->kinetic_energy / s->n);
+  if (log && s->step - k0 >= max_steps && s->kinetic_energy >= ke * s->n)
+    fprintf(log, "terra: warning: settling stopped at its %lld-step limit (%.3g s at this step) with "
+            "KE %.3g J per grain above the %.3g J it settles to: the bed may still move; raise "
+            "--settle-steps\n", (long long)max_steps, (double)max_steps * s->dt, s->kinetic_energy / s->n, ke);
   return 0;
 }
 
@@ -325,7 +341,10 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
   prep_apply(&m, &sp->prep, &laws);
   rc = settle(&m, &s, sp->settle_ke, sp->settle_max_steps, log, err);
   prep_restore(&m, &laws);
-  if (rc) goto fail;
+  /* prepared: settled again with the scene's laws, as dem_server settles a
+   * prepared bed and as `bed` does (the tangential springs and rolling
+   * torques build up under gravity before the plate arrives) */
+  if (rc || (sp->prep.on && settle(&m, &s, sp->settle_ke, sp->settle_max_steps, log, err))) goto fail;
   double d_top, z_surf = surface_height(&s, c, c, h, &d_top);
   const double rho = grain_density(&m, soil->grain_material);
   double dmax = 0;

@@ -1,10 +1,12 @@
 #!/usr/bin/python3
 """Plots and tables of the virtual soil tests (bench/terra/run_terra.sh).
 
-usage: plot_terra.py RESULTS_DIR
+usage: plot_terra.py RESULTS_DIR [SET...]
 Reads RESULTS_DIR/terra/*.csv (records), soil_*.json (fits per packing),
 RESULTS_DIR/terra_params_*.json and terra_reference_*.csv; writes
-RESULTS_DIR/terra_*.png and prints the markdown tables of terra.md."""
+RESULTS_DIR/terra_*.png and prints the markdown tables of terra.md. SETs:
+deep, paper (run_terra.sh's deep/paper plates with the fine/coarse shear
+box), sand (its sand stages); default deep and paper."""
 import glob
 import json
 import math
@@ -72,7 +74,8 @@ def plot_plates(res, bed, soil_fits):
     plt.close(fig)
 
 
-SIG_COLORS = {"2500": "tab:blue", "5000": "tab:orange", "10000": "tab:green", "20000": "tab:red"}
+SIG_COLORS = {"2500": "tab:blue", "5000": "tab:orange", "10000": "tab:green", "20000": "tab:red",
+              "50000": "tab:purple", "100000": "tab:brown"}
 
 
 def plot_shear(res, soil, soil_fits):
@@ -85,9 +88,10 @@ def plot_shear(res, soil, soil_fits):
         ax[0].plot(1e3 * d["j"], d["tau"] / 1e3, STYLES[(seed - 1) % 3], color=c, lw=1,
                    label=f"sigma_n = {float(sig) / 1e3:g} kPa" if seed == 1 else None)
         ax[1].plot(1e3 * d["j"], 1e3 * d["dilation"], STYLES[(seed - 1) % 3], color=c, lw=1)
+    jmax = max(ax[0].get_xlim()[1], 1e-3) * 1e-3  # m: the records' travel
     for k, f in enumerate(soil_fits):
         for t in f["mohr_coulomb"]["tests"]:
-            j = np.linspace(0, 0.06, 100)
+            j = np.linspace(0, jmax, 100)
             ax[0].plot(1e3 * j, t["tau_f_fit"] * (1 - np.exp(-j / t["K"])) / 1e3, color="k", lw=0.7,
                        ls=STYLES[k], alpha=0.6)
         sig = np.array([t["sigma"] for t in f["mohr_coulomb"]["tests"]])
@@ -165,9 +169,9 @@ def plot_reference(res, bed):
 
 def tables(res, bed, soil_fits):
     params = os.path.join(res, f"terra_params_{bed}.json")
-    if not soil_fits or not os.path.exists(params):
+    if not soil_fits or (len(soil_fits) > 1 and not os.path.exists(params)):
         return
-    P = json.load(open(params))
+    P = json.load(open(params)) if len(soil_fits) > 1 else None
     print(f"\n### {bed} bed\n")
     print("| packing | n | k_c [N/m^(n+1)] | k_phi [N/m^(n+2)] | k_eq(0.165) | c [Pa] | phi [deg] | K [mm] | "
           "n per plate (0.06/0.11/0.165) | rms ln p |")
@@ -178,11 +182,12 @@ def tables(res, bed, soil_fits):
         nown = "/".join("%.2f" % p["n_own"] for p in pf["plates"])
         print(f"| {k + 1} | {s['n']:.3f} | {s['k_c']:.4g} | {s['k_phi']:.4g} | {keq:.4g} | {s['c']:.0f} | "
               f"{s['phi_deg']:.1f} | {1e3 * s['K']:.2f} | {nown} | {pf['rms_log_p']:.3f} |")
-    m, sd = P["soil"], P["std"]
-    keq = m["k_c"] / 0.165 + m["k_phi"]
-    print(f"| **mean ± std** | {m['n']:.3f} ± {sd['n']:.3f} | {m['k_c']:.4g} ± {sd['k_c']:.2g} | "
-          f"{m['k_phi']:.4g} ± {sd['k_phi']:.2g} | {keq:.4g} | {m['c']:.0f} ± {sd['c']:.0f} | "
-          f"{m['phi_deg']:.1f} ± {sd['phi_deg']:.1f} | {1e3 * m['K']:.2f} ± {1e3 * sd['K']:.2f} | | |")
+    if P:  # two or more packings: their mean and spread (combine)
+        m, sd = P["soil"], P["std"]
+        keq = m["k_c"] / 0.165 + m["k_phi"]
+        print(f"| **mean ± std** | {m['n']:.3f} ± {sd['n']:.3f} | {m['k_c']:.4g} ± {sd['k_c']:.2g} | "
+              f"{m['k_phi']:.4g} ± {sd['k_phi']:.2g} | {keq:.4g} | {m['c']:.0f} ± {sd['c']:.0f} | "
+              f"{m['phi_deg']:.1f} ± {sd['phi_deg']:.1f} | {1e3 * m['K']:.2f} ± {1e3 * sd['K']:.2f} | | |")
     print("\n| packing | sigma [kPa] | tau plateau [kPa] | tau peak [kPa] | tau_f fit [kPa] | K [mm] |")
     print("|---|---|---|---|---|---|")
     for k, f in enumerate(soil_fits):
@@ -202,9 +207,16 @@ def tables(res, bed, soil_fits):
                   f"{d['F_t'][i]:.1f} | {d['R'][i]:.1f} | {d['T'][i]:.2f} |")
 
 
+SETS = {"deep": "fine", "paper": "coarse", "sand": "sand"}  # plate bed: its shear box's grains
+
+
 def main():
     res = sys.argv[1] if len(sys.argv) > 1 else "bench/results"
-    for bed, soil in (("deep", "fine"), ("paper", "coarse")):
+    names = sys.argv[2:] or ["deep", "paper"]
+    bad = [n for n in names if n not in SETS]
+    if bad:
+        sys.exit(f"plot_terra.py: unknown set {', '.join(bad)} (known: {', '.join(SETS)})")
+    for bed, soil in ((n, SETS[n]) for n in names):
         sf = fits(res, bed)
         plot_plates(res, bed, sf)
         plot_shear(res, soil, sf)

@@ -7,17 +7,23 @@
 #   stages: deep paper fine coarse checks fit (default: all, in that order) on
 #   configs/default.json's 5 MPa grains; scene20: the paper scene's own grains
 #   (configs/tire_soil_paper.json: 20 MPa, its pair friction), plates on its bed
-#   depth (38 mm on the floor), fine shear box, fit and reference curves at 80 N
+#   depth (38 mm on the floor), fine shear box, fit and reference curves at 80 N;
+#   sand: configs/tire_soil_sand.json's calibrated grains (sandplates, sandshear,
+#   sandfit; two may run at once, one per core): plates on its 0.25 m bed depth to the
+#   rated load's 150 kPa, the 20 cm shear box at 10-50 kPa, one packing: its fit
+#   terra/soil_sand_s1.json, curves at 1 kN and 4042 N, plots and tables (plot_terra.py)
 # Runs that already have their record are skipped (delete it to redo).
 # COSIM_LOCK=FILE wraps every DEM run in `flock FILE` (machines shared with
 # other heavy jobs); THREADS (default 1: on a busy machine OpenMP threads wait for each other) sets the DEM's OpenMP threads.
 set -e
 root=$(cd "$(dirname "$0")/../.." && pwd)
-build=${1:-$root/build}
+build=$(cd "${1:-$root/build}" && pwd)
 [ $# -gt 0 ] && shift
 stages=${*:-deep paper fine coarse checks fit}
-out=$root/bench/results/terra
-scene=$root/configs/default.json
+cd "$root" # the records and fits name the scene and records by these relative paths
+out=bench/results/terra
+scene=configs/default.json
+sand=configs/tire_soil_sand.json
 threads=${THREADS:-1}
 terra=$build/bin/cosim_terra
 mkdir -p "$out"
@@ -119,6 +125,42 @@ m=s['processes']['dem']['materials'][0]; m['E']*=2; json.dump(s,open(sys.argv[2]
       --out "$root/bench/results/tire_soil_terra_params_paper20.json"
     "$terra" curve --params "$root/bench/results/tire_soil_terra_params_paper20.json" --radius 0.272 \
       --width 0.165 --load 80 --slips 0:0.3:0.01 --out "$root/bench/results/tire_soil_terra_reference_paper20_W80.csv"
+    ;;
+  sand) "$root/bench/terra/run_terra.sh" "$build" sandplates sandshear sandfit ;;
+  sandplates)
+    # the scene's bed (depth factor 8: 0.25 m), prepared as the scene prepares it (settled
+    # with friction 0.6, then its laws), the plate carrying the tread's contact law; to
+    # 150 kPa (the mean contact pressure at the rated load) at 0.05 m/s (quasi-static:
+    # inertial number ~1e-3, bench/results/sand_calibration.md); settled as long as the
+    # scene settles its bed (settle_max_steps 90 000: the default 40 000 steps are 0.26 s at
+    # the 6.47 us step of these grains, and a 0.25 m bed still moves then)
+    for bc in 0.060:0.30 0.110:0.44; do
+      b=${bc%:*}; L=${bc#*:}
+      run "$out/plate_sand_b${b}_s1.csv" plate "$sand" --width "$b" --container "$L" \
+        --depth-factor 8 --speed 0.05 --zmax 0.05 --dz 0.001 --pmax 150000 --prep-friction 0.6 --seed 1 \
+        --settle-steps 90000
+    done
+    ;;
+  sandshear)
+    # the 20 cm box of the calibration, 10-50 kPa: the plane's stress then reaches
+    # 18-80 kPa, the tyre's at 1 kN (the rated load's ~140 kPa: not measured yet)
+    for sj in 10000:0.015 20000:0.015 50000:0.02; do
+      sig=${sj%:*}; j=${sj#*:}
+      run "$out/shear_sand_sig${sig}_s1.csv" shear "$sand" --sigma "$sig" --dmin 0.006555 \
+        --dmax 0.0078 --length 0.2 --box-width 0.2 --height 0.1 --speed 0.02 --jmax "$j" \
+        --dj 0.00025 --prep-friction 0.6 --seed 1
+    done
+    ;;
+  sandfit)
+    # one packing (seed 1): its fit is the parameter set (combine needs two or more)
+    "$terra" fit --plate "$out/plate_sand_b0.060_s1.csv" --plate "$out/plate_sand_b0.110_s1.csv" \
+      --shear "$out/shear_sand_sig10000_s1.csv" --shear "$out/shear_sand_sig20000_s1.csv" \
+      --shear "$out/shear_sand_sig50000_s1.csv" --out "$out/soil_sand_s1.json"
+    for W in 1000 4042; do
+      "$terra" curve --params "$out/soil_sand_s1.json" --radius 0.272 --width 0.165 --load "$W" \
+        --slips 0:0.4:0.01 --out "$root/bench/results/terra_reference_sand_W$W.csv"
+    done
+    /usr/bin/python3 "$root/bench/terra/plot_terra.py" "$root/bench/results" sand
     ;;
   *) echo "unknown stage '$st'" >&2; exit 1 ;;
   esac

@@ -44,6 +44,22 @@ static void plate(const ter_dem_soil *soil) {
   CHECK(n >= 10 && grains > 200, "%d rows, %g grains", n, grains);
   CHECK(p_last > 0 && p_last > p_first, "pressure must rise with sinkage (%.4g -> %.4g Pa)", p_first, p_last);
   ter_series_free(&t);
+  /* prepared: settled with the preparation's laws, then again with the
+   * scene's (as dem_server settles a prepared bed), then pushed */
+  sp.prep = (ter_prep){.on = 1, .friction = 0.3, .rolling = 0};
+  sp.z_max = 0.002;
+  FILE *log = tmpfile();
+  OK(ter_plate_test(soil, &sp, log, &t, &err));
+  char line[512];
+  int settles = 0;
+  rewind(log);
+  while (fgets(line, sizeof line, log)) settles += strstr(line, "grains settled in") != NULL;
+  fclose(log);
+  const char *what = ter_series_get_meta(&t, "preparation");
+  CHECK(settles == 2, "a prepared plate bed settles twice (preparation, scene's laws): %d", settles);
+  CHECK(what && strstr(what, "friction 0.3"), "prepared plate: preparation meta '%s'", what ? what : "");
+  ter_series_free(&t);
+  sp.prep.on = 0;
   sp.container = 0.07;
   FAILS_WITH(ter_plate_test(soil, &sp, NULL, &t, &err), "container > 2 width");
 }
