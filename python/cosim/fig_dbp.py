@@ -28,7 +28,7 @@ import numpy as np
 
 from .errors import CosimError
 from .results import Results
-from . import traction
+from . import sweep_cli, traction
 
 CURVE_FILE, PLOT_FILE = "dbp_curve.csv", "dbp.png"
 # T_H, |T_R|, T_P drawn as seed 000 fig. 15 draws them; the force the rig measured
@@ -51,35 +51,20 @@ def read_points(path):
 
 
 def read_reference(path, load):
-    """A `cosim terra curve` record as {column: array} (its `# key: value`
-    lines skipped), refused unless it was made for `load` N."""
+    """A `cosim terra curve` record (sweep_cli.read_reference), refused unless
+    its `# load_N:` line is `load` N and it has the columns drawn."""
     with open(path) as f:
-        lines = list(f)
-    meta = dict(l[2:].split(": ", 1) for l in lines if l.startswith("# ") and ": " in l)
+        meta = dict(l[2:].split(": ", 1) for l in f if l.startswith("# ") and ": " in l)
     if "load_N" not in meta:
         raise CosimError(f"{path}: not a terra curve record (no '# load_N:' line)")
     if abs(float(meta["load_N"]) - float(load)) > 1e-6 * abs(float(load)):
         raise CosimError(f"{path}: made for a load of {meta['load_N'].strip()} N, the run's "
                          f"scenario.sinkage_force is {float(load):g} N")
-    rows = list(csv.DictReader(l for l in lines if not l.startswith("#")))
+    ref = sweep_cli.read_reference(path)
     need = ("s", "T_over_r", "DP")
-    if not rows or any(c not in rows[0] for c in need):
+    if ref.dtype.names is None or any(c not in ref.dtype.names for c in need) or ref.size == 0:
         raise CosimError(f"{path}: needs the columns {', '.join(need)} and at least one row")
-    return {c: np.array([float(r[c]) for r in rows]) for c in rows[0]}
-
-
-def draw_reference(ax, ref):
-    """The reference's T/r, T/r - DP and DP dashed in the colours of T_H,
-    |T_R|, T_P; the band (min..max over its packings) faint where it has one."""
-    s = ref["s"]
-    curves = {"T_H": (ref["T_over_r"], ref.get("T_over_r_lo"), ref.get("T_over_r_hi"), "T/r"),
-              "T_P": (ref["DP"], ref.get("DP_lo"), ref.get("DP_hi"), "DP")}
-    rr = ref["T_over_r"] - ref["DP"]
-    curves["T_R"] = (rr, None, None, "T/r − DP")
-    for q, (y, lo, hi, label) in curves.items():
-        ax.plot(s, y, "--", lw=1.2, color=COLORS[q], label=f"terramechanics {label}")
-        if lo is not None and hi is not None and np.any(hi > lo):
-            ax.fill_between(s, lo, hi, color=COLORS[q], alpha=0.1, lw=0)
+    return np.atleast_1d(ref)
 
 
 def plot(path, results, curve, points=None, ref=None):
@@ -110,7 +95,7 @@ def plot(path, results, curve, points=None, ref=None):
                                 p.get(f"{q}_ci95", math.nan)) else 0],
                             fmt="s", mfc="none", ms=8, capsize=4, color=COLORS[q])
     if ref is not None:
-        draw_reference(ax, ref)
+        sweep_cli.draw_reference(ax, ref, band=True)
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("slip (measured)")
     ax.set_ylabel("force (N)")

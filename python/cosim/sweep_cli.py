@@ -193,6 +193,19 @@ def read_reference(path):
     return np.genfromtxt(body, delimiter=",", names=True)
 
 
+def draw_reference(ax, ref, label="terramechanics", band=False):
+    """A terra record's T/r, DP and T/r − DP dashed over its slip s, in the
+    colours of T_H, T_P and |T_R|; with band, the min..max over its packings
+    (the _lo/_hi columns) faint where it has one."""
+    s, names = ref["s"], ref.dtype.names
+    for col, name, color in [("T_over_r", "T/r", "tab:blue"), ("DP", "DP", "tab:green")]:
+        ax.plot(s, ref[col], "--", color=color, label=f"{label} {name}")
+        lo, hi = f"{col}_lo", f"{col}_hi"
+        if band and lo in names and hi in names and np.any(ref[hi] > ref[lo]):
+            ax.fill_between(s, ref[lo], ref[hi], color=color, alpha=0.1, lw=0)
+    ax.plot(s, ref["T_over_r"] - ref["DP"], "--", color="tab:red", label=f"{label} T/r − DP")
+
+
 def read_summary(path, notes=None):
     """summary.csv back as rows of {column: value} (numbers as floats, the
     swept key's values as JSON), the form write_summary took them in; the
@@ -244,13 +257,7 @@ def draw(ax, key, rows, ref_path, ref_label="terramechanics"):
             ax.errorbar(at, mean, yerr=[mean - lo, hi - mean], fmt="o-", color=color,
                         capsize=4, label=f"DEM–FEM {label}: mean, min–max")
     if ref_path:
-        ref = read_reference(ref_path)
-        s = ref["s"]
-        for col, label, color in [("T_over_r", "T/r", "tab:blue"),
-                                  ("DP", "DP", "tab:green")]:
-            ax.plot(s, ref[col], "--", color=color, label=f"{ref_label} {label}")
-        ax.plot(s, ref["T_over_r"] - ref["DP"], "--", color="tab:red",
-                label=f"{ref_label} T/r − DP")
+        draw_reference(ax, read_reference(ref_path), ref_label)
     if not numeric:
         ax.set_xticks(pos, [json.dumps(x) for x in xs])
     ax.axhline(0, color="0.6", lw=0.8)
