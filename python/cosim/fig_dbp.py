@@ -2,6 +2,7 @@
 
     python3 -m cosim.fig_dbp RUN_DIR [--png PATH] [--csv PATH] [--bin-width W]
                              [--slip-points SLIPS.csv] [--reference REF.csv]
+    python3 -m cosim.fig_dbp RUN_DIR RUN_DIR... --out DIR [the same options]
 
 results.h5 (/coupler/traction, /coupler/dbp) -> RUN_DIR/dbp_curve.csv (the
 curve binned by the measured slip, 95 % batch-means intervals:
@@ -15,9 +16,18 @@ scenario.slip). --reference draws a terramechanics reference dashed beside the
 curve (a `cosim terra curve` record for the scene's wheel and load: T/r as T_H,
 T/r - DP as |T_R|, DP as T_P, and the band over its packings faint;
 terra/README.md "Files and how to call the reference"); its load must be the
-scene's sinkage_force. Exit codes: 0 ok, 1 bad usage or a run that is not a dbp
-run.
+scene's sinkage_force.
+
+Several runs (dbp runs of one scene on different beds, e.g. the runs of a
+`cosim sweep --repeat N`): DIR/dbp_curve.csv is the curve across them
+(cosim.traction.dbp_curve_across: per slip bin the mean of the runs' bin
+means, its 95 % interval from their spread, the runs that reach the bin, their
+min and max) and DIR/dbp.png draws it with each run's bins faint. Runs whose
+load, wheel or ramp differ are refused, naming the key and both runs.
+
+Exit codes: 0 ok, 1 bad usage or a run that is not a dbp run.
 """
+import contextlib
 import argparse
 import csv
 import math
@@ -67,6 +77,32 @@ def read_reference(path, load):
     return np.atleast_1d(ref)
 
 
+def draw_points(ax, points):
+    """Slip-controlled runs' means (read_points) as open squares with their
+    intervals (none where a point has no interval)."""
+    for p in points or []:
+        for q in ("T_H", "T_R", "T_P"):
+            if f"{q}_mean" in p:
+                sign = -1 if q == "T_R" else 1
+                ci = p.get(f"{q}_ci95", math.nan)
+                ax.errorbar([p["slip"]], [sign * p[f"{q}_mean"]], yerr=[0 if math.isnan(ci) else ci],
+                            fmt="s", mfc="none", ms=8, capsize=4, color=COLORS[q])
+
+
+def finish_curve(ax, points, ref, title):
+    """The curve's axis: slip-controlled points, the reference dashed, the
+    zero line, labels, title and legend."""
+    draw_points(ax, points)
+    if ref is not None:
+        sweep_cli.draw_reference(ax, ref, band=True)
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xlabel("slip (measured)")
+    ax.set_ylabel("force (N)")
+    ax.set_title(title + ("; squares: slip-controlled" if points else "")
+                 + ("; dashed: terramechanics" if ref is not None else ""), fontsize=9)
+    ax.legend(fontsize=7)
+
+
 def plot(path, results, curve, points=None, ref=None):
     import matplotlib
     matplotlib.use("Agg")
@@ -86,24 +122,8 @@ def plot(path, results, curve, points=None, ref=None):
         if avg in d:
             ax.plot(d["slip_avg"][ramp], sign * d[avg][ramp], "-", lw=0.7, alpha=0.6,
                     color=COLORS[q])
-    for p in points or []:
-        for q in ("T_H", "T_R", "T_P"):
-            if f"{q}_mean" in p:
-                sign = -1 if q == "T_R" else 1
-                ax.errorbar([p["slip"]], [sign * p[f"{q}_mean"]],
-                            yerr=[p.get(f"{q}_ci95", 0) if not math.isnan(
-                                p.get(f"{q}_ci95", math.nan)) else 0],
-                            fmt="s", mfc="none", ms=8, capsize=4, color=COLORS[q])
-    if ref is not None:
-        sweep_cli.draw_reference(ax, ref, band=True)
-    ax.axhline(0, color="k", lw=0.5)
-    ax.set_xlabel("slip (measured)")
-    ax.set_ylabel("force (N)")
-    ax.set_title(f"dbp rig: load {sc['sinkage_force']} N; lines: running averages over "
-                 f"{sc.get('dbp_window', 0.1)} s" + ("; squares: slip-controlled" if points else "")
-                 + ("; dashed: terramechanics" if ref is not None else ""),
-                 fontsize=9)
-    ax.legend(fontsize=8)
+    finish_curve(ax, points, ref, f"dbp rig: load {sc['sinkage_force']} N; lines: running "
+                 f"averages over {sc.get('dbp_window', 0.1)} s")
     travel = d["phase"] > 0
     travel[np.argmax(travel)] = False  # the release step: the carriage not yet driven
     t = d["t"][travel]
@@ -123,10 +143,70 @@ def plot(path, results, curve, points=None, ref=None):
     plt.close(fig)
 
 
+def plot_across(path, runs, names, curves, across, points=None, ref=None):
+    """The curve across runs: the means with their 95 % intervals (across
+    the runs' bin means), each run's bins faint; right, each run's slip and
+    resistive force against time."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    sc = runs[0].scene["scenario"]
+    fig, (ax, at) = plt.subplots(1, 2, figsize=(12, 4.8))
+    for q in ("T_H", "T_R", "T_P"):
+        sign = -1 if q == "T_R" else 1
+        for curve in curves:
+            ax.plot([r["slip_mean"] for r in curve], [sign * r[f"{q}_mean"] for r in curve],
+                    ".", ms=3, alpha=0.35, color=COLORS[q])
+        x = np.array([r["slip_mean"] for r in across])
+        y = sign * np.array([r[f"{q}_mean"] for r in across])
+        e = np.array([r[f"{q}_ci95"] for r in across])
+        ax.errorbar(x, y, yerr=np.where(np.isnan(e), 0, e), fmt="o-", ms=4, capsize=3,
+                    color=COLORS[q], label=f"{LABELS[q]}: mean of {len(runs)} runs, 95 % "
+                    "(dots: each run's bins)")
+    finish_curve(ax, points, ref, f"dbp rig, {len(runs)} runs: load {sc['sinkage_force']} N")
+    for r, name in zip(runs, names):
+        d = traction.dbp_series(r)
+        travel = d["phase"] > 0
+        at.plot(d["t"][travel], d["slip"][travel], lw=0.8, label=f"slip: {name}")
+    at.set_xlabel("t (s)")
+    at.set_ylabel("slip")
+    at.legend(fontsize=7, loc="upper left")
+    at.set_title("each run's slip against time (from the travel start)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def across_main(a):
+    """Several runs: the curve across them into a.out."""
+    names = [os.path.basename(os.path.normpath(p if os.path.isdir(p) else os.path.dirname(p) or "."))
+             for p in a.run]
+    with contextlib.ExitStack() as stack:
+        runs = [stack.enter_context(Results(p)) for p in a.run]
+        traction.dbp_same_ramp([r.scene for r in runs], list(a.run))
+        curves = [traction.dbp_curve(r, a.bin_width) for r in runs]
+        for p, c in zip(a.run, curves):
+            if not c:
+                raise CosimError(f"{p}: no rows in the ramp (phase 2)")
+        load = float(runs[0].scene["scenario"]["sinkage_force"])
+        across = traction.dbp_curve_across(curves, load, a.bin_width)
+        os.makedirs(a.out, exist_ok=True)
+        csv_path = a.csv or os.path.join(a.out, CURVE_FILE)
+        traction.write_dbp_curve(csv_path, across, runs[0].scene, runs=names)
+        points = read_points(a.slip_points) if a.slip_points else None
+        ref = read_reference(a.reference, load) if a.reference else None
+        png = a.png or os.path.join(a.out, PLOT_FILE)
+        plot_across(png, runs, names, curves, across, points, ref)
+    print(f"cosim.fig_dbp: {len(across)} slip bins across {len(runs)} runs -> {csv_path}, {png}")
+    return 0
+
+
 def main(argv):
     ap = argparse.ArgumentParser(prog="python3 -m cosim.fig_dbp", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("run", help="the run's output dir or its results.h5")
+    ap.add_argument("run", nargs="+", help="the run's output dir or its results.h5; several: "
+                    "dbp runs of one scene on different beds, averaged bin by bin (needs --out)")
+    ap.add_argument("--out", help="with several runs: the dir of dbp_curve.csv and dbp.png")
     ap.add_argument("--png", help=f"default RUN_DIR/{PLOT_FILE}")
     ap.add_argument("--csv", help=f"default RUN_DIR/{CURVE_FILE}")
     ap.add_argument("--bin-width", type=float, default=traction.DBP_BIN_WIDTH)
@@ -136,6 +216,15 @@ def main(argv):
     a = ap.parse_args(argv)
     if not a.bin_width > 0:
         ap.error(f"--bin-width: must be > 0, got {a.bin_width}")
+    if len(a.run) > 1:
+        if not a.out:
+            ap.error(f"--out: needed with several runs ({len(a.run)} given)")
+        try:
+            return across_main(a)
+        except (CosimError, KeyError, OSError, ValueError) as e:
+            print(f"cosim.fig_dbp: {e}", file=sys.stderr)
+            return 1
+    a.run = a.run[0]
     base = a.run if os.path.isdir(a.run) else os.path.dirname(a.run) or "."
     try:
         with Results(a.run) as r:

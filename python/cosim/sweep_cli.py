@@ -55,7 +55,7 @@ import numpy as np
 from .errors import CosimError, RunError
 from .results import Results
 from . import stats
-from .traction import QUANTITIES, summarise_run, travel_window  # noqa: F401 (report.py)
+from .traction import QUANTITIES, is_dbp, summarise_run, travel_window  # noqa: F401 (report.py)
 from .roles import cosim_executable
 from .runner import _dir_name, grid_points, sweep as run_sweep
 from .sweep_beds import BEDS_DIR
@@ -419,4 +419,9 @@ def main(argv):
          f"terramechanics ({load:g} N)" if args.terra_params and load else "terramechanics")
     print(f"summary: {os.path.join(args.out, SUMMARY_FILE)}, plot: "
           f"{os.path.join(args.out, PLOT_FILE)}")
+    if scene and is_dbp(scene):
+        # a dbp run's window mixes the slips its ramp swept: its curve is the answer
+        print(f"dbp runs: the window means mix the slips the ramp swept; the curve across "
+              f"beds: python3 -m cosim.fig_dbp {os.path.join(args.out, '<run dir>')}... "
+              f"--out {os.path.join(args.out, 'dbp')} (dirs in {RUNS_FILE if args.repeat > 1 else SUMMARY_FILE})")
     return 0 if finished == len(done) else 3

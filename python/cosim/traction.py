@@ -2,7 +2,9 @@
 `cosim sweep`, cosim.Results.traction_summary and bench/tire_soil), and the
 traction-slip curve of a dbp-rig run (scenario.rig = "dbp", coupler/README.md):
 ``/coupler/traction`` and ``/coupler/dbp`` -> rows binned by the measured slip,
-each quantity's mean with its 95 % batch-means interval (cosim.stats)."""
+each quantity's mean with its 95 % batch-means interval (cosim.stats); and
+the curve across several such runs on different beds, bin by bin, with the
+interval from the spread of the runs' bin means."""
 import math
 
 import numpy as np
@@ -132,24 +134,95 @@ def dbp_curve(results, bin_width=DBP_BIN_WIDTH, phases=(DBP_PHASE_RAMP,)):
     return rows
 
 
+# the scene keys that decide what a dbp curve means: runs averaged across beds
+# must agree on them (the bed's seed, the scheme, the solvers may differ)
+DBP_SAME_KEYS = ("sinkage_force", "omega", "radius", "dbp_force_start", "dbp_force_rate",
+                 "dbp_hold", "dbp_window", "carriage_mass")
+BIN_EDGE_TOL = 1e-9  # of a bin width: two runs' bin edges are the same edge
+
+
+def dbp_same_ramp(scenes, names):
+    """A CosimError naming the key and the two runs whose scenario differs in
+    a key of DBP_SAME_KEYS (their curves are not realisations of one curve)."""
+    sc0 = scenes[0].get("scenario", {})
+    for sc_all, name in zip(scenes[1:], names[1:]):
+        sc = sc_all.get("scenario", {})
+        for k in DBP_SAME_KEYS:
+            if sc.get(k) != sc0.get(k):
+                raise CosimError(f"{name}: scenario.{k} is {sc.get(k)!r}, {names[0]} has "
+                                 f"{sc0.get(k)!r}: not realisations of one curve")
+
+
+def dbp_curve_across(curves, load, bin_width=DBP_BIN_WIDTH):
+    """The traction-slip curve of N independent dbp runs (different beds:
+    `cosim sweep --repeat`), from each run's dbp_curve with bins of
+    bin_width. Per slip bin that any run reaches (bins matched by their
+    edges): runs (how many reach it), slip_mean (the mean of their bin slip
+    means), and per quantity of DBP_QUANTITIES the mean of the runs' bin
+    means with its 95 % half-width from their spread (stats.across_runs:
+    Student t, runs - 1 degrees of freedom; nan where one run reaches the
+    bin), the runs' min and max, and T_H, T_R, T_P over the load. Each run's
+    bin mean counts once, however many rows it holds: a realisation is one
+    bed's curve, independent of the others by construction."""
+    bins = {}
+    for k, curve in enumerate(curves):
+        for c in curve:
+            width = c["slip_hi"] - c["slip_lo"]
+            if abs(width - bin_width) > BIN_EDGE_TOL * bin_width:
+                raise CosimError(f"run {k + 1}: bins of {width:g} in slip, not {bin_width:g}")
+            b = round(c["slip_lo"] / bin_width)
+            if abs(c["slip_lo"] - b * bin_width) > BIN_EDGE_TOL * bin_width:
+                raise CosimError(f"run {k + 1}: a bin edge at {c['slip_lo']:g}, not a "
+                                 f"multiple of {bin_width:g}")
+            bins.setdefault(b, []).append(c)
+    rows = []
+    for b in sorted(bins):
+        cs = bins[b]
+        row = {"slip_lo": b * bin_width, "slip_hi": (b + 1) * bin_width, "runs": len(cs),
+               "slip_mean": float(np.mean([c["slip_mean"] for c in cs]))}
+        for q in DBP_QUANTITIES:
+            v = [c[f"{q}_mean"] for c in cs]
+            a = stats.across_runs(v)
+            row[f"{q}_mean"], row[f"{q}_ci95"] = a["mean"], a["half"]
+            row[f"{q}_min"], row[f"{q}_max"] = float(np.min(v)), float(np.max(v))
+        for q in ("T_H", "T_R", "T_P"):
+            row[f"{q}_W_mean"] = row[f"{q}_mean"] / load if load > 0 else math.nan
+            row[f"{q}_W_ci95"] = row[f"{q}_ci95"] / load if load > 0 else math.nan
+        rows.append(row)
+    return rows
+
+
+DBP_ACROSS_COLUMNS = (["slip_lo", "slip_hi", "runs", "slip_mean"] +
+                      [f"{q}_{st}" for q in DBP_QUANTITIES for st in ("mean", "ci95", "min", "max")] +
+                      [f"{q}_W_{st}" for q in ("T_H", "T_R", "T_P") for st in ("mean", "ci95")])
+
+
 DBP_CURVE_COLUMNS = (["slip_lo", "slip_hi", "rows", "t0_s", "t1_s", "slip_mean"] +
                      [f"{q}_{st}" for q in DBP_QUANTITIES for st in ("mean", "ci95")] +
                      [f"{q}_W_{st}" for q in ("T_H", "T_R", "T_P") for st in ("mean", "ci95")])
 
 
-def write_dbp_curve(path, curve, scene):
-    """The curve as CSV with # lines saying what it is."""
+def write_dbp_curve(path, curve, scene, runs=None):
+    """The curve as CSV with # lines saying what it is: one run's
+    (dbp_curve), or with runs (their names) the curve across them
+    (dbp_curve_across)."""
     sc = scene["scenario"]
+    cols = DBP_ACROSS_COLUMNS if runs else DBP_CURVE_COLUMNS
     with open(path, "w") as f:
         f.write("# cosim dbp curve: /coupler/traction and /coupler/dbp rows of the ramp "
                 "(phase 2) binned by the measured slip 1 - v / (omega radius)\n")
         f.write(f"# ramp: {sc.get('dbp_force_start', 0)} N held {sc.get('dbp_hold', 0.2)} s, "
                 f"then {sc['dbp_force_rate']} N/s; carriage "
                 f"{sc.get('carriage_mass', 'rig_mass')} kg; load {sc['sinkage_force']} N\n")
-        f.write("# ci95: half-width of the bin mean's 95 % interval, batch means over the "
-                "bin's rows (cosim.stats.batch_means); nan: too few rows\n")
+        if runs:
+            f.write(f"# across {len(runs)} runs (each bin: the mean of the runs' bin means; "
+                    "ci95 from their spread, Student t, runs - 1 degrees of freedom; min, max: "
+                    f"of the runs' bin means): {' '.join(runs)}\n")
+        else:
+            f.write("# ci95: half-width of the bin mean's 95 % interval, batch means over the "
+                    "bin's rows (cosim.stats.batch_means); nan: too few rows\n")
         f.write("# units: N (T_H, T_R, T_P, vertical_load, resistive_force), s, slip 1\n")
-        f.write(",".join(DBP_CURVE_COLUMNS) + "\n")
+        f.write(",".join(cols) + "\n")
         for r in curve:
             f.write(",".join(f"{r[c]:.9g}" if isinstance(r[c], float) else str(r[c])
-                             for c in DBP_CURVE_COLUMNS) + "\n")
+                             for c in cols) + "\n")

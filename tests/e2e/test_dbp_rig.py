@@ -15,6 +15,9 @@ over 0.1 s).
    load (one made for another load is refused).
    law: a soil with a known force-slip law (dem_stub drag_x on fem_stub's
    wheel: T_P = B s) is recovered row by row and in the binned curve.
+   across: fig_dbp over three such soils (T_P = B s + a_k, offsets that
+   average to zero): bin by bin the mean of the runs' bin means with the
+   Student-t interval of their spread; two loads refused.
 2. restart: 2N steps straight equal N steps, a checkpoint in the ramp and a
    restart for N more, row for row in /coupler/dbp and /coupler/traction (the
    carriage, the ramp's clock and the running sums are in the checkpoint).
@@ -246,6 +249,76 @@ def law_part():
               f"slip within B x one step's slip change ({worst:.3g} against {LAW_B * step:.3g} N)")
 
 
+ACROSS_OFFSETS = (-0.6, 0.0, 0.6)  # N added to T_P: three "beds" of one law, T_P = B s + a_k
+
+
+def across_part():
+    """fig_dbp over several runs (realisations on different beds): three soils
+    T_P = B s + a_k whose offsets a_k average to zero. Bin by bin the curve
+    across them is the mean of the runs' own bin means (and, the law being
+    linear, B x the mean slip within B x one step's slip change), with the
+    Student-t interval of their spread; runs of another load are refused."""
+    n, c, fx0 = law_coefficients()
+    dirs, curves = [], []
+    for k, a in enumerate(ACROSS_OFFSETS):
+        s = law_scene(f"dbp_across_{k}", "serial")
+        s["processes"]["dem"]["force_per_node"][0] = fx0 + a / n
+        rc, out, err = run(s, timeout=120)
+        check(rc == 0, f"across: run {k} ok ({err[-300:]})")
+        if rc:
+            return
+        dirs.append(s["output"]["dir"])
+        with cosim.Results(dirs[-1]) as r:
+            curves.append(traction.dbp_curve(r))
+    slips = table(s, "dbp")["slip"]
+    out_dir = dirs[0] + "_across"
+    rc = subprocess.run([sys.executable, "-m", "cosim.fig_dbp", *dirs, "--out", out_dir],
+                        capture_output=True, text=True, cwd=os.path.join(ROOT, "python"), timeout=120)
+    check(rc.returncode == 0, f"fig_dbp over {len(dirs)} runs ({rc.stderr[-300:]})")
+    csvp = os.path.join(out_dir, "dbp_curve.csv")
+    if not os.path.exists(csvp):
+        check(False, "across: dbp_curve.csv written")
+        return
+    check(os.path.getsize(os.path.join(out_dir, "dbp.png")) > 10000, "across: dbp.png drawn")
+    with open(csvp) as f:
+        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    step = np.abs(np.diff(slips[table(s, "dbp")["phase"] == traction.DBP_PHASE_RAMP])).max()
+    t2 = cosim.stats._t(2)
+    full = 0
+    for row in rows:
+        lo = float(row["slip_lo"])
+        mine = [b for cv in curves for b in cv if abs(b["slip_lo"] - lo) < 1e-12]
+        v = np.array([b["T_P_mean"] for b in mine])
+        check(int(row["runs"]) == len(mine) >= 1, f"bin {lo:.3g}: runs {row['runs']} = the runs "
+              f"that reach it ({len(mine)})")
+        check(abs(float(row["T_P_mean"]) - v.mean()) < 1e-9 * LAW_B,
+              f"bin {lo:.3g}: T_P = the mean of the runs' bin means")
+        if len(mine) < len(dirs):
+            continue
+        full += 1
+        half = t2 * v.std(ddof=1) / np.sqrt(3)
+        check(abs(float(row["T_P_ci95"]) - half) < 1e-9 * LAW_B and half > 0.5,
+              f"bin {lo:.3g}: ci95 {float(row['T_P_ci95']):.4g} = t_2 s / sqrt 3 of the runs' "
+              f"means ({half:.4g})")
+        dev = abs(float(row["T_P_mean"]) - LAW_B * float(row["slip_mean"]))
+        check(dev <= LAW_B * step * (1 + 1e-9), f"bin {lo:.3g}: the offsets cancel: T_P = B x "
+              f"the mean slip within B x one step ({dev:.3g} against {LAW_B * step:.3g} N)")
+    check(full >= 6, f"across: {full} bins reached by all three runs (the test bites)")
+    other = law_scene("dbp_across_load", "serial")
+    other["scenario"]["sinkage_force"] = 2 * W
+    rc_o, _, err = run(other, timeout=120)
+    check(rc_o == 0, f"across: a run at {2 * W:g} N ({err[-300:]})")
+    bad = subprocess.run([sys.executable, "-m", "cosim.fig_dbp", dirs[0], other["output"]["dir"],
+                          "--out", out_dir + "_bad"], capture_output=True, text=True,
+                         cwd=os.path.join(ROOT, "python"), timeout=120)
+    check(bad.returncode == 1 and "scenario.sinkage_force" in bad.stderr
+          and not os.path.exists(out_dir + "_bad"),
+          f"fig_dbp: runs of two loads refused, naming the key ({bad.stderr.strip()[-200:]})")
+    bad = subprocess.run([sys.executable, "-m", "cosim.fig_dbp", *dirs], capture_output=True,
+                         text=True, cwd=os.path.join(ROOT, "python"), timeout=120)
+    check(bad.returncode != 0 and "--out" in bad.stderr, "fig_dbp: several runs need --out")
+
+
 def restart_part():
     n = 151  # the travel starts near step 84, the ramp near 134: the checkpoint is in it
     a = stub_scene("dbp_straight", "serial")
@@ -309,9 +382,11 @@ def bad_part():
     check(rc == 0, f"load rig: dbp_force_rate not needed ({err.strip()[-200:]})")
 
 
-parts = sys.argv[1:] or ["stub", "law", "restart", "bad"]
+parts = sys.argv[1:] or ["stub", "law", "across", "restart", "bad"]
 if "law" in parts:
     law_part()
+if "across" in parts:
+    across_part()
 if "stub" in parts:
     stub_part()
 if "restart" in parts:
