@@ -388,6 +388,7 @@ typedef struct dem_bed_info {
   int continued;          /* 1: the saved state was imported; 0: positions only */
   int has_state;          /* the file has one */
   double dt, gravity[3];  /* of the run that saved it (NAN if not recorded) */
+  char friction[256];     /* the pairs whose saved friction differs ("0-1: friction 0.3 -> 1.2"), or "" */
 } dem_bed_info;
 int dem_bed_continue(const dem_model *m, dem_state *s, dem_bed_info *info, proto_err *err);
 

@@ -18,6 +18,7 @@
 #define DEM_BED_MAX_OVERLAP "max_overlap" /* dataset: largest overlap when saved */
 #define DEM_BED_STATE "/state"             /* group: the state.<x> arrays */
 #define DEM_BED_SETTLED "settled_with"     /* dataset: dt, gravity x y z of the saving run */
+#define DEM_BED_FRICTION "friction_with"   /* dataset [materials², 2]: each pair's μ, μ_r when saved */
 #define DEM_BED_TMP ".tmp"                 /* written under path.tmp, then renamed */
 
 void dem_bed_paper(dem_bed_spec *b, double scale) {
@@ -174,7 +175,41 @@ static int save_grains(const dem_model *m, const dem_state *s, proto_h5 *f, doub
   if (!rc) rc = write_ds(f, DEM_BED_MAX_OVERLAP, PROTO_F8, 1, 1, 1, &worst, err);
   const double with[4] = {s->dt, m->gravity[0], m->gravity[1], m->gravity[2]};
   if (!rc) rc = write_ds(f, DEM_BED_SETTLED, PROTO_F8, 1, 4, 1, with, err);
+  double mu[2 * DEM_MAX_MATERIALS * DEM_MAX_MATERIALS];
+  const int nm = m->n_materials;
+  for (int a = 0; a < nm; a++)
+    for (int b = 0; b < nm; b++) {
+      mu[2 * (a * nm + b)] = m->law[a][b].mu;
+      mu[2 * (a * nm + b) + 1] = m->law[a][b].mu_roll;
+    }
+  if (!rc) rc = write_ds(f, DEM_BED_FRICTION, PROTO_F8, 2, nm * nm, 2, mu, err);
   return rc;
+}
+
+/* The pairs whose friction the bed was saved with differs from the model's,
+ * as "0-1: friction 0.3 -> 1.2; ..." into info->friction (empty: the same,
+ * or not recorded). Friction is not in the state's fingerprint
+ * (dem_state_io.c): the springs continue, capped by the new limit. */
+static int saved_friction(const dem_model *m, proto_h5in *f, dem_bed_info *info, proto_err *err) {
+  const int nm = m->n_materials;
+  info->friction[0] = 0;
+  if (!proto_h5in_exists(f, DEM_BED_FRICTION)) return 0;
+  int64_t dims[2] = {nm * nm, 2};
+  double *mu = NULL;
+  if (proto_h5in_read_f8(f, DEM_BED_FRICTION, 2, dims, 2 * nm * nm, &mu, err))
+    return proto_wrap(err, "dataset '%s' (%d materials)", DEM_BED_FRICTION, nm);
+  size_t len = 0;
+  const size_t cap = sizeof info->friction;
+  for (int a = 0; a < nm; a++)
+    for (int b = a; b < nm; b++) {
+      const double *was = &mu[2 * (a * nm + b)], now[2] = {m->law[a][b].mu, m->law[a][b].mu_roll};
+      for (int k = 0; k < 2; k++)
+        if (was[k] != now[k] && len < cap)
+          len += (size_t)snprintf(info->friction + len, cap - len, "%s%d-%d: %s %g -> %g", len ? "; " : "", a,
+                                  b, k ? "rolling friction" : "friction", was[k], now[k]);
+    }
+  free(mu);
+  return 0;
 }
 
 /* The state.<x> arrays of dem_state_export under /state. */
@@ -310,7 +345,7 @@ static int same_positions(const dem_model *m, const dem_state *s, const char *pa
 
 int dem_bed_continue(const dem_model *m, dem_state *s, dem_bed_info *info, proto_err *err) {
   const char *path = m->cfg.bed_file;
-  *info = (dem_bed_info){0, 0, NAN, {NAN, NAN, NAN}};
+  *info = (dem_bed_info){0, 0, NAN, {NAN, NAN, NAN}, {0}};
   proto_h5in *f = proto_h5in_open(path, err);
   if (!f) return -1;
   info->has_state = proto_h5in_exists(f, DEM_BED_STATE);
@@ -325,6 +360,7 @@ int dem_bed_continue(const dem_model *m, dem_state *s, dem_bed_info *info, proto
     }
     free(with);
   }
+  if (!rc) rc = saved_friction(m, f, info, err);
   if (rc || !info->has_state || m->cfg.bed_positions) {
     proto_h5in_close(f);
     return rc;

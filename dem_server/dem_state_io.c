@@ -22,7 +22,7 @@
 
 _Static_assert(sizeof(int) == 4, "neighbour-list indices travel as i4");
 
-#define IO_FORMAT 2 /* bump when the set or meaning of the arrays changes (2: state.model) */
+#define IO_FORMAT 3 /* bump when the set or meaning of the arrays changes (2: state.model; 3: friction out of it) */
 /* IO_C_MESH_FLAGS: bit k = nodes of mesh k set since the list build, bit
  * DEM_MAX_MESHES = lists to rebuild (the rebuild schedule decides the sleep
  * "near" flags, so it travels too) */
@@ -33,7 +33,7 @@ enum { IO_S_T, IO_S_KE, IO_S_ELASTIC, IO_S_OVERLAP, IO_NSCALARS };
 enum { IO_M_GRAINS, IO_M_MATERIALS, IO_M_WALLS, IO_M_MESHES, IO_M_SKIN, IO_M_SLEEP, IO_NPARTS };
 static const char *const io_part_name[IO_NPARTS] = {
     [IO_M_GRAINS] = "grains (count, radii, materials, fixed rotation)",
-    [IO_M_MATERIALS] = "materials (their values, pair values, limit_force)",
+    [IO_M_MATERIALS] = "materials (density, stiffness, restitution; pair values; limit_force)",
     [IO_M_WALLS] = "walls (planes: point, normal, material)",
     [IO_M_MESHES] = "meshes (node and triangle counts, triangles, material; the coupled surface included)",
     [IO_M_SKIN] = "skin",
@@ -122,7 +122,12 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
 /* FNV-1a over what a state's arrays depend on and what a continued run
  * needs unchanged: grains, materials, walls, mesh topology, skin (the list's
  * validity), sleep on or off. Not dt, gravity nor the sleep thresholds (a
- * restart may change them). Fields one by one: struct padding is not hashed. */
+ * restart may change them), nor the sliding and rolling friction of the
+ * materials and pairs: a tangential spring is a displacement whose force the
+ * Coulomb limit caps at every evaluation (dem_force.c), and rolling carries
+ * no state, so other friction values act from the next step on, as another
+ * gravity does (a pair-friction study from one settled bed). Fields one by
+ * one: struct padding is not hashed. */
 static uint64_t fnv(uint64_t h, const void *p, size_t n) {
   const unsigned char *b = p;
   for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 0x100000001b3ull;
@@ -140,11 +145,11 @@ static void model_parts(const dem_model *m, int64_t *part) {
   h = FNV_VAL(FNV0, m->n_materials);
   for (int a = 0; a < m->n_materials; a++) {
     const dem_material *mt = &m->mat[a];
-    const double v[] = {mt->density, mt->E, mt->nu, mt->G, mt->restitution, mt->friction, mt->rolling_friction};
+    const double v[] = {mt->density, mt->E, mt->nu, mt->G, mt->restitution};
     h = fnv(h, v, sizeof v);
     for (int b = 0; b < m->n_materials; b++) {
       const dem_pair_law *l = &m->law[a][b];
-      const double lv[] = {l->Estar, l->Gstar, l->beta, l->mu, l->mu_roll, l->damp_n, l->damp_t};
+      const double lv[] = {l->Estar, l->Gstar, l->beta, l->damp_n, l->damp_t};
       h = fnv(h, lv, sizeof lv);
       h = FNV_VAL(h, l->clamp);
     }

@@ -10,8 +10,10 @@
  * with "sleep" on, the plate standing still and no foot (part of the bed
  * asleep when saved). At the save the bed has grain-grain contacts with
  * non-zero tangential springs and mesh contacts.
+ * A bed continued with other friction is bit for bit the saving run with
+ * its friction switched at the save, and names the pairs whose friction differs.
  * An old bed (x and r only) loads, positions only; a bed of another scene
- * (other materials, walls, no foot, other sleep) is refused naming what
+ * (other restitution, walls, no foot, other sleep) is refused naming what
  * differs, or loaded as positions only when particles.state says so; a file
  * whose x was edited after the save is refused. */
 #include "dem_test.h"
@@ -19,7 +21,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#define MATERIALS "\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":%s}]"
+#define MATERIALS "\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":%s,\"friction\":%s}]"
 #define WALLS                                                                                              \
   "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[0.1414213562,0.1414213562,%s],\"open_top\":true},"  \
   "{\"type\":\"mesh\",\"nodes\":[[0,0.01,0.015],[0,0.13,0.015],[0,0.13,0.12],[0,0.01,0.12]],"             \
@@ -48,12 +50,13 @@ typedef struct variant {
   const char *friction, *box_top, *sleep, *particles;
   const char *plate_v; /* NULL: 0.4 m/s */
 } variant;
+static const char *restitution = "0.5"; /* of every scene made; "other restitution" changes it */
 
 /* Model (+ the foot as the coupled surface) + state; rc and message. */
 static int make(const variant *v, dem_model *m, dem_state *s, proto_err *err) {
   char json[4096];
   snprintf(json, sizeof json, "{" MATERIALS ",\"threads\":%d,\"dt\":5e-5,\"sleep\":%s," WALLS ",\"particles\":%s}",
-           v->friction, v->threads, v->sleep, v->box_top, v->plate_v ? v->plate_v : "0.4", v->particles);
+           restitution, v->friction, v->threads, v->sleep, v->box_top, v->plate_v ? v->plate_v : "0.4", v->particles);
   cJSON *j = cJSON_Parse(json);
   if (!j) { fprintf(stderr, "bad test JSON: %s\n", json); exit(2); }
   int32_t tri[6 * FOOT_N * FOOT_N];
@@ -168,6 +171,49 @@ static void expect(const variant *v, int want_rc, const char *want, int want_con
         want_continued);
 }
 
+/* Friction is not in the fingerprint: a bed continued with other friction is
+ * bit for bit the saving run with its friction switched at the save (the
+ * springs continue, capped by the new limit from the next step), and the
+ * bed says which pairs' friction differs. The switch must change the run
+ * (the test bites): the saving run unswitched differs. */
+static void friction_switch(const char *path, int N, int M) {
+  const variant gen = {1, 1, "0.6", "1", "false", "{\"generate\":\"bed\",\"scale\":0.02,\"seed\":7}", NULL};
+  const variant low = {1, 1, "0.5", "1", "false", bed(path, NULL), NULL};
+  const variant keep = {1, 1, "0.6", "1", "false", bed(path, NULL), NULL};
+  dem_model ma, mb, m0;
+  dem_state a, a0, b;
+  proto_err err = {{0}};
+  CHECK(make(&gen, &ma, &a, &err) == 0, "scene: %s", err.msg);
+  run(&ma, &a, 1, 0, N);
+  CHECK(dem_bed_save(&ma, &a, path, &err) == 0, "save: %s", err.msg);
+  CHECK(make(&low, &mb, &b, &err) == 0, "scene with friction 0.5: %s", err.msg);
+  dem_bed_info info;
+  CHECK(dem_bed_continue(&mb, &b, &info, &err) == 0 && info.continued, "continue with friction 0.5: %s", err.msg);
+  printf("friction 0.6 -> 0.5: the bed says '%s'\n", info.friction);
+  CHECK(strstr(info.friction, "0-0: friction 0.6 -> 0.5") != NULL, "the bed names the pair: '%s'", info.friction);
+  /* a0: the saving run going on unswitched, from the same saved state */
+  CHECK(make(&keep, &m0, &a0, &err) == 0 && dem_bed_continue(&m0, &a0, &info, &err) == 0 && !info.friction[0],
+        "unswitched: %s", err.msg);
+  run(&m0, &a0, 1, N, N + M);
+  for (int i = 0; i < ma.n_materials; i++) {
+    ma.mat[i].friction = mb.mat[i].friction;
+    for (int j = 0; j < ma.n_materials; j++) ma.law[i][j].mu = mb.law[i][j].mu;
+  }
+  run(&ma, &a, 1, N, N + M);
+  run(&mb, &b, 1, N, N + M);
+  char what[64];
+  const int same = dem_test_same_state(&ma, &a, &mb, &b, what, sizeof what);
+  printf("  switched at the save == continued from the bed with friction 0.5: %s (%s)\n", same ? "yes" : "NO", what);
+  CHECK(same, "the bed continued with other friction differs from the switched run at '%s'", what);
+  CHECK(!dem_test_same_state(&m0, &a0, &mb, &b, what, sizeof what), "the switch changes nothing (the test does not bite)");
+  dem_state_free(&a0);
+  dem_model_free(&m0);
+  dem_state_free(&b);
+  dem_model_free(&mb);
+  dem_state_free(&a);
+  dem_model_free(&ma);
+}
+
 int main(void) {
   char path[] = "/tmp/test_dem_bed_continue_XXXXXX";
   close(mkstemp(path));
@@ -178,15 +224,19 @@ int main(void) {
     const variant t = {1, 0, "0.6", "1", "{\"velocity\":0.03,\"time\":0.02,\"overlap\":0.05}", bed(path, NULL), NULL};
     expect(&t, 0, NULL, 1, "other sleep thresholds");
   }
+  friction_switch(path, 1500, 1000);
   continues("false", 1, 1500, 1000, path); /* the file now holds this bed */
 
   /* mismatches: refused, naming the part; or positions only when asked */
   variant v = {1, 1, "0.6", "1", "false", bed(path, NULL), NULL};
   expect(&v, 0, NULL, 1, "the same scene");
-  v.friction = "0.5";
-  expect(&v, 1, "materials (", 0, "other friction");
+  restitution = "0.4";
+  expect(&v, 1, "materials (", 0, "other restitution");
   v.particles = bed(path, "positions");
-  expect(&v, 0, NULL, 0, "other friction, state positions");
+  expect(&v, 0, NULL, 0, "other restitution, state positions");
+  restitution = "0.5";
+  v = (variant){1, 1, "0.5", "1", "false", bed(path, NULL), NULL};
+  expect(&v, 0, NULL, 1, "other friction"); /* friction_switch: bit for bit the switched run */
   v = (variant){1, 1, "0.6", "2", "false", bed(path, NULL), NULL};
   expect(&v, 1, "walls (", 0, "a taller box");
   v = (variant){1, 0, "0.6", "1", "false", bed(path, NULL), NULL};
