@@ -38,7 +38,7 @@ import numpy as np
 
 from .errors import CosimError
 from .results import Results
-from . import sweep_cli, traction
+from . import terra_ref, traction
 
 CURVE_FILE, PLOT_FILE = "dbp_curve.csv", "dbp.png"
 # T_H, |T_R|, T_P drawn as seed 000 fig. 15 draws them; the force the rig measured
@@ -61,7 +61,7 @@ def read_points(path):
 
 
 def read_reference(path, load):
-    """A `cosim terra curve` record (sweep_cli.read_reference), refused unless
+    """A `cosim terra curve` record (terra_ref.read_reference), refused unless
     its `# load_N:` line is `load` N and it has the columns drawn."""
     with open(path) as f:
         meta = dict(l[2:].split(": ", 1) for l in f if l.startswith("# ") and ": " in l)
@@ -70,7 +70,7 @@ def read_reference(path, load):
     if abs(float(meta["load_N"]) - float(load)) > 1e-6 * abs(float(load)):
         raise CosimError(f"{path}: made for a load of {meta['load_N'].strip()} N, the run's "
                          f"scenario.sinkage_force is {float(load):g} N")
-    ref = sweep_cli.read_reference(path)
+    ref = terra_ref.read_reference(path)
     need = ("s", "T_over_r", "DP")
     if ref.dtype.names is None or any(c not in ref.dtype.names for c in need) or ref.size == 0:
         raise CosimError(f"{path}: needs the columns {', '.join(need)} and at least one row")
@@ -94,7 +94,7 @@ def finish_curve(ax, points, ref, title):
     zero line, labels, title and legend."""
     draw_points(ax, points)
     if ref is not None:
-        sweep_cli.draw_reference(ax, ref, band=True)
+        terra_ref.draw_reference(ax, ref, band=True)
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("slip (measured)")
     ax.set_ylabel("force (N)")
@@ -177,28 +177,30 @@ def plot_across(path, runs, names, curves, across, points=None, ref=None):
     plt.close(fig)
 
 
-def across_main(a):
-    """Several runs: the curve across them into a.out."""
+def write_across(paths, out_dir, bin_width=traction.DBP_BIN_WIDTH, csv_path=None, png=None,
+                 points=None, reference=None):
+    """The curve across the dbp runs in paths (their dirs or results.h5):
+    dbp_curve.csv and dbp.png into out_dir (or csv_path, png); returns
+    (csv_path, png, bins). A CosimError when the runs are not realisations
+    of one curve or one has no ramp."""
     names = [os.path.basename(os.path.normpath(p if os.path.isdir(p) else os.path.dirname(p) or "."))
-             for p in a.run]
+             for p in paths]
     with contextlib.ExitStack() as stack:
-        runs = [stack.enter_context(Results(p)) for p in a.run]
-        traction.dbp_same_ramp([r.scene for r in runs], list(a.run))
-        curves = [traction.dbp_curve(r, a.bin_width) for r in runs]
-        for p, c in zip(a.run, curves):
+        runs = [stack.enter_context(Results(p)) for p in paths]
+        traction.dbp_same_ramp([r.scene for r in runs], list(paths))
+        curves = [traction.dbp_curve(r, bin_width) for r in runs]
+        for p, c in zip(paths, curves):
             if not c:
                 raise CosimError(f"{p}: no rows in the ramp (phase 2)")
         load = float(runs[0].scene["scenario"]["sinkage_force"])
-        across = traction.dbp_curve_across(curves, load, a.bin_width)
-        os.makedirs(a.out, exist_ok=True)
-        csv_path = a.csv or os.path.join(a.out, CURVE_FILE)
+        across = traction.dbp_curve_across(curves, load, bin_width)
+        ref = read_reference(reference, load) if reference else None
+        os.makedirs(out_dir, exist_ok=True)
+        csv_path = csv_path or os.path.join(out_dir, CURVE_FILE)
         traction.write_dbp_curve(csv_path, across, runs[0].scene, runs=names)
-        points = read_points(a.slip_points) if a.slip_points else None
-        ref = read_reference(a.reference, load) if a.reference else None
-        png = a.png or os.path.join(a.out, PLOT_FILE)
+        png = png or os.path.join(out_dir, PLOT_FILE)
         plot_across(png, runs, names, curves, across, points, ref)
-    print(f"cosim.fig_dbp: {len(across)} slip bins across {len(runs)} runs -> {csv_path}, {png}")
-    return 0
+    return csv_path, png, len(across)
 
 
 def main(argv):
@@ -220,10 +222,14 @@ def main(argv):
         if not a.out:
             ap.error(f"--out: needed with several runs ({len(a.run)} given)")
         try:
-            return across_main(a)
+            points = read_points(a.slip_points) if a.slip_points else None
+            csv_path, png, bins = write_across(a.run, a.out, a.bin_width, a.csv, a.png, points,
+                                               a.reference)
         except (CosimError, KeyError, OSError, ValueError) as e:
             print(f"cosim.fig_dbp: {e}", file=sys.stderr)
             return 1
+        print(f"cosim.fig_dbp: {bins} slip bins across {len(a.run)} runs -> {csv_path}, {png}")
+        return 0
     a.run = a.run[0]
     base = a.run if os.path.isdir(a.run) else os.path.dirname(a.run) or "."
     try:

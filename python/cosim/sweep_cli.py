@@ -35,6 +35,14 @@ should cover the traction's correlation time, a lug's passage); a window
 too short for 8 such batches, or whose batch means stay correlated, has no
 interval (empty: too short to say).
 
+A drawbar-pull scene (``scenario.rig = "dbp"``) sweeps the slip within each
+run, so its window means mix slips; its answer is the traction-slip curve:
+per value, ``DIR/dbp/`` (``DIR/dbp_<key>=<value>/`` for several values) holds
+``dbp_curve.csv`` and ``dbp.png``, the curve across that value's runs
+(``--repeat N``: N beds; cosim.fig_dbp.write_across: per slip bin the mean of
+the runs' bin means and its 95 % interval from their spread), beside the
+reference.
+
 The steady window: the travel starts at the first row whose vertical load
 reaches ``scenario.sinkage_force`` (the coupler's switch, coupler/scenario.c);
 the first ``--skip-travel`` metres of travel (default 0.1 m: the contact patch
@@ -56,6 +64,8 @@ from .errors import CosimError, RunError
 from .results import Results
 from . import stats
 from .traction import QUANTITIES, is_dbp, summarise_run, travel_window  # noqa: F401 (report.py)
+from .terra_ref import draw_reference, read_reference
+from . import fig_dbp
 from .roles import cosim_executable
 from .runner import _dir_name, grid_points, sweep as run_sweep
 from .sweep_beds import BEDS_DIR
@@ -63,6 +73,7 @@ from .sweep_beds import BEDS_DIR
 STATS = ["mean", "ci95", "min", "max"]  # ci95: half-width of the mean's 95 % interval
 SUMMARY_FILE, PLOT_FILE, REFERENCE_FILE = "summary.csv", "summary.png", "reference.csv"
 RUNS_FILE = "runs.csv"
+DBP_DIR = "dbp"  # a dbp scene's curve across its runs (DIR/dbp, or DIR/dbp_<key>=<value>)
 SEED_KEY = "seed"  # in a dem section's "particles" that generates a "bed"
 DEFAULT_SEED = 1   # dem_server's default bed seed
 DEFAULT_SKIP_TRAVEL_M = 0.1
@@ -183,27 +194,6 @@ def reference_curve(args, scene, out):
     if p.returncode != 0:
         raise CosimError(f"cosim terra curve failed: {p.stderr.strip()}")
     return path
-
-
-def read_reference(path):
-    """A terra record (``# key: value`` lines, then a header) as a numpy
-    record array (genfromtxt would take the first comment line for the names)."""
-    with open(path) as f:
-        body = [l for l in f if not l.startswith("#")]
-    return np.genfromtxt(body, delimiter=",", names=True)
-
-
-def draw_reference(ax, ref, label="terramechanics", band=False):
-    """A terra record's T/r, DP and T/r − DP dashed over its slip s, in the
-    colours of T_H, T_P and |T_R|; with band, the min..max over its packings
-    (the _lo/_hi columns) faint where it has one."""
-    s, names = ref["s"], ref.dtype.names
-    for col, name, color in [("T_over_r", "T/r", "tab:blue"), ("DP", "DP", "tab:green")]:
-        ax.plot(s, ref[col], "--", color=color, label=f"{label} {name}")
-        lo, hi = f"{col}_lo", f"{col}_hi"
-        if band and lo in names and hi in names and np.any(ref[hi] > ref[lo]):
-            ax.fill_between(s, ref[lo], ref[hi], color=color, alpha=0.1, lw=0)
-    ax.plot(s, ref["T_over_r"] - ref["DP"], "--", color="tab:red", label=f"{label} T/r − DP")
 
 
 def read_summary(path, notes=None):
@@ -421,7 +411,16 @@ def main(argv):
           f"{os.path.join(args.out, PLOT_FILE)}")
     if scene and is_dbp(scene):
         # a dbp run's window mixes the slips its ramp swept: its curve is the answer
-        print(f"dbp runs: the window means mix the slips the ramp swept; the curve across "
-              f"beds: python3 -m cosim.fig_dbp {os.path.join(args.out, '<run dir>')}... "
-              f"--out {os.path.join(args.out, 'dbp')} (dirs in {RUNS_FILE if args.repeat > 1 else SUMMARY_FILE})")
+        for row in rows:
+            dirs = [os.path.join(args.out, d) for d in row["dir"].split(";")]
+            out = os.path.join(args.out, DBP_DIR if len(rows) == 1 else
+                               f"{DBP_DIR}_{_dir_name({key: row[key]})}")
+            try:
+                csv_path, png, bins = fig_dbp.write_across(dirs, out, reference=ref)
+            except CosimError as e:
+                print(f"cosim sweep: dbp curve of {key}={json.dumps(row[key])}: {e}", file=sys.stderr)
+                continue
+            print(f"dbp curve over {len(dirs)} run(s) of {key}={json.dumps(row[key])} "
+                  f"({bins} slip bins): {csv_path}, {png} (summary.csv's window means mix the "
+                  "slips the ramp swept)")
     return 0 if finished == len(done) else 3

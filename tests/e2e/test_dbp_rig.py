@@ -17,7 +17,8 @@ over 0.1 s).
    wheel: T_P = B s) is recovered row by row and in the binned curve.
    across: fig_dbp over three such soils (T_P = B s + a_k, offsets that
    average to zero): bin by bin the mean of the runs' bin means with the
-   Student-t interval of their spread; two loads refused.
+   Student-t interval of their spread; two loads refused. sweep: `cosim
+   sweep` of the dbp scene writes each value's curve across its runs.
 2. restart: 2N steps straight equal N steps, a checkpoint in the ramp and a
    restart for N more, row for row in /coupler/dbp and /coupler/traction (the
    carriage, the ramp's clock and the running sums are in the checkpoint).
@@ -319,6 +320,32 @@ def across_part():
     check(bad.returncode != 0 and "--out" in bad.stderr, "fig_dbp: several runs need --out")
 
 
+def sweep_part():
+    """`cosim sweep` of a dbp scene writes, per swept value, the curve across
+    its runs: here one run per value, so each bin is that run's own bin."""
+    from common import scratch, write
+    s = law_scene("dbp_sweep", "serial")
+    path, out = write(s), os.path.join(scratch("cosim-dbp-sweep-"), "sw")
+    rc = subprocess.run([COSIM, "sweep", path, "--values", "scenario.dbp_force_rate=40,30",
+                         "--out", out], capture_output=True, text=True, timeout=300)
+    check(rc.returncode == 0, f"sweep of a dbp scene ({rc.stderr[-300:]})")
+    for rate in (40, 30):
+        d = os.path.join(out, f"dbp_scenario.dbp_force_rate={rate}")
+        run_dir = os.path.join(out, f"scenario.dbp_force_rate={rate}")
+        csvp = os.path.join(d, "dbp_curve.csv")
+        if not (os.path.exists(csvp) and os.path.isdir(run_dir)):
+            check(False, f"sweep: {csvp} and {run_dir}")
+            continue
+        with open(csvp) as f:
+            rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+        with cosim.Results(run_dir) as r:
+            own = traction.dbp_curve(r)
+        check(len(rows) == len(own) > 5 and all(
+            int(a["runs"]) == 1 and abs(float(a["T_P_mean"]) - b["T_P_mean"]) < 1e-9 * LAW_B
+            for a, b in zip(rows, own)), f"sweep rate {rate}: {d} holds the run's curve, one run per bin")
+        check(os.path.getsize(os.path.join(d, "dbp.png")) > 10000, f"sweep rate {rate}: dbp.png")
+
+
 def restart_part():
     n = 151  # the travel starts near step 84, the ramp near 134: the checkpoint is in it
     a = stub_scene("dbp_straight", "serial")
@@ -382,11 +409,13 @@ def bad_part():
     check(rc == 0, f"load rig: dbp_force_rate not needed ({err.strip()[-200:]})")
 
 
-parts = sys.argv[1:] or ["stub", "law", "across", "restart", "bad"]
+parts = sys.argv[1:] or ["stub", "law", "across", "sweep", "restart", "bad"]
 if "law" in parts:
     law_part()
 if "across" in parts:
     across_part()
+if "sweep" in parts:
+    sweep_part()
 if "stub" in parts:
     stub_part()
 if "restart" in parts:
