@@ -12,14 +12,17 @@
  * so the impulse is exact; not ramped): on fem_stub's wheel, whose nodes
  * move at v_x = V - omega r cos(theta) for a carriage speed V, the traction
  * is linear in the slip s = 1 - V / (omega r), a known force-slip law for
- * the drawbar-pull rig.
+ * the drawbar-pull rig. With step_wall each step also takes that many
+ * seconds of wall time (asleep), as a solver's compute would: a run that lasts
+ * on any machine, for tests that watch one live.
  * Config: {"exec": "dem_stub", "force_per_node": [fx, fy, fz],
- *          "ramp_time": 0.0, "bed_top": z, "drag_x": c}; other keys (a
+ *          "ramp_time": 0.0, "bed_top": z, "drag_x": c, "step_wall": s}; other keys (a
  * dem_server section) are named in the log and ignored (then the force is
  * zero). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "stubs/stub.h"
 
@@ -33,6 +36,7 @@ typedef struct dem_stub {
   double ramp_time;         /* s */
   double bed_top;           /* m: only nodes below it get the force */
   double drag_x;            /* N s/m per node: -drag_x v_x along x */
+  double step_wall;         /* s of wall time each step takes (asleep) */
   int32_t *index;           /* [n] sparse reply: the nodes that carry a force */
   double *rows;             /* [n*3] their forces */
   int64_t n_nodes;
@@ -52,7 +56,8 @@ static int configure(void *user, const proto_run_info *info,
                     3, NULL) < 0 ||
       proto_cfg_num(&c, "ramp_time", PROTO_OPTIONAL, 0, 1e9, &s->ramp_time) < 0 ||
       proto_cfg_num(&c, "bed_top", PROTO_OPTIONAL, -1e9, 1e9, &s->bed_top) < 0 ||
-      proto_cfg_num(&c, "drag_x", PROTO_OPTIONAL, 0, 1e9, &s->drag_x) < 0)
+      proto_cfg_num(&c, "drag_x", PROTO_OPTIONAL, 0, 1e9, &s->drag_x) < 0 ||
+      proto_cfg_num(&c, "step_wall", PROTO_OPTIONAL, 0, 60, &s->step_wall) < 0)
     return -1;
   return stub_cfg_end(&c, "dem_stub");
 }
@@ -113,6 +118,11 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
           proto_msg_add_prefixed(reply, PROTO_P_SNAP, PROTO_A_NODAL_FORCE,
                                  PROTO_F8, s->n_nodes, 3, s->force) < 0)))
       return proto_fail(err, "reply full");
+  }
+  if (s->step_wall > 0) {
+    const struct timespec ts = {(time_t)s->step_wall,
+                                (long)((s->step_wall - floor(s->step_wall)) * 1e9)};
+    nanosleep(&ts, NULL);
   }
   double row[NCOL] = {info->t_end, total[0], total[1], total[2], (double)s->n_nodes};
   memcpy(s->series, row, sizeof row);

@@ -28,10 +28,13 @@ from selenium import webdriver  # noqa: E402
 from selenium.webdriver.common.by import By  # noqa: E402
 
 BIN = os.environ.get("COSIM_BIN", os.path.join(ROOT, "build", "bin"))
-# stub_tire at dt 1 ms: 24000 steps, ~8 s in Release on an idle machine (longer under ASan):
-# the page comes up 3 s or more into the run and polls once a second, and must see three
-# values live (12000 steps were over before a third on an idle machine: 9162, 10556)
+# stub_tire at dt 1 ms: 24000 steps, ~8 s in Release on an idle machine of stop 35 (longer
+# under ASan), 2-3 s on a faster one, where the run was over before the page came up
+# (9162, 10556 with 12000 steps; 15490, 24000 and 17022 with 24000): the dem stub sleeps
+# STEP_WALL_S per step, so the run lasts >= 9.6 s on any machine; the page comes up 3 s or
+# more into the run, polls once a second and must see three values live
 T_END_S = 24.0
+STEP_WALL_S = 4e-4
 SEEN_STEPS = 3        # distinct step counts the page must show during the live run
 LIVE_WAIT_S = 60.0    # bounds on each wait (a failure, not a slow machine, hits them)
 FINAL_WAIT_S = 60.0
@@ -114,7 +117,8 @@ def main():
     run = subprocess.Popen([os.path.join(BIN, "cosim"), "run",
                             os.path.join(ROOT, "configs", "stub_tire.json"),
                             "--set", f"output.dir={run_dir}", "--set", f"time.end={T_END_S}",
-                            "--set", "bus.monitor=tcp://127.0.0.1:0"],
+                            "--set", "bus.monitor=tcp://127.0.0.1:0",
+                            "--set", f"processes.dem.step_wall={STEP_WALL_S}"],
                            stdout=log, stderr=subprocess.STDOUT)
     watch, url = start_watch(run_dir)
     d = browser()
