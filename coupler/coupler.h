@@ -165,6 +165,9 @@ typedef struct cpl_scene {
    * the socket */
   enum { CPL_TRANSPORT_AUTO, CPL_TRANSPORT_SOCKET } transport;
   int sparse;               /* coupling.sparse: only the surface near grains travels */
+  /* coupling.affinity: "handoff" puts the coupler's loop and each OpenMP
+   * participant's main thread on one core (affinity.c) */
+  enum { CPL_AFFINITY_NONE, CPL_AFFINITY_HANDOFF } affinity;
   cpl_implicit implicit;
   cpl_scenario scenario;
   int nprocs;

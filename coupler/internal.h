@@ -6,6 +6,22 @@
 
 #include "coupler.h"
 
+/* ---- affinity.c: coupling.affinity (the hand-offs of a step on one core) */
+typedef struct cpl_affinity {
+  int on;           /* the hand-off core is in use */
+  int core;         /* the hand-off core, or -1 */
+  char places[512]; /* OMP_PLACES for the children: "{core},{c1},..." */
+  char why[200];    /* what was done or why not (the schedule printout) */
+} cpl_affinity;
+/* Decides from the scene, the CPUs the coupler may use and the environment
+ * (a user's OMP_PLACES / OMP_PROC_BIND is kept); before the children start. */
+void cpl_affinity_plan(const cpl_scene *s, int attach, cpl_affinity *a);
+/* In a child between fork and exec: OMP_PLACES and OMP_PROC_BIND (on only). */
+void cpl_affinity_child_env(const cpl_affinity *a);
+/* Binds the calling thread (the loop) to the hand-off core (on only); a
+ * failure is a warning: the results are the same unbound. */
+void cpl_affinity_pin_self(cpl_affinity *a);
+
 /* ---- launch.c: child processes */
 typedef struct cpl_child {
   char name[PROTO_NAME_LEN];
@@ -22,7 +38,7 @@ typedef struct cpl_child {
  * CURVE key file, passed in the environment (never on the command line). */
 int cpl_spawn(cpl_child *c, const char *name, int argc, const char *const *argv,
               const char *endpoint, const char *log_path, const char *curve_file,
-              proto_err *err);
+              const cpl_affinity *affinity, proto_err *err);
 /* Returns 1 if the child has just been found to have exited. */
 int cpl_child_poll(cpl_child *c);
 /* Last `lines` lines of the child's log into out. */

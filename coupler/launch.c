@@ -19,7 +19,7 @@
 
 int cpl_spawn(cpl_child *c, const char *name, int argc, const char *const *argv,
               const char *endpoint, const char *log_path, const char *curve_file,
-              proto_err *err) {
+              const cpl_affinity *affinity, proto_err *err) {
   memset(c, 0, sizeof *c);
   snprintf(c->name, sizeof c->name, "%s", name);
   snprintf(c->exec, sizeof c->exec, "%s", argv[argc - 1]);
@@ -68,6 +68,7 @@ int cpl_spawn(cpl_child *c, const char *name, int argc, const char *const *argv,
      * process computing next (paper-scale tyre, 2 cores, 2 threads each:
      * 1.8x slower; bench/results/coupling.md). Unless the user chose. */
     setenv("OMP_WAIT_POLICY", "passive", 0);
+    cpl_affinity_child_env(affinity); /* main threads on the hand-off core */
     execv(args[0], (char *const *)args);
     fprintf(stderr, "cannot execute %s: %s\n", args[0], strerror(errno));
     _exit(127);

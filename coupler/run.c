@@ -132,7 +132,8 @@ static int start_children(cpl_runner *r) {
     char log[2 * CPL_PATH_LEN];
     snprintf(log, sizeof log, "%s/%s.log", logs, p->name);
     if (cpl_spawn(&r->children[r->nchildren], p->name, p->argc, argv,
-                  r->ctl_endpoint, log, cpl_zap_key_file(r->zap, i), &r->err) < 0)
+                  r->ctl_endpoint, log, cpl_zap_key_file(r->zap, i), &r->affinity,
+                  &r->err) < 0)
       return -1;
     r->nchildren++;
   }
@@ -535,6 +536,7 @@ static int prepare(cpl_runner *r) {
   if (rc == 0) rc = claim_output_dir(r);
   if (rc == 0) rc = setup_sockets(r);
   if (rc == 0) rc = write_endpoints(r);
+  if (rc == 0) cpl_affinity_plan(r->scene, r->opts->attach, &r->affinity);
   if (rc == 0 && !r->opts->attach) rc = start_children(r);
   if (rc == 0) rc = wait_hellos(r);
   if (rc == 0) rc = welcome_all(r);
@@ -594,6 +596,7 @@ int cpl_run(cpl_scene *s, const cpl_run_opts *opts) {
                   : 0;
   r->wall_start = proto_now();
   int rc = prepare(r);
+  if (rc == 0) cpl_affinity_pin_self(&r->affinity); /* the children keep every core */
   if (rc == 0) rc = cpl_step_loop(r);
   int exit_code = 0;
   if (rc < 0) {

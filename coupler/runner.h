@@ -249,6 +249,7 @@ typedef struct cpl_runner {
   cpl_peer peers[CPL_MAX_PROCS];
   cpl_child children[CPL_MAX_PROCS];
   int nchildren;
+  cpl_affinity affinity; /* coupling.affinity, planned before the children start */
   /* the plan: run.c builds it through `draft` during the handshake and
    * seals it (draft = NULL) before the first step; every stage reads it
    * through `plan`, which the compiler keeps read-only */

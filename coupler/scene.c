@@ -171,9 +171,11 @@ static int read_coupling(proto_cfg *root, cpl_scene *s) {
   if (rc < 0) return -1;
   if (rc > 0) return read_implicit(NULL, s);
   static const char *const transport_names[] = {"auto", "socket", NULL};
-  int transport = CPL_TRANSPORT_AUTO;
+  static const char *const affinity_names[] = {"none", "handoff", NULL};
+  int transport = CPL_TRANSPORT_AUTO, affinity = CPL_AFFINITY_NONE;
   if (proto_cfg_enum(&c, "scheme", PROTO_OPTIONAL, scheme_names, &scheme) < 0 ||
       proto_cfg_enum(&c, "transport", PROTO_OPTIONAL, transport_names, &transport) < 0 ||
+      proto_cfg_enum(&c, "affinity", PROTO_OPTIONAL, affinity_names, &affinity) < 0 ||
       proto_cfg_num(&c, "hello_timeout", PROTO_OPTIONAL, 0.1, 86400,
                     &s->hello_timeout) < 0 ||
       proto_cfg_num(&c, "heartbeat_timeout", PROTO_OPTIONAL, 2 * PROTO_HEARTBEAT_S, 86400,
@@ -189,6 +191,7 @@ static int read_coupling(proto_cfg *root, cpl_scene *s) {
     return -1;
   s->scheme = (cpl_scheme)scheme;
   s->transport = transport == CPL_TRANSPORT_SOCKET ? CPL_TRANSPORT_SOCKET : CPL_TRANSPORT_AUTO;
+  s->affinity = affinity == CPL_AFFINITY_HANDOFF ? CPL_AFFINITY_HANDOFF : CPL_AFFINITY_NONE;
   const char *ep = s->attach_endpoint;
   if (strncmp(ep, "tcp://", 6) != 0 || !strrchr(ep + 6, ':'))
     return proto_fail(c.err, "coupling.attach_endpoint: expected tcp://HOST:PORT "

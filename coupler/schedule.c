@@ -185,6 +185,7 @@ void cpl_schedule_print(const cpl_runner *r, FILE *f) {
     if (!r->peers[i].shm_on)
       fprintf(f, "  %s: arrays by tcp/ipc (%s)\n", r->peers[i].proc->name,
               r->peers[i].shm_why[0] ? r->peers[i].shm_why : "no shared memory");
+  fprintf(f, "  affinity: %s\n", r->affinity.why); /* affinity.c */
 }
 
 /* ------------------------------------------------------------- exchanges */

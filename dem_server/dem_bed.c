@@ -143,6 +143,7 @@ int dem_bed_settle(const dem_model *m, dem_state *s, dem_progress_fn progress, v
   if (steps) *steps = s->step - k0;
   s->t = 0;
   s->step = 0;
+  s->work->box_step = s->work->kick_step = -1; /* the sweeps' steps were the settling's */
   return 0;
 }
 

@@ -383,10 +383,10 @@ static void plane_screen(const dem_model *m, dem_state *s, int i, wall_batch *b,
 
 /* Second half of velocity Verlet (seed 000 eq. 4–5) for grains lo..hi−1;
  * returns their kinetic energy (summed in grain order). */
-static double kick_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
+static double kick_chunk(const dem_model *m, dem_state *s, int lo, int hi, double *v2max) {
   const struct dem_work *w = s->work;
   const double dt = s->dt, half = 0.5 * dt, *g = m->gravity;
-  double ke = 0;
+  double ke = 0, v2m = 0;
   if (m->orientation) /* over the step with the mid-step ω (still ω^{n+1/2} here) */
     for (int i = lo; i < hi; i++)
       if (s->inv_inertia[i] > 0) dem_rotate_quaternion(&s->q[4 * i], &s->omega[3 * i], dt);
@@ -398,8 +398,11 @@ static double kick_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
       v[a] += half * (f[a] * im + g[a]);
       o[a] += half * t[a] * ii;
     }
-    ke += 0.5 * (w->mass[i] * dem_dot(v, v) + w->inertia[i] * dem_dot(o, o));
+    const double v2 = dem_dot(v, v);
+    ke += 0.5 * (w->mass[i] * v2 + w->inertia[i] * dem_dot(o, o));
+    v2m = v2 > v2m ? v2 : v2m;
   }
+  *v2max = v2m;
   return ke;
 }
 
@@ -449,7 +452,7 @@ static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
         s->force[3 * i + a] += w->mesh_f[3 * i + a];
         s->torque[3 * i + a] += w->mesh_t[3 * i + a];
       }
-  if (kick) sum->ke = kick_chunk(m, s, lo, hi);
+  if (kick) sum->ke = kick_chunk(m, s, lo, hi, &sum->v2);
   if (w->asleep && kick) dem_sleep_chunk(m, s, lo, hi);
 }
 
@@ -474,7 +477,7 @@ void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {
   }
   memset(s->wall_force, 0, sizeof(double) * 3 * (size_t)(m->n_walls ? m->n_walls : 1));
   int64_t contacts = 0, pairs = 0;
-  double ratio = 0, u = 0, ke = 0;
+  double ratio = 0, u = 0, ke = 0, v2 = 0;
   for (int c = 0; c < nchunk; c++) {
     for (int p = 0; p < m->n_planes; p++)
       for (int a = 0; a < 3; a++)
@@ -483,6 +486,7 @@ void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {
     pairs += cs[c].pair_contacts;
     u += cs[c].u;
     ke += cs[c].ke;
+    v2 = cs[c].v2 > v2 ? cs[c].v2 : v2;
     ratio = cs[c].ratio > ratio ? cs[c].ratio : ratio;
   }
   if (m->n_meshes > 0) dem_mesh_reactions(m, s);
@@ -491,5 +495,9 @@ void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {
   w->pair_contacts = pairs;
   s->max_overlap_ratio = ratio;
   s->elastic_energy = u;
-  if (kick) s->kinetic_energy = ke;
+  if (kick) {
+    s->kinetic_energy = ke;
+    w->kick_v2 = v2; /* dem_reach_box */
+    w->kick_step = s->step;
+  }
 }

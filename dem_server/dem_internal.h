@@ -30,9 +30,9 @@ void dem_pair_law_set(const dem_material *a, const dem_material *b, double e, do
 
 /* Per-chunk totals of a force evaluation, one cache line each. */
 typedef struct dem_chunk_sum {
-  double u, ke, ratio;
+  double u, ke, ratio, v2; /* v2: the largest |v|^2 after the kick */
   int64_t pair_contacts, wall_contacts, mesh_contacts;
-  char pad[16];
+  char pad[8];
 } dem_chunk_sum;
 
 /* Contact features of a sphere–triangle contact (seed 000 fig. 10). */
@@ -129,6 +129,13 @@ struct dem_work {
   int jump_on;
   int32_t *jump_pos;           /* [largest mesh's nodes] scratch: a node's row in a sparse set */
   double asleep_box[6];        /* dem_reach_box: the asleep grains' sphere boxes (they stand still) */
+  /* the grains' sphere box and largest |v|^2 as the step's own sweeps left them
+   * (dem_step's drift, kick_chunk), valid at step box_step / kick_step over
+   * every grain (box_all); dem_reach_box and dem_reach_escaped use them
+   * without a sweep of their own (dem_nodeset.c) */
+  double step_box[6], kick_v2;
+  int64_t box_step, kick_step;
+  int box_all;
   int asleep_box_ok;           /* valid: cleared when the asleep set changes (dem_sleep.c) */
   double io_active[20];   /* dem_state_io.c: the active block's state (region, grid, guard) */
   /* meshes: far from every grain (dem_mesh.c) */

@@ -83,20 +83,34 @@ static double sphere_boxes(const dem_state *s, int lo, int hi, double box[6]) {
   return v2;
 }
 
+/* The step's own sweeps cover every grain as they are now: dem_step moved
+ * them all (no grain asleep) and kicked them last, and nothing has touched x
+ * or v since (a state import or a bed's clock reset clears the steps). */
+static int step_sweeps_current(const dem_state *s) {
+  const struct dem_work *w = s->work;
+  return w->box_all && w->box_step == s->step && w->kick_step == s->step;
+}
+
 void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box[6]) {
   struct dem_work *w = s->work;
   for (int d = 0; d < 3; d++) box[d] = INFINITY, box[3 + d] = -INFINITY;
   int awake = s->n;
-  if (w->asleep) { /* sleep: the asleep grains' box is kept until the asleep set changes (exact: min/max) */
-    awake = w->n_active;
-    if (!w->asleep_box_ok) {
-      for (int d = 0; d < 3; d++) w->asleep_box[d] = INFINITY, w->asleep_box[3 + d] = -INFINITY;
-      sphere_boxes(s, awake, s->n, w->asleep_box);
-      w->asleep_box_ok = 1;
+  double v2;
+  if (!w->asleep && step_sweeps_current(s)) { /* the same min, max and |v|^2 as the sweep below */
+    memcpy(box, w->step_box, sizeof w->step_box);
+    v2 = w->kick_v2;
+  } else {
+    if (w->asleep) { /* sleep: the asleep grains' box is kept until the asleep set changes (exact: min/max) */
+      awake = w->n_active;
+      if (!w->asleep_box_ok) {
+        for (int d = 0; d < 3; d++) w->asleep_box[d] = INFINITY, w->asleep_box[3 + d] = -INFINITY;
+        sphere_boxes(s, awake, s->n, w->asleep_box);
+        w->asleep_box_ok = 1;
+      }
+      memcpy(box, w->asleep_box, sizeof w->asleep_box);
     }
-    memcpy(box, w->asleep_box, sizeof w->asleep_box);
+    v2 = sphere_boxes(s, 0, awake, box); /* the asleep ones stand still */
   }
-  const double v2 = sphere_boxes(s, 0, awake, box); /* the asleep ones stand still */
   const double delta = m->skin + 2 * sqrt(v2) * dt; /* the margin derived above */
   for (int d = 0; d < 3; d++) {
     if (s->n == 0) box[d] = box[3 + d] = 0; /* no grain: a point box, reached by nothing */
@@ -107,6 +121,12 @@ void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box
 
 int dem_reach_escaped(const dem_state *s, const double box[6]) {
   int out = 0;
+  if (step_sweeps_current(s)) { /* every sphere box inside: their union is */
+    const double *u = s->work->step_box;
+    if (u[0] >= box[0] && u[1] >= box[1] && u[2] >= box[2] && u[3] <= box[3] && u[4] <= box[4] &&
+        u[5] <= box[5])
+      return -1;
+  }
   for (int i = 0; i < s->n; i++) { /* branch-free sweep; the slot only when one is out */
     const double *x = &s->x[3 * i], r = s->radius[i];
     out |= !(x[0] - r >= box[0]) | !(x[0] + r <= box[3]) | !(x[1] - r >= box[1]) |

@@ -207,7 +207,11 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   dem_threads_begin(s);
   const int n = w->n_active; /* the awake grains (all unless "sleep": dem_sleep.c) */
   const int nchunk = (n + DEM_CHUNK - 1) / DEM_CHUNK;
-#pragma omp parallel for schedule(dynamic, 1) reduction(| : rebuild, jumped) num_threads(w->nthreads)
+  /* the moved grains' sphere box, for the sparse exchange (dem_nodeset.c): min
+   * and max are exact in any order, so it does not depend on the threads */
+  double blo[3] = {INFINITY, INFINITY, INFINITY}, bhi[3] = {-INFINITY, -INFINITY, -INFINITY};
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : rebuild, jumped) reduction(min : blo[:3]) \
+    reduction(max : bhi[:3]) num_threads(w->nthreads)
   for (int c = 0; c < nchunk; c++) {
     const int hi = (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n;
     for (int i = c * DEM_CHUNK; i < hi; i++) {
@@ -220,6 +224,8 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
         o[a] += half * t[a] * ii;
         x[a] += dt * v[a];
         d2 += (x[a] - xr[a]) * (x[a] - xr[a]);
+        blo[a] = x[a] - r < blo[a] ? x[a] - r : blo[a]; /* as dem_nodeset.c sphere_boxes */
+        bhi[a] = x[a] + r > bhi[a] ? x[a] + r : bhi[a];
       }
       rebuild |= d2 > lim2;
       jumped |= !(dem_dot(v, v) * dt * dt <= r * r); /* moved more than its radius, or NaN */
@@ -228,6 +234,10 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   dem_mesh_move(m, s, dt);
   s->t += dt;
   s->step++;
+  memcpy(w->step_box, blo, sizeof blo);
+  memcpy(w->step_box + 3, bhi, sizeof bhi);
+  w->box_step = s->step;
+  w->box_all = n == s->n;
   if (jumped) {
     s->kinetic_energy = NAN;
     return check_health(m, s, 2.0, err);

@@ -18,6 +18,7 @@
 #include "dem_server/dem_internal.h"
 
 #include <fcntl.h>
+#include <omp.h>
 #include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -69,11 +70,32 @@ static int procs_running(void) {
   return p ? atoi(p + 14) : -1;
 }
 
+/* The cores this process may use: the CPUs of its OpenMP places when they
+ * bind its threads (OMP_PLACES with OMP_PROC_BIND, as coupling.affinity
+ * "handoff" sets: the main thread is then bound to the first place alone,
+ * so its own affinity mask says 1), else its affinity mask. */
 static int cores_allowed(void) {
+  if (omp_get_proc_bind() != omp_proc_bind_false && omp_get_num_places() > 1) {
+    int n = 0;
+    for (int p = 0; p < omp_get_num_places(); p++) n += omp_get_place_num_procs(p);
+    if (n > 0) return n;
+  }
   cpu_set_t set;
   if (sched_getaffinity(0, sizeof set, &set) == 0) return CPU_COUNT(&set);
   long n = sysconf(_SC_NPROCESSORS_ONLN);
   return n > 0 ? (int)n : 1;
+}
+
+/* " (main thread bound to CPU c by the OpenMP places)" when it is, else "". */
+static const char *bound_text(char *buf, size_t cap) {
+  cpu_set_t set;
+  buf[0] = 0;
+  if (omp_get_proc_bind() == omp_proc_bind_false || omp_get_num_places() < 2 ||
+      sched_getaffinity(0, sizeof set, &set) != 0 || CPU_COUNT(&set) != 1)
+    return buf;
+  for (int c = 0; c < CPU_SETSIZE; c++)
+    if (CPU_ISSET(c, &set)) snprintf(buf, cap, " (main thread bound to CPU %d by the OpenMP places)", c);
+  return buf;
 }
 
 static void set_threads(dem_state *s, int n) {
@@ -86,10 +108,12 @@ int dem_threads_init(const dem_model *m, dem_state *s, proto_err *err) {
   dem_thread_probe *p = &w->probe;
   memset(p, 0, sizeof *p);
   p->cores = cores_allowed();
+  char bound[96];
+  bound_text(bound, sizeof bound);
   if (m->threads > 0) {
     set_threads(s, m->threads > DEM_MAX_THREADS ? DEM_MAX_THREADS : m->threads);
-    snprintf(s->threads_why, sizeof s->threads_why, "threads = %d in the config (%d cores allowed)%s",
-             s->threads, p->cores, s->threads > p->cores ? ": more threads than cores, expect it slow" : "");
+    snprintf(s->threads_why, sizeof s->threads_why, "threads = %d in the config (%d cores allowed%s)%s",
+             s->threads, p->cores, bound, s->threads > p->cores ? ": more threads than cores, expect it slow" : "");
     return 0;
   }
   const char *env = getenv(DEM_RESERVED_ENV);
@@ -117,8 +141,8 @@ int dem_threads_init(const dem_model *m, dem_state *s, proto_err *err) {
   n = n > p->cap ? p->cap : (n < 1 ? 1 : n);
   set_threads(s, n);
   snprintf(s->threads_why, sizeof s->threads_why,
-           "auto: %d cores allowed, %d reserved (%s), %d busy with other processes, at most 1 per %d grains "
-           "(%d grains): %d thread%s", p->cores, p->reserved, DEM_RESERVED_ENV, others, DEM_GRAINS_PER_THREAD,
+           "auto: %d cores allowed%s, %d reserved (%s), %d busy with other processes, at most 1 per %d grains "
+           "(%d grains): %d thread%s", p->cores, bound, p->reserved, DEM_RESERVED_ENV, others, DEM_GRAINS_PER_THREAD,
            m->n_grains, n, n > 1 ? "s" : "");
   return 0;
 }

@@ -45,6 +45,25 @@ static void surface_nodes(const rig *g, double angle, double *x, double *v) {
   }
 }
 
+/* The reach box from its definition (dem_nodeset.c): every grain's sphere
+ * box, grown by skin + 2 v_max dt; a sweep of its own over the grains (the
+ * dem takes the box and v_max from its step's sweeps). */
+static void box_by_hand(const dem_model *m, const dem_state *s, double dt, double box[6]) {
+  double v2 = 0;
+  for (int d = 0; d < 3; d++) box[d] = INFINITY, box[3 + d] = -INFINITY;
+  for (int i = 0; i < s->n; i++) {
+    const double *x = &s->x[3 * i], *v = &s->v[3 * i], r = s->radius[i];
+    const double w2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    v2 = w2 > v2 ? w2 : v2;
+    for (int d = 0; d < 3; d++) {
+      box[d] = x[d] - r < box[d] ? x[d] - r : box[d];
+      box[3 + d] = x[d] + r > box[3 + d] ? x[d] + r : box[3 + d];
+    }
+  }
+  const double delta = m->skin + 2 * sqrt(v2) * dt;
+  for (int d = 0; d < 3; d++) box[d] -= delta, box[3 + d] += delta;
+}
+
 static void build(dem_model *m, dem_state *s, const double *x, const int32_t *tri) {
   char json[16384];
   int len = snprintf(json, sizeof json,
@@ -104,7 +123,7 @@ int main(void) {
   build(&mb, &B, x, tri);
   proto_err err = {{0}};
   const double dt = NSUB * DT_DEM;
-  int have_box = 0, missing = 0, differ = 0, escaped = 0;
+  int have_box = 0, missing = 0, differ = 0, escaped = 0, box_differ = 0;
   int force_steps = 0, sparse_steps = 0, fewest_out = NN;
   for (int k = 0; k < STEPS; k++) {
     if (k == STEPS / 2) g.v[2] = 0.5; /* back out: contacts open */
@@ -140,6 +159,9 @@ int main(void) {
     if (forced && NN - kx < fewest_out) fewest_out = NN - (int)kx;
     for (int d = 0; d < 3; d++) g.c[d] += g.v[d] * dt;
     dem_reach_box(&mb, &B, dt, box);
+    double want[6];
+    box_by_hand(&mb, &B, dt, want);
+    box_differ += memcmp(box, want, sizeof want) != 0;
     have_box = 1;
   }
   printf("%d coupling steps with forces, %d with nodes left out, at least %d of %d nodes left "
@@ -147,6 +169,8 @@ int main(void) {
   CHECK(missing == 0, "every node that carries a force is in the set sent (%d were not)", missing);
   CHECK(differ == 0, "sparse and dense nodal forces are the same bits (%d rows differ)", differ);
   CHECK(escaped == 0, "no grain left its reach box (%d sub-steps)", escaped);
+  CHECK(box_differ == 0, "the reach box is the grains' sphere box grown by skin + 2 v_max dt, "
+        "to the bit (%d of %d steps differ)", box_differ, STEPS);
   CHECK(force_steps > 20, "the surface pressed the grains in %d coupling steps", force_steps);
   CHECK(sparse_steps > STEPS / 2, "the set left nodes out in %d of %d steps", sparse_steps, STEPS);
   CHECK(fewest_out > NN / 4, "while carrying force, at least %d of %d nodes were left out",

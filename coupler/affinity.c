@@ -1,0 +1,100 @@
+/* affinity.c — coupling.affinity "handoff": in a scheme that runs one
+ * process at a time (serial, implicit), every hand-off of the step (coupler
+ * -> participant -> coupler) wakes a sleeping process. On another core that
+ * wake is an inter-processor interrupt, and a virtual machine whose idle
+ * vCPUs halt pays tens of microseconds for each (bench/results/tire_soil.md
+ * "Hand-offs on one core": 77-80 us per futex round trip across two vCPUs,
+ * 6.7 us on one). So the coupler's loop thread and each OpenMP participant's
+ * main thread share one core, the hand-off core, and the participants'
+ * other threads take the other cores: the wakes stay on one core, and a
+ * participant that computes still has every core. Only the main threads are
+ * bound; the participants bind theirs through the OpenMP standard's places
+ * (OMP_PLACES, one place per allowed CPU with the hand-off core first, and
+ * OMP_PROC_BIND=close: thread 0 on the first place), so a participant
+ * without OpenMP is left where it is. The participants run as SCHED_BATCH
+ * (below), so that a wake hands the core over only when the waker sleeps.
+ *   (scene, allowed CPUs, environment) => (places for the children, the
+ *   coupler's loop thread bound) */
+#define _GNU_SOURCE
+#include "internal.h"
+
+#include <pthread.h>
+#include <sched.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+void cpl_affinity_plan(const cpl_scene *s, int attach, cpl_affinity *a) {
+  memset(a, 0, sizeof *a);
+  a->core = -1;
+  if (s->affinity != CPL_AFFINITY_HANDOFF) {
+    snprintf(a->why, sizeof a->why, "none (coupling.affinity)");
+    return;
+  }
+  if (s->scheme == CPL_SCHEME_PARALLEL) { /* a scene's hint that does not fit this scheme */
+    snprintf(a->why, sizeof a->why, "none: the parallel scheme runs every process at once "
+             "(\"handoff\" serves serial and implicit)");
+    return;
+  }
+  if (attach) { /* the participants start elsewhere, with their own environment */
+    snprintf(a->why, sizeof a->why, "none: participants started by hand (--attach) "
+             "are not given places");
+    return;
+  }
+  const char *user = getenv("OMP_PLACES") ? "OMP_PLACES" : getenv("OMP_PROC_BIND") ? "OMP_PROC_BIND" : NULL;
+  if (user) {
+    snprintf(a->why, sizeof a->why, "none: %s is set in the environment (the user's "
+             "binding is kept)", user);
+    return;
+  }
+  cpu_set_t set;
+  if (sched_getaffinity(0, sizeof set, &set) != 0 || CPU_COUNT(&set) < 2) {
+    snprintf(a->why, sizeof a->why, "none: fewer than 2 CPUs allowed");
+    return;
+  }
+  /* the core the coupler runs on now: where the scheduler found room */
+  int core = sched_getcpu();
+  if (core < 0 || core >= CPU_SETSIZE || !CPU_ISSET(core, &set))
+    for (core = 0; core < CPU_SETSIZE && !CPU_ISSET(core, &set); core++) {
+    }
+  size_t len = (size_t)snprintf(a->places, sizeof a->places, "{%d}", core);
+  for (int c = 0; c < CPU_SETSIZE && len < sizeof a->places; c++)
+    if (c != core && CPU_ISSET(c, &set))
+      len += (size_t)snprintf(a->places + len, sizeof a->places - len, ",{%d}", c);
+  if (len >= sizeof a->places) { /* a machine with more CPUs than the text holds */
+    a->places[0] = 0;
+    snprintf(a->why, sizeof a->why, "none: too many CPUs to list as OpenMP places");
+    return;
+  }
+  a->on = 1;
+  a->core = core;
+  snprintf(a->why, sizeof a->why, "handoff: the coupler's loop and each OpenMP participant's "
+           "main thread on CPU %d, their other threads on the other %d CPU%s (OMP_PLACES, "
+           "OMP_PROC_BIND=close; participants SCHED_BATCH)", core, CPU_COUNT(&set) - 1,
+           CPU_COUNT(&set) > 2 ? "s" : "");
+  return;
+}
+
+void cpl_affinity_child_env(const cpl_affinity *a) {
+  if (!a || !a->on) return;
+  setenv("OMP_PLACES", a->places, 1);
+  setenv("OMP_PROC_BIND", "close", 1);
+  /* SCHED_BATCH: a woken participant does not preempt the process that woke
+   * it (the coupler after its post, mid-way to its own wait), it runs when
+   * that one sleeps; on the shared core a preempting wakee made the coupler's
+   * last microseconds of each hand-off wait for the participant's step
+   * (tire_soil.md "Hand-offs on one core"). No privilege needed. */
+  const struct sched_param none = {0};
+  sched_setscheduler(0, SCHED_BATCH, &none);
+}
+
+void cpl_affinity_pin_self(cpl_affinity *a) {
+  if (!a->on) return;
+  cpu_set_t one;
+  CPU_ZERO(&one);
+  CPU_SET(a->core, &one);
+  const int rc = pthread_setaffinity_np(pthread_self(), sizeof one, &one);
+  if (rc != 0) /* the run is the same without it, only slower */
+    fprintf(stderr, "cosim: warning: coupling.affinity: cannot bind the coupler's loop to "
+            "CPU %d (%s); it runs unbound\n", a->core, strerror(rc));
+}
