@@ -3,8 +3,10 @@
  * DOFs are eliminated: K_ff u_f = b_f - K_fc u_c. What the solver keeps
  * between solves (factorisation, scratch) is its own fem_factor, owned by
  * the caller: the model stays const. */
+#define _GNU_SOURCE /* RTLD_DEFAULT */
 #include "fem_server/fem.h"
 
+#include <dlfcn.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -139,7 +141,24 @@ static cholmod_sparse csc_view(const fem_model *md) {
   return A;
 }
 
-static int cholmod_path(const fem_model *md, fem_factor *f, fem_solve_stats *st, proto_err *err) {
+/* OpenBLAS splits the supernodal factorization's dense blocks by its thread
+ * count, and the factor's last bits (so the tread's u0 and every step after)
+ * followed the machine's cores: the paper scene's load at t = 0.15 s was
+ * 57.19 N with one thread, 56.32 N with two (bench/results/tire_soil.md
+ * "Hand-offs on one core"). CHOLMOD's BLAS runs on one thread, so a run gives
+ * the same bits on every machine; the count is put back after. Looked up at
+ * run time: another BLAS has no such call (reference BLAS has one thread). */
+static int blas_threads(int n) {
+  int (*get)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "openblas_get_num_threads");
+  void (*set)(int) = (void (*)(int))dlsym(RTLD_DEFAULT, "openblas_set_num_threads");
+  if (!get || !set || n < 1) return -1;
+  const int before = get();
+  set(n);
+  return before;
+}
+
+static int cholmod_path_blas(const fem_model *md, fem_factor *f, fem_solve_stats *st,
+                             proto_err *err) {
   cholmod_sparse A = csc_view(md);
   if (!f->L) {
     double t0 = proto_now();
@@ -181,6 +200,14 @@ static int cholmod_path(const fem_model *md, fem_factor *f, fem_solve_stats *st,
     st->memory_peak = (double)f->c.memory_usage;
   }
   return 0;
+}
+
+/* CHOLMOD's BLAS on one thread (blas_threads). */
+static int cholmod_path(const fem_model *md, fem_factor *f, fem_solve_stats *st, proto_err *err) {
+  const int before = blas_threads(1);
+  const int rc = cholmod_path_blas(md, f, st, err);
+  if (before > 0) blas_threads(before);
+  return rc;
 }
 
 /* Jacobi-PCG on the CSC matrix from x = 0; work = 5*n_eq doubles. */
