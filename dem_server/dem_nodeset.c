@@ -96,7 +96,9 @@ void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box
   for (int d = 0; d < 3; d++) box[d] = INFINITY, box[3 + d] = -INFINITY;
   int awake = s->n;
   double v2;
-  if (!w->asleep && step_sweeps_current(s)) { /* the same min, max and |v|^2 as the sweep below */
+  /* the same min, max and |v|^2 as the sweep below; with sleep only while no
+   * grain is asleep (nothing fell asleep after the kick, so v is the kick's) */
+  if ((!w->asleep || w->n_active == s->n) && step_sweeps_current(s)) {
     memcpy(box, w->step_box, sizeof w->step_box);
     v2 = w->kick_v2;
   } else {
