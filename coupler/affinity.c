@@ -12,7 +12,8 @@
  * (OMP_PLACES, one place per allowed CPU with the hand-off core first, and
  * OMP_PROC_BIND=close: thread 0 on the first place), so a participant
  * without OpenMP is left where it is. The participants run as SCHED_BATCH
- * (below), so that a wake hands the core over only when the waker sleeps.
+ * (below), so that a wake hands the core over only when the waker sleeps,
+ * and their OpenMP threads spin briefly at barriers instead of sleeping.
  *   (scene, allowed CPUs, environment) => (places for the children, the
  *   coupler's loop thread bound) */
 #define _GNU_SOURCE
@@ -23,6 +24,17 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* Iterations an OpenMP thread spins at a barrier before it sleeps, for the
+ * participants of a hand-off run (libgomp's GOMP_SPINCOUNT; dem_server's own
+ * default too). Passive waits made every barrier inside a step a futex wake of
+ * the worker on the other core (fem_server: 2.7 % of a paper run's samples in
+ * the kernel's wake-up path); a short spin bridges the barriers of a step but
+ * not a partner's step: paper scene 0.96-0.98x the passive step in three
+ * alternated pairs, while 100 000 made it 1.5x slower (the spinning workers of
+ * one process took the core the other's needed; bench/results/tire_soil.md "Hand-offs on one
+ * core"). */
+#define CPL_HANDOFF_SPINCOUNT "10000"
 
 void cpl_affinity_plan(const cpl_scene *s, int attach, cpl_affinity *a) {
   memset(a, 0, sizeof *a);
@@ -70,15 +82,18 @@ void cpl_affinity_plan(const cpl_scene *s, int attach, cpl_affinity *a) {
   a->core = core;
   snprintf(a->why, sizeof a->why, "handoff: the coupler's loop and each OpenMP participant's "
            "main thread on CPU %d, their other threads on the other %d CPU%s (OMP_PLACES, "
-           "OMP_PROC_BIND=close; participants SCHED_BATCH)", core, CPU_COUNT(&set) - 1,
-           CPU_COUNT(&set) > 2 ? "s" : "");
+           "OMP_PROC_BIND=close; participants SCHED_BATCH; GOMP_SPINCOUNT=" CPL_HANDOFF_SPINCOUNT
+           " unless the waits are set)", core, CPU_COUNT(&set) - 1, CPU_COUNT(&set) > 2 ? "s" : "");
   return;
 }
 
-void cpl_affinity_child_env(const cpl_affinity *a) {
-  if (!a || !a->on) return;
+
+int cpl_affinity_child_env(const cpl_affinity *a) {
+  if (!a || !a->on) return 0;
   setenv("OMP_PLACES", a->places, 1);
   setenv("OMP_PROC_BIND", "close", 1);
+  if (!getenv("OMP_WAIT_POLICY") && !getenv("GOMP_SPINCOUNT")) /* else the user's */
+    setenv("GOMP_SPINCOUNT", CPL_HANDOFF_SPINCOUNT, 1);
   /* SCHED_BATCH: a woken participant does not preempt the process that woke
    * it (the coupler after its post, mid-way to its own wait), it runs when
    * that one sleeps; on the shared core a preempting wakee made the coupler's
@@ -86,6 +101,7 @@ void cpl_affinity_child_env(const cpl_affinity *a) {
    * (tire_soil.md "Hand-offs on one core"). No privilege needed. */
   const struct sched_param none = {0};
   sched_setscheduler(0, SCHED_BATCH, &none);
+  return 1;
 }
 
 void cpl_affinity_pin_self(cpl_affinity *a) {

@@ -67,8 +67,8 @@ int cpl_spawn(cpl_child *c, const char *name, int argc, const char *const *argv,
      * threads that spin after each parallel region steal the cores of the
      * process computing next (paper-scale tyre, 2 cores, 2 threads each:
      * 1.8x slower; bench/results/coupling.md). Unless the user chose. */
-    setenv("OMP_WAIT_POLICY", "passive", 0);
-    cpl_affinity_child_env(affinity); /* main threads on the hand-off core */
+    if (!cpl_affinity_child_env(affinity)) /* handoff: main threads on one core, short spins */
+      setenv("OMP_WAIT_POLICY", "passive", 0);
     execv(args[0], (char *const *)args);
     fprintf(stderr, "cannot execute %s: %s\n", args[0], strerror(errno));
     _exit(127);

@@ -7,8 +7,9 @@ SCHED_BATCH, and nothing else changes:
   main thread is bound to that core while it still counts every allowed core
   for its threads;
 - in a running stub scene the participants carry OMP_PLACES (the hand-off
-  core first) and OMP_PROC_BIND=close, run as SCHED_BATCH, and the coupler's
-  main thread is bound to the hand-off core alone;
+  core first), OMP_PROC_BIND=close and GOMP_SPINCOUNT=10000 (not the passive
+  waits of other runs), run as SCHED_BATCH, and the coupler's main thread is
+  bound to the hand-off core alone;
 - with the parallel scheme (every process at once) nothing is bound, an
   unknown value is refused naming the key, a user's OMP_PLACES is kept; the
   printout says which.
@@ -113,6 +114,8 @@ def live():
             ",{%d}" % c for c in cpus if str(c) != bound)],
             f"the participant's OMP_PLACES starts at the coupler's core {bound}: {places}")
         check(b"OMP_PROC_BIND=close" in env, "the participant has OMP_PROC_BIND=close")
+        check(b"GOMP_SPINCOUNT=10000" in env and not any(e.startswith(b"OMP_WAIT_POLICY=") for e in env),
+              "the participant's OpenMP waits spin briefly (GOMP_SPINCOUNT=10000, no passive policy)")
         policy = int(open(f"/proc/{fem}/stat").read().rsplit(")", 1)[1].split()[38])
         check(policy == 3, f"the participant runs as SCHED_BATCH (policy {policy}, want 3)")
     finally:
