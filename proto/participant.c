@@ -642,6 +642,12 @@ int proto_participant_main(int argc, char **argv,
   proto_msg_free(&p.state.saved);
   free(p.state.arena);
   if (ops->finish) ops->finish(user);
+  if (rc == 0 && p.shm_on) { /* what "without a copy" came to (PROTOCOL.md "Shared memory") */
+    uint64_t copied = 0, placed = 0;
+    proto_shm_counts(p.shm_out, &copied, &placed);
+    fprintf(stderr, "%s: shared memory: %llu arrays written in place (zero copy), %.1f MB copied "
+            "into the segment\n", p.name, (unsigned long long)placed, 1e-6 * (double)copied);
+  }
   proto_shm_free(p.shm_in); /* after every message that may point into it */
   proto_shm_free(p.shm_out);
   if (p.bus) zmq_close(p.bus);

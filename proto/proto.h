@@ -231,7 +231,8 @@ int64_t proto_sparse_rows(const double *f, int64_t n, int32_t *idx, double *rows
  * at x + v dt [n*3], grown by PROTO_REACH_ROUNDING — meets box [lo xyz, hi
  * xyz]. A node moves on that segment within the step, so the triangle stays
  * inside the box of its six end points: one left out does not meet the box
- * all step. Into index (increasing; mark [n] scratch); returns the count. */
+ * all step. Into index (increasing; mark [n]: 1 for a node in it, else 0);
+ * returns the count. */
 int64_t proto_reach_nodes(const double *x, const double *v, double dt, const int32_t *tri,
                           int64_t n_tri, int64_t n, const double box[6], uint8_t *mark,
                           int32_t *index);
