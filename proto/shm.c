@@ -328,25 +328,28 @@ void *proto_shm_next(proto_shm *w, size_t nbytes) {
 static int eligible(const proto_array *a) { return a->nbytes >= PROTO_SHM_MIN_BYTES; }
 
 /* Offsets for the arrays of m in a buffer of bb bytes at buf: those already
- * inside it keep their place, the rest follow them. Returns the bytes
- * needed; arrays that do not fit get -1 when `fit` (else all are placed). */
+ * inside it keep their place, whatever their size (a small one written there
+ * by proto_peer_reply_buffer is placed too: left as a frame, the post would lay
+ * its frames from the buffer's start over it before copying it), the rest of
+ * the eligible ones follow them. Returns the bytes needed; arrays that do not
+ * fit get -1 when `fit` (else all are placed). */
 static size_t layout(const proto_msg *m, const unsigned char *buf, size_t bb, int fit,
-                     int64_t *off) {
+                     const uint8_t *keep, int64_t *off) {
   size_t end = 0;
   for (int i = 0; i < m->narrays; i++) {
     const proto_array *a = &m->arrays[i];
     off[i] = -1;
     const unsigned char *d = a->data;
-    if (!eligible(a) || !buf || d < buf || d >= buf + bb) continue;
+    if (!a->nbytes || !buf || d < buf || d >= buf + bb) continue;
     size_t o = (size_t)(d - buf);
     if (o % 8 == 0 && a->nbytes <= bb - o) {
       off[i] = (int64_t)o;
       if (o + a->nbytes > end) end = o + a->nbytes;
     }
   }
-  for (int i = 0; i < m->narrays; i++) {
+  for (int i = 0; i < m->narrays; i++) { /* keep: placed in the old buffer, which goes */
     const proto_array *a = &m->arrays[i];
-    if (!eligible(a) || off[i] >= 0) continue;
+    if (!(eligible(a) || (keep && keep[i])) || off[i] >= 0) continue;
     size_t o = round_up(end, SHM_ALIGN);
     if (fit && (o > bb || a->nbytes > bb - o)) continue;
     off[i] = (int64_t)o;
@@ -385,13 +388,15 @@ int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,
   const size_t extra = w->ring ? post_extra(m) : 0;
   const uint64_t seq = w->seq + 1;
   const int b = (int)(seq & 1);
-  size_t need = layout(m, buffer_of(&w->cur, b), w->cur.buffer_bytes, 0, pl->offset);
+  size_t need = layout(m, buffer_of(&w->cur, b), w->cur.buffer_bytes, 0, NULL, pl->offset);
   seg old = {0};
   old.fd = -1;
   if (need + extra > w->cur.buffer_bytes) {
     /* a larger segment, announced in this message; the old one stays mapped
      * here until the copies below are done (arrays may point into it) */
-    size_t all = layout(m, NULL, 0, 0, pl->offset) + extra;
+    uint8_t keep[PROTO_MAX_ARRAYS]; /* in the old buffer: copied out of it, whatever their size */
+    for (int i = 0; i < m->narrays; i++) keep[i] = pl->offset[i] >= 0;
+    size_t all = layout(m, NULL, 0, 0, keep, pl->offset) + extra;
     size_t want = all + all / 4;
     if (want > PROTO_SHM_MAX_BUFFER_BYTES) want = PROTO_SHM_MAX_BUFFER_BYTES;
     seg fresh;
@@ -401,7 +406,7 @@ int proto_shm_place_msg(proto_shm *w, const proto_msg *m, proto_shm_place *pl,
       w->cur = fresh;
       w->announced = 0;
     }
-    need = layout(m, buffer_of(&w->cur, b), w->cur.buffer_bytes, 1, pl->offset);
+    need = layout(m, buffer_of(&w->cur, b), w->cur.buffer_bytes, 1, keep, pl->offset);
   }
   unsigned char *buf = buffer_of(&w->cur, b);
   int placed = 0;
