@@ -397,6 +397,10 @@ int dem_bed_continue(const dem_model *m, dem_state *s, dem_bed_info *info, proto
  * NAN and *count = 0 if none does. For placing a tyre over a settled bed. */
 int dem_bed_top(const dem_state *s, const double lo[2], const double hi[2], double percentile,
                 double *top, int *count, proto_err *err);
+/* The same over n grains' centres x [n*3] and radii r [n] (liggghts_dem's,
+ * gathered); dem_bed_top is this over the state's grains. */
+int dem_bed_top_of(const double *x, const double *r, int n, const double lo[2], const double hi[2],
+                   double percentile, double *top, int *count, proto_err *err);
 /* The percentile the participant reports as `bed_top` (a few protruding
  * grains must not lift the tyre, the bulk of the top layer must not touch it). */
 #define DEM_BED_TOP_PERCENTILE 95.0

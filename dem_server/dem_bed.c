@@ -394,13 +394,18 @@ static int ascending(const void *a, const void *b) {
 
 int dem_bed_top(const dem_state *s, const double lo[2], const double hi[2], double percentile,
                 double *top, int *count, proto_err *err) {
-  double *tops = malloc(sizeof(double) * (size_t)(s->n > 0 ? s->n : 1));
+  return dem_bed_top_of(s->x, s->radius, s->n, lo, hi, percentile, top, count, err);
+}
+
+int dem_bed_top_of(const double *xs, const double *r, int ng, const double lo[2], const double hi[2],
+                   double percentile, double *top, int *count, proto_err *err) {
+  double *tops = malloc(sizeof(double) * (size_t)(ng > 0 ? ng : 1));
   if (!tops) return proto_fail(err, "out of memory (bed top)");
   int n = 0;
-  for (int i = 0; i < s->n; i++) {
-    const double *x = &s->x[3 * (size_t)i];
+  for (int i = 0; i < ng; i++) {
+    const double *x = &xs[3 * (size_t)i];
     if (x[0] >= lo[0] && x[0] <= hi[0] && x[1] >= lo[1] && x[1] <= hi[1])
-      tops[n++] = x[2] + s->radius[i];
+      tops[n++] = x[2] + r[i];
   }
   *count = n;
   *top = NAN;

@@ -57,6 +57,8 @@ typedef struct app {
   double clock[2];                  /* t, coupling step */
   lgd_resume saved;                 /* the last lgd_save (surface: the sim's buffers) */
   double *load_ft;                  /* rank 0, state_load: forces, torques [n_grains*3] each */
+  double bed_top;                   /* rank 0: the settled bed's top under the surface (ready) */
+  int bed_top_grains;               /* the grains it was taken over (0: none, no bed_top) */
 } app;
 
 static app g_app; /* one per process; the exit handler reads it */
@@ -100,17 +102,37 @@ static int do_init(app *a, int64_t n_nodes, const double *x0, int64_t n_tri, con
   if (any < 0) return -1; /* deterministic: every rank failed alike */
   lgd_options o = {.screen = a->rank == 0 ? a->screen : NULL, .skip_settle = a->restart_step > 0};
   if (lgd_open(&a->sim, MPI_COMM_WORLD, m, a->run_dt, &o, err)) return -1;
-  if (a->rank != 0) return 0;
   const size_t n = (size_t)m->n_grains;
-  a->wall_row = calloc(1 + 3 * (size_t)m->n_walls, sizeof(double));
-  a->snap = malloc(10 * n * sizeof(double));
-  if (!a->wall_row || !a->snap) return proto_fail(err, "out of memory");
-  a->snap_x = a->snap;
-  a->snap_v = a->snap + 3 * n;
-  a->snap_w = a->snap + 6 * n;
-  a->snap_r = a->snap + 9 * n;
-  memcpy(a->snap_r, m->radius, n * sizeof(double));
-  return 0;
+  int fail = 0;
+  if (a->rank == 0) {
+    a->wall_row = calloc(1 + 3 * (size_t)m->n_walls, sizeof(double));
+    a->snap = malloc(10 * n * sizeof(double));
+    fail = !a->wall_row || !a->snap;
+    if (!fail) {
+      a->snap_x = a->snap;
+      a->snap_v = a->snap + 3 * n;
+      a->snap_w = a->snap + 6 * n;
+      a->snap_r = a->snap + 9 * n;
+      memcpy(a->snap_r, m->radius, n * sizeof(double));
+    }
+  }
+  MPI_Allreduce(MPI_IN_PLACE, &fail, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD); /* before the collective gather */
+  if (fail) return a->rank == 0 ? proto_fail(err, "out of memory") : -1;
+  /* the settled bed's top under the surface's x-y footprint, as dem_server
+   * reports it in its ready (scenario.rim_center "auto"): the gathered grains */
+  if (lgd_gather(a->sim, a->snap_x, a->snap_v, a->snap_w, err)) return -1;
+  if (a->rank != 0) return 0;
+  double lo[2] = {-INFINITY, -INFINITY}, hi[2] = {INFINITY, INFINITY};
+  if (n_nodes > 0) {
+    for (int k = 0; k < 2; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (int64_t i = 0; i < n_nodes; i++)
+      for (int k = 0; k < 2; k++) {
+        lo[k] = fmin(lo[k], x0[3 * i + k]);
+        hi[k] = fmax(hi[k], x0[3 * i + k]);
+      }
+  }
+  return dem_bed_top_of(a->snap_x, m->radius, m->n_grains, lo, hi, DEM_BED_TOP_PERCENTILE, &a->bed_top,
+                        &a->bed_top_grains, err);
 }
 
 static int do_step(app *a, double dt, int output, proto_err *err) {
@@ -328,6 +350,8 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   cJSON_AddNumberToObject(h, "rayleigh_time", m->rayleigh_time);
   cJSON_AddNumberToObject(h, "grains", m->n_grains);
   cJSON_AddNumberToObject(h, "mpi_ranks", ranks);
+  if (a->bed_top_grains > 0) cJSON_AddNumberToObject(h, PROTO_H_BED_TOP, a->bed_top);
+  cJSON_AddNumberToObject(h, PROTO_H_BED_TOP_GRAINS, a->bed_top_grains);
   fprintf(stderr, "liggghts_dem: %d grains, %d walls, dt = %.4g s = %.3g Rayleigh times, %d MPI rank%s, "
           "LIGGGHTS screen in %s\n", m->n_grains, m->n_walls, dt, dt / m->rayleigh_time, ranks,
           ranks > 1 ? "s" : "", a->screen);

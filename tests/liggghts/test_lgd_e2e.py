@@ -12,10 +12,13 @@
    load): the nodal forces sum to minus the tread's force on the grains
    (LIGGGHTS' own mesh total) to 1e-12 at every step, and the traction is
    close to dem_server's (a granular bed diverges chaotically: the means over
-   the contact are compared; in the stub scene each DEM settles its own bed)."""
+   the contact are compared; in the stub scene each DEM settles its own bed).
+4. rim_center "auto" on that saved bed: liggghts_dem's ready gives the bed top
+   dem_server's gives, to the printed digit."""
 import json
 import os
 import random
+import re
 import subprocess
 import sys
 import tempfile
@@ -235,4 +238,19 @@ r = runs(tyre_scene("lgd_tyre", {"file": bed}, 0.14))
 for key, v in r.items():
     conservation(h5(v), 1, f"coupled tyre {key}")
 compare_traction(r, "coupled tyre", 0.05)
+
+# 4. rim_center "auto" (the tread placed over the bed's top under it): liggghts_dem
+# reports the same bed top as dem_server on the same saved bed (it reported none,
+# and the run was refused)
+tops = {}
+for key, dem in (("dem_server", "dem_server"), ("np1", "liggghts_dem")):
+    v = variant(tyre_scene("lgd_auto", {"file": bed}, 1e-4), key, dem)
+    v["scenario"]["rim_center"] = [0.15, 0.1, "auto"]
+    rc, _, err = run(v, timeout=600, env=MPI_ENV)
+    m = re.search(r'rim_center "auto": bed top (\S+) m', err)
+    check(rc == 0 and m is not None, f"{v['name']}: the rim placed by the bed top ({err[-400:]})")
+    tops[key] = m.group(1) if m else None
+    no_orphans(v, v["name"])
+check(tops["dem_server"] is not None and tops["dem_server"] == tops["np1"],
+      f"liggghts_dem's bed top is dem_server's: {tops}")
 done()
