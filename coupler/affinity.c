@@ -78,18 +78,15 @@ void cpl_affinity_plan(const cpl_scene *s, int attach, cpl_affinity *a) {
     snprintf(a->why, sizeof a->why, "none: too many CPUs to list as OpenMP places");
     return;
   }
-  a->on = 1;
   a->core = core;
   snprintf(a->why, sizeof a->why, "handoff: the coupler's loop and each OpenMP participant's "
            "main thread on CPU %d, their other threads on the other %d CPU%s (OMP_PLACES, "
            "OMP_PROC_BIND=close; participants SCHED_BATCH; GOMP_SPINCOUNT=" CPL_HANDOFF_SPINCOUNT
            " unless the waits are set)", core, CPU_COUNT(&set) - 1, CPU_COUNT(&set) > 2 ? "s" : "");
-  return;
 }
 
-
 int cpl_affinity_child_env(const cpl_affinity *a) {
-  if (!a || !a->on) return 0;
+  if (!a || a->core < 0) return 0;
   setenv("OMP_PLACES", a->places, 1);
   setenv("OMP_PROC_BIND", "close", 1);
   if (!getenv("OMP_WAIT_POLICY") && !getenv("GOMP_SPINCOUNT")) /* else the user's */
@@ -104,8 +101,8 @@ int cpl_affinity_child_env(const cpl_affinity *a) {
   return 1;
 }
 
-void cpl_affinity_pin_self(cpl_affinity *a) {
-  if (!a->on) return;
+void cpl_affinity_pin_self(const cpl_affinity *a) {
+  if (a->core < 0) return;
   cpu_set_t one;
   CPU_ZERO(&one);
   CPU_SET(a->core, &one);

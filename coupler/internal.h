@@ -8,21 +8,20 @@
 
 /* ---- affinity.c: coupling.affinity (the hand-offs of a step on one core) */
 typedef struct cpl_affinity {
-  int on;           /* the hand-off core is in use */
-  int core;         /* the hand-off core, or -1 */
+  int core;         /* the hand-off core, or -1: nothing bound */
   char places[512]; /* OMP_PLACES for the children: "{core},{c1},..." */
   char why[288];    /* what was done or why not (the schedule printout) */
 } cpl_affinity;
 /* Decides from the scene, the CPUs the coupler may use and the environment
  * (a user's OMP_PLACES / OMP_PROC_BIND is kept); before the children start. */
 void cpl_affinity_plan(const cpl_scene *s, int attach, cpl_affinity *a);
-/* In a child between fork and exec (on only): OMP_PLACES, OMP_PROC_BIND, a
+/* In a child between fork and exec (a core only): OMP_PLACES, OMP_PROC_BIND, a
  * short GOMP_SPINCOUNT (unless the user chose the waits), SCHED_BATCH; 1 when
  * it chose the OpenMP waits (else the launcher makes them passive). */
 int cpl_affinity_child_env(const cpl_affinity *a);
-/* Binds the calling thread (the loop) to the hand-off core (on only); a
+/* Binds the calling thread (the loop) to the hand-off core, if any; a
  * failure is a warning: the results are the same unbound. */
-void cpl_affinity_pin_self(cpl_affinity *a);
+void cpl_affinity_pin_self(const cpl_affinity *a);
 
 /* ---- launch.c: child processes */
 typedef struct cpl_child {

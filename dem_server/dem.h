@@ -401,6 +401,9 @@ int dem_bed_top(const dem_state *s, const double lo[2], const double hi[2], doub
  * gathered); dem_bed_top is this over the state's grains. */
 int dem_bed_top_of(const double *x, const double *r, int n, const double lo[2], const double hi[2],
                    double percentile, double *top, int *count, proto_err *err);
+/* The x-y box [lo, hi] of n points x [n*3]: the coupled surface's footprint
+ * the participants take bed_top under; the whole plane when n == 0. */
+void dem_footprint(const double *x, int64_t n, double lo[2], double hi[2]);
 /* The percentile the participant reports as `bed_top` (a few protruding
  * grains must not lift the tyre, the bulk of the top layer must not touch it). */
 #define DEM_BED_TOP_PERCENTILE 95.0

@@ -143,7 +143,7 @@ int dem_bed_settle(const dem_model *m, dem_state *s, dem_progress_fn progress, v
   if (steps) *steps = s->step - k0;
   s->t = 0;
   s->step = 0;
-  s->work->box_step = s->work->kick_step = -1; /* the sweeps' steps were the settling's */
+  s->work->sweep_step = -1; /* the sweeps' steps were the settling's */
   return 0;
 }
 
@@ -390,6 +390,15 @@ int dem_bed_continue(const dem_model *m, dem_state *s, dem_bed_info *info, proto
 static int ascending(const void *a, const void *b) {
   const double x = *(const double *)a, y = *(const double *)b;
   return (x > y) - (x < y);
+}
+
+void dem_footprint(const double *x, int64_t n, double lo[2], double hi[2]) {
+  for (int k = 0; k < 2; k++) lo[k] = n > 0 ? INFINITY : -INFINITY, hi[k] = -lo[k];
+  for (int64_t i = 0; i < n; i++)
+    for (int k = 0; k < 2; k++) {
+      lo[k] = fmin(lo[k], x[3 * i + k]);
+      hi[k] = fmax(hi[k], x[3 * i + k]);
+    }
 }
 
 int dem_bed_top(const dem_state *s, const double lo[2], const double hi[2], double percentile,

@@ -498,6 +498,5 @@ void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {
   if (kick) {
     s->kinetic_energy = ke;
     w->kick_v2 = v2; /* dem_reach_box */
-    w->kick_step = s->step;
   }
 }

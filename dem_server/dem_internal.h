@@ -130,11 +130,11 @@ struct dem_work {
   int32_t *jump_pos;           /* [largest mesh's nodes] scratch: a node's row in a sparse set */
   double asleep_box[6];        /* dem_reach_box: the asleep grains' sphere boxes (they stand still) */
   /* the grains' sphere box and largest |v|^2 as the step's own sweeps left them
-   * (dem_step's drift, kick_chunk), valid at step box_step / kick_step over
-   * every grain (box_all); dem_reach_box and dem_reach_escaped use them
-   * without a sweep of their own (dem_nodeset.c) */
+   * (dem_step's drift, kick_chunk), valid at step sweep_step (set once dem_step
+   * has done both) over every grain (box_all); dem_reach_box and
+   * dem_reach_escaped use them without a sweep of their own (dem_nodeset.c) */
   double step_box[6], kick_v2;
-  int64_t box_step, kick_step;
+  int64_t sweep_step;
   int box_all;
   int asleep_box_ok;           /* valid: cleared when the asleep set changes (dem_sleep.c) */
   double io_active[20];   /* dem_state_io.c: the active block's state (region, grid, guard) */

@@ -88,7 +88,7 @@ static double sphere_boxes(const dem_state *s, int lo, int hi, double box[6]) {
  * or v since (a state import or a bed's clock reset clears the steps). */
 static int step_sweeps_current(const dem_state *s) {
   const struct dem_work *w = s->work;
-  return w->box_all && w->box_step == s->step && w->kick_step == s->step;
+  return w->box_all && w->sweep_step == s->step;
 }
 
 void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box[6]) {

@@ -128,16 +128,9 @@ static int continue_bed(dem_app *a, proto_err *err) {
  * footprint (its bounding box as placed in the welcome), or under all
  * grains without a surface; absent if no grain lies there. */
 static int report_bed_top(dem_app *a, cJSON *h, proto_err *err) {
-  double lo[2] = {-INFINITY, -INFINITY}, hi[2] = {INFINITY, INFINITY}, top;
-  if (a->surface >= 0) {
-    const dem_mesh *me = &a->model.meshes[a->surface];
-    for (int k = 0; k < 2; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
-    for (int i = 0; i < me->n_nodes; i++)
-      for (int k = 0; k < 2; k++) {
-        lo[k] = fmin(lo[k], me->x0[3 * i + k]);
-        hi[k] = fmax(hi[k], me->x0[3 * i + k]);
-      }
-  }
+  const dem_mesh *me = a->surface >= 0 ? &a->model.meshes[a->surface] : NULL;
+  double lo[2], hi[2], top;
+  dem_footprint(me ? me->x0 : NULL, me ? me->n_nodes : 0, lo, hi);
   int count;
   if (dem_bed_top(&a->state, lo, hi, DEM_BED_TOP_PERCENTILE, &top, &count, err) < 0) return -1;
   if (count > 0) cJSON_AddNumberToObject(h, PROTO_H_BED_TOP, top);

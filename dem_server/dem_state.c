@@ -236,7 +236,6 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   s->step++;
   memcpy(w->step_box, blo, sizeof blo);
   memcpy(w->step_box + 3, bhi, sizeof bhi);
-  w->box_step = s->step;
   w->box_all = n == s->n;
   if (jumped) {
     s->kinetic_energy = NAN;
@@ -245,6 +244,7 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   if (rebuild ? dem_neigh_rebuild(m, s, err) : (m->n_meshes > 0 && dem_mesh_lists_check(m, s, err))) return -1;
   if (w->asleep && dem_sleep_guard(m, s, err)) return -1; /* a mesh beyond the region's margin */
   dem_compute_forces(m, s, 1); /* and the second half kick */
+  w->sweep_step = s->step;     /* step_box and kick_v2 are this step's */
   dem_threads_end(s);
   if (check_health(m, s, 0.0, err)) return -1;
   return dem_sleep_update(m, s, err); /* wake, region, fall asleep: the awake grains first again */

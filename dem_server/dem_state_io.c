@@ -360,7 +360,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   for (int k = 0; k < ne; k++) /* empty entries (no pairs yet) may have no buffer */
     if (entry_bytes(&e[k])) memcpy(e[k].data, src[k], entry_bytes(&e[k]));
   s->step = cnt[IO_C_STEP];
-  s->work->box_step = s->work->kick_step = -1; /* x, v are not what the last sweeps left */
+  s->work->sweep_step = -1; /* x, v are not what the last sweeps left */
   s->rebuilds = cnt[IO_C_REBUILDS];
   s->contacts = cnt[IO_C_CONTACTS];
   s->sleeping = cnt[IO_C_SLEEPING];

@@ -70,12 +70,17 @@ static int procs_running(void) {
   return p ? atoi(p + 14) : -1;
 }
 
-/* The cores this process may use: the CPUs of its OpenMP places when they
- * bind its threads (OMP_PLACES with OMP_PROC_BIND, as coupling.affinity
- * "handoff" sets: the main thread is then bound to the first place alone,
- * so its own affinity mask says 1), else its affinity mask. */
+/* OpenMP places bind this process's threads (OMP_PLACES with OMP_PROC_BIND,
+ * as coupling.affinity "handoff" sets): the main thread is then bound to the
+ * first place alone, so its own affinity mask says 1. */
+static int places_bind(void) {
+  return omp_get_proc_bind() != omp_proc_bind_false && omp_get_num_places() > 1;
+}
+
+/* The cores this process may use: the CPUs of its places when they bind its
+ * threads, else its affinity mask. */
 static int cores_allowed(void) {
-  if (omp_get_proc_bind() != omp_proc_bind_false && omp_get_num_places() > 1) {
+  if (places_bind()) {
     int n = 0;
     for (int p = 0; p < omp_get_num_places(); p++) n += omp_get_place_num_procs(p);
     if (n > 0) return n;
@@ -90,8 +95,7 @@ static int cores_allowed(void) {
 static const char *bound_text(char *buf, size_t cap) {
   cpu_set_t set;
   buf[0] = 0;
-  if (omp_get_proc_bind() == omp_proc_bind_false || omp_get_num_places() < 2 ||
-      sched_getaffinity(0, sizeof set, &set) != 0 || CPU_COUNT(&set) != 1)
+  if (!places_bind() || sched_getaffinity(0, sizeof set, &set) != 0 || CPU_COUNT(&set) != 1)
     return buf;
   for (int c = 0; c < CPU_SETSIZE; c++)
     if (CPU_ISSET(c, &set)) snprintf(buf, cap, " (main thread bound to CPU %d by the OpenMP places)", c);

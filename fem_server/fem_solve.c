@@ -149,8 +149,14 @@ static cholmod_sparse csc_view(const fem_model *md) {
  * the same bits on every machine; the count is put back after. Looked up at
  * run time: another BLAS has no such call (reference BLAS has one thread). */
 static int blas_threads(int n) {
-  int (*get)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "openblas_get_num_threads");
-  void (*set)(int) = (void (*)(int))dlsym(RTLD_DEFAULT, "openblas_set_num_threads");
+  static int looked; /* once: a quasi-static tread solves every step */
+  static int (*get)(void);
+  static void (*set)(int);
+  if (!looked) {
+    get = (int (*)(void))dlsym(RTLD_DEFAULT, "openblas_get_num_threads");
+    set = (void (*)(int))dlsym(RTLD_DEFAULT, "openblas_set_num_threads");
+    looked = 1;
+  }
   if (!get || !set || n < 1) return -1;
   const int before = get();
   set(n);

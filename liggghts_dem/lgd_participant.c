@@ -122,15 +122,8 @@ static int do_init(app *a, int64_t n_nodes, const double *x0, int64_t n_tri, con
    * reports it in its ready (scenario.rim_center "auto"): the gathered grains */
   if (lgd_gather(a->sim, a->snap_x, a->snap_v, a->snap_w, err)) return -1;
   if (a->rank != 0) return 0;
-  double lo[2] = {-INFINITY, -INFINITY}, hi[2] = {INFINITY, INFINITY};
-  if (n_nodes > 0) {
-    for (int k = 0; k < 2; k++) lo[k] = INFINITY, hi[k] = -INFINITY;
-    for (int64_t i = 0; i < n_nodes; i++)
-      for (int k = 0; k < 2; k++) {
-        lo[k] = fmin(lo[k], x0[3 * i + k]);
-        hi[k] = fmax(hi[k], x0[3 * i + k]);
-      }
-  }
+  double lo[2], hi[2];
+  dem_footprint(x0, n_nodes, lo, hi);
   return dem_bed_top_of(a->snap_x, m->radius, m->n_grains, lo, hi, DEM_BED_TOP_PERCENTILE, &a->bed_top,
                         &a->bed_top_grains, err);
 }
