@@ -453,7 +453,7 @@ static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
         s->torque[3 * i + a] += w->mesh_t[3 * i + a];
       }
   if (kick) sum->ke = kick_chunk(m, s, lo, hi, &sum->v2);
-  if (w->asleep && kick) dem_sleep_chunk(m, s, lo, hi);
+  if (w->asleep && kick && !w->settling) dem_sleep_chunk(m, s, lo, hi);
 }
 
 void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {

@@ -129,14 +129,17 @@ struct dem_work {
   int jump_on;
   int32_t *jump_pos;           /* [largest mesh's nodes] scratch: a node's row in a sparse set */
   double asleep_box[6];        /* dem_reach_box: the asleep grains' sphere boxes (they stand still) */
-  /* the grains' sphere box and largest |v|^2 as the step's own sweeps left them
-   * (dem_step's drift, kick_chunk), valid at step sweep_step (set once dem_step
-   * has done both) over every grain (box_all); dem_reach_box and
-   * dem_reach_escaped use them without a sweep of their own (dem_nodeset.c) */
+  /* the awake grains' sphere box and largest |v|^2 as the step's own sweeps
+   * left them (dem_step's drift, kick_chunk), valid at step sweep_step (set
+   * once dem_step has done both) while the awake set is the drift's (box_all:
+   * cleared when grains wake or fall asleep after it, dem_sleep.c); with the
+   * asleep grains' box, dem_reach_box and dem_reach_escaped use them without a
+   * sweep of their own (dem_nodeset.c) */
   double step_box[6], kick_v2;
   int64_t sweep_step;
   int box_all;
   int asleep_box_ok;           /* valid: cleared when the asleep set changes (dem_sleep.c) */
+  int settling;                /* dem_bed_settle: the sleep rules wait (a settling bed is slow before it is at rest) */
   double io_active[20];   /* dem_state_io.c: the active block's state (region, grid, guard) */
   /* meshes: far from every grain (dem_mesh.c) */
   uint8_t *chunk_mesh;    /* [nchunk] a grain of the chunk has mesh candidates or contacts */

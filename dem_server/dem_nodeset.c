@@ -83,35 +83,44 @@ static double sphere_boxes(const dem_state *s, int lo, int hi, double box[6]) {
   return v2;
 }
 
-/* The step's own sweeps cover every grain as they are now: dem_step moved
- * them all (no grain asleep) and kicked them last, and nothing has touched x
- * or v since (a state import or a bed's clock reset clears the steps). */
+/* The step's own sweeps cover every awake grain as they are now: dem_step
+ * moved them (the asleep ones stand still) and kicked them last, and nothing
+ * has touched x or v since (a wake or sleep after the drift, a state import or
+ * a bed's clock reset clears the steps). */
 static int step_sweeps_current(const dem_state *s) {
   const struct dem_work *w = s->work;
   return w->box_all && w->sweep_step == s->step;
 }
 
+/* With sleep, the asleep grains' sphere box into box (min/max with it), kept
+ * until the asleep set changes (exact: min/max); without, box unchanged. */
+static void with_asleep(const dem_state *s, double box[6]) {
+  struct dem_work *w = s->work;
+  if (!w->asleep || w->n_active == s->n) return;
+  if (!w->asleep_box_ok) {
+    for (int d = 0; d < 3; d++) w->asleep_box[d] = INFINITY, w->asleep_box[3 + d] = -INFINITY;
+    sphere_boxes(s, w->n_active, s->n, w->asleep_box);
+    w->asleep_box_ok = 1;
+  }
+  for (int d = 0; d < 3; d++) {
+    box[d] = w->asleep_box[d] < box[d] ? w->asleep_box[d] : box[d];
+    box[3 + d] = w->asleep_box[3 + d] > box[3 + d] ? w->asleep_box[3 + d] : box[3 + d];
+  }
+}
+
 void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box[6]) {
   struct dem_work *w = s->work;
   for (int d = 0; d < 3; d++) box[d] = INFINITY, box[3 + d] = -INFINITY;
-  int awake = s->n;
   double v2;
-  /* the same min, max and |v|^2 as the sweep below; with sleep only while no
-   * grain is asleep (nothing fell asleep after the kick, so v is the kick's) */
-  if ((!w->asleep || w->n_active == s->n) && step_sweeps_current(s)) {
-    memcpy(box, w->step_box, sizeof w->step_box);
+  with_asleep(s, box); /* they stand still: |v| 0 */
+  if (step_sweeps_current(s)) { /* the same min, max and |v|^2 as the sweep below */
+    for (int d = 0; d < 3; d++) {
+      box[d] = w->step_box[d] < box[d] ? w->step_box[d] : box[d];
+      box[3 + d] = w->step_box[3 + d] > box[3 + d] ? w->step_box[3 + d] : box[3 + d];
+    }
     v2 = w->kick_v2;
   } else {
-    if (w->asleep) { /* sleep: the asleep grains' box is kept until the asleep set changes (exact: min/max) */
-      awake = w->n_active;
-      if (!w->asleep_box_ok) {
-        for (int d = 0; d < 3; d++) w->asleep_box[d] = INFINITY, w->asleep_box[3 + d] = -INFINITY;
-        sphere_boxes(s, awake, s->n, w->asleep_box);
-        w->asleep_box_ok = 1;
-      }
-      memcpy(box, w->asleep_box, sizeof w->asleep_box);
-    }
-    v2 = sphere_boxes(s, 0, awake, box); /* the asleep ones stand still */
+    v2 = sphere_boxes(s, 0, w->n_active, box);
   }
   const double delta = m->skin + 2 * sqrt(v2) * dt; /* the margin derived above */
   for (int d = 0; d < 3; d++) {
@@ -124,7 +133,9 @@ void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box
 int dem_reach_escaped(const dem_state *s, const double box[6]) {
   int out = 0;
   if (step_sweeps_current(s)) { /* every sphere box inside: their union is */
-    const double *u = s->work->step_box;
+    double u[6];
+    memcpy(u, s->work->step_box, sizeof u);
+    with_asleep(s, u);
     if (u[0] >= box[0] && u[1] >= box[1] && u[2] >= box[2] && u[3] <= box[3] && u[4] <= box[4] &&
         u[5] <= box[5])
       return -1;

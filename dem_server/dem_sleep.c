@@ -29,8 +29,13 @@
  * at rest).
  *
  * The region (derivation, also dem_server/README.md): the bounding box of the
- * moving meshes' nodes grown by
- *   margin = max(distance, r_max + 2 skin) + c N dt + v_mesh (N + 1) dt,
+ * moving meshes' triangles within the reach of the grains' box, grown by
+ *   margin = max(distance, r_max + 2 skin) + c N dt + v_mesh (N + 1) dt;
+ * the reach is the margin with distance 0 (a triangle farther from every
+ * grain touches none, nor starts a disturbance that reaches one, before the
+ * next update; `distance` widens the box around the triangles that can, as a
+ * tyre's stress reaches grains below and beside it, and does not bring in a
+ * wheel's triangles above the bed),
  * N = DEM_REGION_STEPS, c = √(E/ρ) of the stiffest, lightest material.
  * Between two updates (N steps) a mesh node moves at most v_mesh N dt (the
  * third term; +1: a grain woken at an update joins at the next step) and a
@@ -44,7 +49,7 @@
  * outside the region wake their neighbours step by step: in explicit DEM a
  * displacement reaches the next grain's force one step later, and the wake
  * reaches every grain listed with a fast one in the same step. The region is
- * kept with a hysteresis of half a margin (moved only when the required box
+ * kept with a hysteresis of half the reach (moved only when the required box
  * leaves it), so that asleep grains wake in batches, not one at a time.
  * v_mesh is the largest node speed |v| (dem_mesh_velocities_changed).
  *
@@ -205,12 +210,16 @@ static int touches_mesh(const dem_model *m, const struct dem_work *w, int i) {
   return 0;
 }
 
-/* margin of the region (see the top of the file) for node speed vmax */
-static double region_margin(const dem_model *m, const dem_state *s, double vmax) {
+/* margin of the region (see the top of the file) for node speed vmax; with
+ * distance 0 it is the reach: how near the grains a triangle must come to
+ * touch one, or start a disturbance that reaches one, before the next update.
+ * `distance` only widens the box around the triangles within that reach (a
+ * wheel's triangles a distance above the bed reach no grain sooner). */
+static double region_margin(const dem_model *m, const dem_state *s, double vmax, double distance) {
   double c = 0;
   for (int k = 0; k < m->n_materials; k++) c = fmax(c, sqrt(m->mat[k].E / m->mat[k].density));
   const double N = DEM_REGION_STEPS;
-  return fmax(m->sleep.distance, s->work->region_rmax + 2 * m->skin) + c * N * s->dt + vmax * (N + 1) * s->dt;
+  return fmax(distance, s->work->region_rmax + 2 * m->skin) + c * N * s->dt + vmax * (N + 1) * s->dt;
 }
 
 /* Relative slack of the region's reach (dem_sleep_reach): covers the
@@ -253,7 +262,8 @@ static void region_update(const dem_model *m, dem_state *s) {
     vmax = fmax(vmax, w->mesh_vmax[mi]); /* the largest node speed (dem_mesh_velocities_changed) */
     moving = 1;
   }
-  const double margin = moving ? region_margin(m, s, vmax) : 0;
+  const double margin = moving ? region_margin(m, s, vmax, m->sleep.distance) : 0;
+  const double reach = moving ? region_margin(m, s, vmax, 0) : 0;
   /* the guard (dem_sleep_guard): from here, the mesh term of the margin */
   w->region_moved = 0;
   w->region_budget = moving ? vmax * (DEM_REGION_STEPS + 1) * s->dt : 0;
@@ -261,7 +271,7 @@ static void region_update(const dem_model *m, dem_state *s) {
   for (int mi = 0; mi < m->n_meshes; mi++) w->region_movers |= w->mesh_moving[mi] << mi;
   if (moving) {
     grains_box(s, glo, ghi);
-    for (int k = 0; k < 3; k++) { glo[k] -= margin; ghi[k] += margin; }
+    for (int k = 0; k < 3; k++) { glo[k] -= reach; ghi[k] += reach; }
   }
   for (int mi = 0; mi < m->n_meshes && moving; mi++) {
     if (!w->mesh_moving[mi]) continue;
@@ -293,10 +303,10 @@ static void region_update(const dem_model *m, dem_state *s) {
       hi[k] += margin;
       inside &= lo[k] >= w->region_lo[k] && hi[k] <= w->region_hi[k];
     }
-    if (!inside) { /* moved on: with half a margin of room ahead (hysteresis) */
+    if (!inside) { /* moved on: with half the reach of room ahead (hysteresis) */
       for (int k = 0; k < 3; k++) {
-        w->region_lo[k] = lo[k] - 0.5 * margin;
-        w->region_hi[k] = hi[k] + 0.5 * margin;
+        w->region_lo[k] = lo[k] - 0.5 * reach;
+        w->region_hi[k] = hi[k] + 0.5 * reach;
       }
       w->region_on = changed = 1;
     }
@@ -317,7 +327,8 @@ static void region_update(const dem_model *m, dem_state *s) {
  * then saves its rebuild within a few dozen steps of the grains it stops). */
 static void fall_asleep(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
-  const int32_t rest_steps = (int32_t)ceil(m->sleep.time / s->dt - 1e-9);
+  const double steps = ceil(m->sleep.time / s->dt - 1e-9); /* `time` may be up to 1e6 s: rest saturates */
+  const int32_t rest_steps = steps < INT32_MAX ? (int32_t)steps : INT32_MAX;
   const int na = w->n_active, batch = 1 + s->n / 16;
   int cand = 0;
   for (int i = 0; i < na; i++)
@@ -402,11 +413,12 @@ static int wake_woken(const dem_model *m, dem_state *s, proto_err *err) {
   w->n_wake = 0;
   if (!w->compact) return 0;
   w->asleep_box_ok = 0; /* dem_reach_box */
+  w->box_all = 0;       /* the drift's box misses the woken grains, the kick's |v|^2 those put to sleep */
   return dem_neigh_rebuild(m, s, err); /* a wake or full rebuild: clears compact */
 }
 
 int dem_sleep_update(const dem_model *m, dem_state *s, proto_err *err) {
-  if (!m->sleep.on) return 0;
+  if (!m->sleep.on || s->work->settling) return 0;
   if (s->step % DEM_REGION_STEPS == 0) {
     region_update(m, s);
     fall_asleep(m, s);
@@ -487,7 +499,7 @@ void dem_sleep_reach(const dem_model *m, const dem_state *s, double box[6], doub
   if (!m->sleep.on) return;
   double glo[3], ghi[3];
   grains_box(s, glo, ghi);
-  const double grow = region_margin(m, s, 0) * (1 + DEM_REACH_SLACK);
+  const double grow = region_margin(m, s, 0, 0) * (1 + DEM_REACH_SLACK);
   for (int k = 0; k < 3; k++) {
     box[k] = fmin(box[k], glo[k] - grow);
     box[3 + k] = fmax(box[3 + k], ghi[k] + grow);

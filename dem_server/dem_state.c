@@ -236,7 +236,7 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   s->step++;
   memcpy(w->step_box, blo, sizeof blo);
   memcpy(w->step_box + 3, bhi, sizeof bhi);
-  w->box_all = n == s->n;
+  w->box_all = 1; /* the awake block's box: every grain's without sleep (dem_sleep.c clears it at a wake or sleep) */
   if (jumped) {
     s->kinetic_energy = NAN;
     return check_health(m, s, 2.0, err);

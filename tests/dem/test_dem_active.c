@@ -473,6 +473,8 @@ static int asleep_invariants(const dem_model *m, const dem_state *s) {
   return bad;
 }
 
+static int box_differ, escape_differ, cached_box_steps; /* sparse_sleep_run's reach box checks */
+
 /* Steps where B differed (grains or region); *sparse_steps, *least_awake, *escaped of B. */
 static int sparse_sleep_run(int with_fastest, int *sparse_steps, int64_t *most_asleep, int *escapes,
                             int64_t *wakes, int *broken) {
@@ -517,7 +519,15 @@ static int sparse_sleep_run(int with_fastest, int *sparse_steps, int64_t *most_a
     dem_sleep_jump_box(&b, jb, DT);
     dem_mesh_set_nodes_sparse(&mb, &b, 0, n, idx, rx, rv, seen, live);
     if (dem_step(&ma, &a, &err) || dem_step(&mb, &b, &err)) { fprintf(stderr, "step %d: %s\n", k, err.msg); exit(1); }
-    *escapes += dem_reach_escaped(&b, jb) >= 0;
+    const int escaped = dem_reach_escaped(&b, jb) >= 0;
+    *escapes += escaped;
+    double got[6], want[6];
+    int outside;
+    dem_reach_box(&mb, &b, DT, got);
+    dem_test_reach_by_hand(&mb, &b, DT, want, jb, &outside);
+    box_differ += memcmp(got, want, sizeof want) != 0;
+    escape_differ += outside != escaped;
+    cached_box_steps += b.work->box_all && b.work->sweep_step == b.step && b.work->n_active < b.n;
     *broken += asleep_invariants(&mb, &b) + asleep_invariants(&ma, &a);
     const struct dem_work *wa = a.work, *wb = b.work;
     differ += memcmp(a.x, b.x, sizeof(double) * 3 * SP_N) || memcmp(a.v, b.v, sizeof(double) * 3 * SP_N) ||
@@ -545,6 +555,12 @@ static void sparse_with_sleep(void) {
         "the case tests nothing: %d sparse steps, up to %lld asleep, %lld wakes", sparse_steps,
         (long long)most_asleep, (long long)wakes);
   CHECK(differ == 0 && escapes == 0, "sparse with sleep differs from dense at %d steps (%d escapes)", differ, escapes);
+  printf("  the reach box differs from its definition at %d steps, the escape check from brute force at %d "
+         "(%d steps took the step's sweeps with grains asleep)\n", box_differ, escape_differ, cached_box_steps);
+  CHECK(box_differ == 0 && escape_differ == 0, "the reach box (%d steps) or the escape check (%d) is not its "
+        "definition's with grains asleep", box_differ, escape_differ);
+  CHECK(cached_box_steps > SP_STEPS / 4, "only %d of %d steps took the step's sweeps with grains asleep",
+        cached_box_steps, SP_STEPS);
   printf("  asleep grains within r + skin of the plate, or touching an awake one unlisted: %d\n", broken);
   CHECK(broken == 0, "%d times an asleep grain was within r + skin of the plate or touched an awake grain unlisted",
         broken);

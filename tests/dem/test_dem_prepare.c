@@ -13,8 +13,10 @@
  *    bit while a foot presses and drags through it (every array of the state
  *    export equal), and the same continuation with the preparation's laws
  *    does not (the test would see a preparation left in force).
- * 3. The keys are checked, errors naming them. */
+ * 3. The keys are checked, errors naming them.
+ * 4. With sleep on, the bed settles with every grain awake (settles_awake). */
 #include "dem_test.h"
+#include "dem_server/dem_internal.h"
 
 #include <math.h>
 #include <string.h>
@@ -186,6 +188,59 @@ static void record_progress(void *ctx, double fraction, const char *what) {
   p->n++;
 }
 
+/* 4. A bed settles with every grain awake: under sleep thresholds that put
+ * the settling grains to sleep by their speed alone (displacement 1 r: test
+ * 1's bed falls asleep in part within the first 0.2 s, test_dem_bed_continue),
+ * dem_bed_settle leaves none asleep and no rest counted, and the grains are
+ * the bits of the same settling without sleep. */
+#define SCENE_SLEEP                                                                                        \
+  "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.8}],"   \
+  "\"dt\":5e-5,\"threads\":1,\"sleep\":%s,"                                                                 \
+  "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[0.1414213562,0.1414213562,1],\"open_top\":true}],"  \
+  "\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":3,\"settle_ke_per_grain\":0,"              \
+  "\"settle_max_steps\":%d}}"
+
+static void settles_awake(void) {
+  const char *sleeps[2] = {"false", "{\"velocity\":0.06,\"time\":0.01,\"displacement\":1}"};
+  dem_model m[2];
+  dem_state s[2];
+  proto_err err = {{0}};
+  for (int k = 0; k < 2; k++) {
+    char json[2048];
+    snprintf(json, sizeof json, SCENE_SLEEP, sleeps[k], SETTLE_STEPS);
+    cJSON *j = cJSON_Parse(json);
+    if (!j) { fprintf(stderr, "bad test JSON: %s\n", json); exit(2); }
+    const int rc = dem_model_from_json(&m[k], j, "processes.dem", &err);
+    cJSON_Delete(j);
+    OK(rc);
+    OK(dem_state_init(&m[k], &s[k], 0, &err));
+    OK(dem_bed_settle(&m[k], &s[k], NULL, NULL, NULL, &err));
+  }
+  int resting = 0;
+  for (int i = 0; i < s[1].n; i++) resting += s[1].work->rest[i] != 0;
+  double *x0 = malloc(sizeof(double) * 6 * s[0].n), *x1 = malloc(sizeof(double) * 6 * s[1].n);
+  dem_gather(&s[0], s[0].x, 3, x0);
+  dem_gather(&s[0], s[0].v, 3, x0 + 3 * s[0].n);
+  dem_gather(&s[1], s[1].x, 3, x1);
+  dem_gather(&s[1], s[1].v, 3, x1 + 3 * s[1].n);
+  const int same = s[0].n == s[1].n && memcmp(x0, x1, sizeof(double) * 6 * s[0].n) == 0;
+  printf("settled with sleep on: %lld of %d grains asleep, %d with rest counted; x, v %s the settling without "
+         "sleep\n", (long long)s[1].sleeping, s[1].n, resting, same ? "equal" : "DIFFER from");
+  CHECK(s[1].sleeping == 0 && resting == 0, "grains slept (%lld) or counted rest (%d) while the bed settled",
+        (long long)s[1].sleeping, resting);
+  CHECK(same, "the bed settled with sleep on is not the bed settled without");
+  /* after the settling the rules hold: the bed, slow, falls asleep */
+  for (int k = 0; k < 400; k++) OK(dem_step(&m[1], &s[1], &err));
+  printf("  400 steps later: %lld asleep\n", (long long)s[1].sleeping);
+  CHECK(s[1].sleeping > 0, "no grain fell asleep after the settling");
+  free(x0);
+  free(x1);
+  for (int k = 0; k < 2; k++) {
+    dem_state_free(&s[k]);
+    dem_model_free(&m[k]);
+  }
+}
+
 int main(void) {
   char path[] = "/tmp/test_dem_prepare_XXXXXX";
   close(mkstemp(path));
@@ -253,6 +308,7 @@ int main(void) {
   dem_model_free(&m1);
   remove(path);
 
+  settles_awake();
   /* 3. the keys */
   keys();
   not_in_free_fall();

@@ -21,20 +21,9 @@ static char *scene_json(int threads) {
       "{\"type\":\"mesh\",\"nodes\":[[-0.07,0.002,0.001],[-0.07,%.17g,0.001],[-0.07,%.17g,0.03],[-0.07,0.002,0.03]],"
       "\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[0.4,0,0]}],\"particles\":[",
       threads, L, L, L - 0.002, L - 0.002);
-  for (int layer = 0; layer < 2; layer++)
-    for (int a = 0; a < NL - layer; a++)
-      for (int b = 0; b < NL - layer; b++)
-        len += snprintf(json + len, sizeof json - len, "%s{\"x\":[%.17g,%.17g,%.17g],\"r\":%g}",
-                        len && json[len - 1] == '[' ? "" : ",", 0.005 + s * (a + 0.5 * layer),
-                        0.005 + s * (b + 0.5 * layer), R + 1e-5 + layer * (h + 1e-5), R);
+  len = dem_test_two_layers(json, len, sizeof json, NL, R, s, h);
   snprintf(json + len, sizeof json - len, "]}");
   return json;
-}
-
-static void step(const dem_model *m, dem_state *s, int n) {
-  proto_err err;
-  for (int k = 0; k < n; k++)
-    if (dem_step(m, s, &err)) { fprintf(stderr, "%s\n", err.msg); exit(1); }
 }
 
 /* x, v by grain id, and asleep by id */
@@ -62,12 +51,12 @@ int main(void) {
   const int n = s.n;
   double *x0 = malloc(sizeof(double) * 6 * n), *x1 = malloc(sizeof(double) * 6 * n);
   uint8_t *a0 = malloc(n), *a1 = malloc(n);
-  step(&m, &s, rest);
+  dem_test_steps(&m, &s, rest);
   printf("%d grains after %d steps: %lld asleep, KE %.3g J\n", n, rest, (long long)s.sleeping, s.kinetic_energy);
   CHECK(s.sleeping > 0.85 * n, "the grains at rest do not sleep (%lld of %d)", (long long)s.sleeping, n);
   /* sleeping grains stay where they are */
   by_id(&s, x0, a0);
-  step(&m, &s, 200);
+  dem_test_steps(&m, &s, 200);
   by_id(&s, x1, a1);
   int still = 0, moved = 0;
   for (int g = 0; g < n; g++)
@@ -84,7 +73,7 @@ int main(void) {
   /* the plate comes in: grains near it wake, none asleep touches it */
   int64_t least = s.sleeping, touching_asleep = 0, contact_steps = 0;
   for (int k = 0; k < plough; k++) {
-    step(&m, &s, 1);
+    dem_test_steps(&m, &s, 1);
     least = s.sleeping < least ? s.sleeping : least;
     for (int i = 0; i < n; i++)
       for (int q = 0; q < DEM_MESH_SLOTS; q++)
@@ -106,7 +95,7 @@ int main(void) {
     dem_state st;
     roundtrip(&mr, &ref, t, &mt, &st);
     if (t == 2) {
-      step(&mt, &st, plough / 2);
+      dem_test_steps(&mt, &st, plough / 2);
       dem_model mh;
       dem_state sh;
       roundtrip(&mt, &st, 1, &mh, &sh);
@@ -114,9 +103,9 @@ int main(void) {
       dem_model_free(&mt);
       mt = mh;
       st = sh;
-      step(&mt, &st, plough - plough / 2);
+      dem_test_steps(&mt, &st, plough - plough / 2);
     } else {
-      step(&mt, &st, plough);
+      dem_test_steps(&mt, &st, plough);
     }
     by_id(&st, x1, NULL);
     printf("%d thread(s)%s: KE %.17g (straight %.17g)\n", t, t == 2 ? ", export/import half way" : "",

@@ -1,0 +1,95 @@
+/* The active region's box ("sleep"): `distance` widens the box around the
+ * triangles that can reach a grain before the next update; it does not make
+ * farther triangles count (dem_sleep.c region_update).
+ *
+ * Two layers of grains rest on the floor of a box; a small plate glides
+ * along x above them, never touching one (its velocity makes it a moving
+ * mesh).
+ * 1. The plate a gap g above the grains' centres, with reach < g < distance:
+ *    it can reach no grain before the next update, so it holds none awake and
+ *    the bed falls asleep (the box of every triangle within distance kept the
+ *    grains under the plate awake: 0 of 761 slept).
+ * 2. The plate within reach: every grain within `distance` of the plate's
+ *    footprint is awake, and the region holds none beyond its largest extent
+ *    (the plate's path grown by the margin and the hysteresis; grains outside
+ *    it fall asleep in batches, dem_sleep.c fall_asleep). */
+#include "dem_test.h"
+#include "dem_server/dem_internal.h"
+#include <string.h>
+
+#define R 0.003
+#define NL 20          /* grains per row of the lower layer */
+#define DISTANCE 0.04  /* sleep.distance (m) */
+#define PLATE 0.02     /* the plate's side (m) */
+#define SPEED 0.02     /* the plate's speed along x (m/s) */
+#define DT 5e-5
+#define STEPS 2400     /* 0.12 s: the rest time 0.01 s many times over */
+
+static char *scene_json(double gap) {
+  static char json[200000];
+  const double s = 2 * R + 2e-4, h = sqrt(4 * R * R - 0.5 * s * s), L = NL * s + 0.01;
+  const double ztop = R + 1e-5 + h + 1e-5; /* the upper layer's centres */
+  const double zp = ztop + gap, x0 = 0.03, y0 = 0.5 * L - 0.5 * PLATE;
+  int len = snprintf(json, sizeof json,
+      "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.3,\"friction\":0.6}],"
+      "\"dt\":%g,\"sleep\":{\"velocity\":0.005,\"time\":0.01,\"distance\":%g},"
+      "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,1],\"open_top\":true},"
+      "{\"type\":\"mesh\",\"nodes\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
+      "[%.17g,%.17g,%.17g]],\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[%g,0,0]}],\"particles\":[",
+      DT, DISTANCE, L, L, x0, y0, zp, x0 + PLATE, y0, zp, x0 + PLATE, y0 + PLATE, zp, x0, y0 + PLATE, zp, SPEED);
+  len = dem_test_two_layers(json, len, sizeof json, NL, R, s, h);
+  snprintf(json + len, sizeof json - len, "]}");
+  return json;
+}
+
+/* the reach (region_margin without distance) at the plate's speed */
+static double reach(const dem_model *m, const dem_state *s) {
+  const double c = sqrt(m->mat[0].E / m->mat[0].density), N = DEM_REGION_STEPS;
+  return fmax(R, s->work->region_rmax) + 2 * m->skin + c * N * DT + SPEED * (N + 1) * DT;
+}
+
+/* distance in x-y from a grain's centre to the plate's footprint: Euclidean,
+ * and along the farther axis (the region is a box) */
+static double to_plate(const dem_state *s, int i, int box) {
+  const double *p = s->mesh_x[0], *x = &s->x[3 * i];
+  const double dx = fmax(0, fmax(p[0] - x[0], x[0] - p[3])), dy = fmax(0, fmax(p[1] - x[1], x[1] - p[7]));
+  return box ? fmax(dx, dy) : sqrt(dx * dx + dy * dy);
+}
+
+int main(void) {
+  dem_model m;
+  dem_state s;
+  /* 1. out of reach, within distance */
+  scene(scene_json(0.027), &m, &s);
+  const double g1 = 0.027, rc = reach(&m, &s);
+  dem_test_steps(&m, &s, STEPS);
+  printf("plate %.3f m above the grains' centres (reach %.4f m, distance %.3f m): %lld of %d asleep, region %s\n", g1,
+         rc, DISTANCE, (long long)s.sleeping, s.n, s.work->region_on ? "on" : "off");
+  CHECK(rc < g1 && g1 < DISTANCE, "the gap %.3f m does not lie between the reach %.4f and distance %.3f m", g1, rc,
+        DISTANCE);
+  CHECK(s.sleeping == s.n && !s.work->region_on, "a plate out of reach held %lld of %d grains awake",
+        (long long)(s.n - s.sleeping), s.n);
+  dem_state_free(&s);
+  dem_model_free(&m);
+
+  /* 2. within reach */
+  const double g2 = 0.004; /* the grains' tops are R below their centres: 1 mm clear */
+  scene(scene_json(g2), &m, &s);
+  const double margin = DISTANCE + reach(&m, &s) - fmax(R, s.work->region_rmax) - 2 * m.skin;
+  dem_test_steps(&m, &s, STEPS);
+  int inside = 0, inside_asleep = 0, far = 0, far_held = 0;
+  const double farther = margin + 0.5 * reach(&m, &s) + SPEED * STEPS * DT + R; /* beyond anything the region held */
+  for (int i = 0; i < s.n; i++) {
+    const double d = to_plate(&s, i, 0);
+    if (d < DISTANCE - R) { inside++; inside_asleep += s.work->asleep[i]; }
+    if (to_plate(&s, i, 1) > farther) { far++; far_held += !s.work->asleep[i] && s.work->near[i]; }
+  }
+  printf("plate %.3f m above: %d grains within distance of it, %d asleep; %d beyond %.4f m, %d held awake by the region, "
+         "%lld of %d asleep in all\n", g2, inside, inside_asleep, far, farther, far_held, (long long)s.sleeping, s.n);
+  CHECK(inside > 20 && inside_asleep == 0, "%d of %d grains within distance of the plate sleep", inside_asleep, inside);
+  CHECK(far > 20 && far_held == 0, "the region holds %d of %d grains beyond it awake", far_held, far);
+  CHECK(s.wall_force[3] == 0 && s.wall_force[4] == 0 && s.wall_force[5] == 0, "the plate touched a grain");
+  dem_state_free(&s);
+  dem_model_free(&m);
+  return cosim_test_done("test_dem_region");
+}
