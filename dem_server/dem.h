@@ -192,7 +192,7 @@ typedef struct dem_state {
   int64_t sleeping;        /* grains asleep ("sleep" on) */
   double max_overlap_ratio;/* max overlap / radius */
   double *wall_force;      /* [n_walls*3] force ON each wall, N */
-  int64_t rebuilds;
+  int64_t rebuilds;        /* neighbour-list rebuilds: partial + full + wake (dem_rebuild_kinds) */
   int threads;             /* OpenMP threads in use (may change in "auto" mode) */
   char threads_why[256];   /* how that number was chosen, for the log */
   struct dem_work *work;
@@ -252,6 +252,11 @@ void dem_mesh_set_nodes_sparse(const dem_model *m, dem_state *s, int mesh, int64
                                uint8_t *node_seen, uint8_t *live);
 /* The box the grains can reach in the next coupling step of length dt:
  * every grain's sphere box grown by the margin of dem_nodeset.c, [lo, hi]. */
+/* Of s->rebuilds, the full ones (every grain listed; with sleep: grains fell
+ * asleep) and the wake ones (woken grains joined the awake block); the rest
+ * were partial (the awake grains moved a skin's half). For the log. */
+void dem_rebuild_kinds(const dem_state *s, int64_t *full, int64_t *wake);
+
 void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box[6]);
 /* The slot of a grain whose sphere box is not inside box, or -1. */
 int dem_reach_escaped(const dem_state *s, const double box[6]);

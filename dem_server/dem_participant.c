@@ -35,6 +35,7 @@ typedef struct dem_app {
   int64_t restart_step; /* > 0: a restart, whose state replaces the settled bed */
   int surface;         /* mesh index of the coupled FEM surface, -1 if none */
   int threads_logged;  /* thread count last written to the log */
+  int64_t rebuilds_logged[3]; /* s->rebuilds, full, wake at the last output's log line (sleep) */
   double series[DEM_N_SERIES];
   double *wall_row;    /* t, then Fx Fy Fz per wall (means over the step) */
   double *surface_force; /* [n*3] nodal force, mean over the step's sub-steps */
@@ -143,6 +144,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   const dem_model *m = &a->model;
   if (add_surface(a, welcome, err) || dem_state_init(m, &a->state, a->run_dt, err)) return -1;
   a->have_state = 1;
+  a->rebuilds_logged[0] = -1;
   log_threads(a);
   if (m->cfg.bed_file[0] && a->restart_step == 0 && continue_bed(a, err)) return -1;
   /* a restart's state (dem_state_import into a fresh state, bitwise) takes
@@ -306,6 +308,10 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
    * force sampled once per sub-step is the mean of the samples */
   long long nsub = llround(dt / s->dt);
   if (nsub < 1) nsub = 1;
+  if (a->rebuilds_logged[0] < 0) { /* the run's first step: the bed's rebuilds are not its */
+    a->rebuilds_logged[0] = s->rebuilds;
+    dem_rebuild_kinds(s, &a->rebuilds_logged[1], &a->rebuilds_logged[2]);
+  }
   for (long long k = 0; k < nsub; k++) {
     if (dem_step(m, s, err)) return proto_wrap(err, "coupling step %lld", (long long)info->k);
     const int out = k_x >= 0 ? dem_reach_escaped(s, reach) : -1;
@@ -335,9 +341,15 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
     fprintf(stderr, "dem_server: t = %.6g s: sparse exchange: x, v of %lld of %d nodes, nodal "
             "force of %lld\n", t, (long long)(k_x >= 0 ? k_x : m->meshes[a->surface].n_nodes),
             m->meshes[a->surface].n_nodes, (long long)k_f);
-  if (info->output && m->sleep.on) /* the active block (dem_sleep.c) */
-    fprintf(stderr, "dem_server: t = %.6g s: %lld of %d grains active (sleep)\n", t,
-            (long long)(s->n - s->sleeping), s->n);
+  if (info->output && m->sleep.on) { /* the active block (dem_sleep.c); its rebuilds are its overhead */
+    int64_t r[3] = {s->rebuilds};
+    dem_rebuild_kinds(s, &r[1], &r[2]);
+    const int64_t *l = a->rebuilds_logged, full = r[1] - l[1], wake = r[2] - l[2];
+    fprintf(stderr, "dem_server: t = %.6g s: %lld of %d grains active (sleep); list rebuilds since the last output: "
+            "%lld partial, %lld full, %lld wake\n", t, (long long)(s->n - s->sleeping), s->n,
+            (long long)(r[0] - l[0] - full - wake), (long long)full, (long long)wake);
+    memcpy(a->rebuilds_logged, r, sizeof r);
+  }
   if (info->output) {
     dem_gather(s, s->x, 3, a->snap_x);
     dem_gather(s, s->v, 3, a->snap_v);
