@@ -7,14 +7,13 @@ machine is shared and a timing ratio fails at random."""
 import json
 import os
 import subprocess
-import tempfile
 import threading
 import time
 
 import numpy as np
 import zmq
 
-from common import COSIM, check, done, h5, no_orphans, scene, write
+from common import COSIM, check, done, h5, no_orphans, scene, scratch, write
 
 
 def tyre_scene(name, n, end, every):
@@ -25,7 +24,7 @@ def tyre_scene(name, n, end, every):
                   "sinkage_force": 20, "slip": 0.05, "omega": 1.8, "radius": 0.272})
     s["time"] = {"dt": 1e-3, "end": end}
     s["output"]["every"] = every
-    ep = "ipc://" + os.path.join(tempfile.mkdtemp(prefix="cosim-bus-"), "monitor")
+    ep = "ipc://" + os.path.join(scratch("cosim-bus-"), "monitor")
     s["bus"] = {"monitor": ep, "hwm": 100000, "snapshot_hwm": 1000}
     return s, ep
 

@@ -13,7 +13,6 @@
 import os
 import subprocess
 import sys
-import tempfile
 import threading
 
 import numpy as np
@@ -21,7 +20,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.join(HERE, "..", "..")
 sys.path.insert(0, os.path.join(HERE, "..", "e2e"))
-from common import check, done, no_orphans, scene  # noqa: E402
+from common import check, done, no_orphans, scene, scratch  # noqa: E402
 
 import cosim  # noqa: E402
 
@@ -35,12 +34,12 @@ s = scene("pymon", {
     # tools/monitor.py listens on a bus endpoint known before the run starts (it
     # must not attach after a short run has ended); cosim.Monitor finds it in
     # the output dir's endpoints.json while the run goes
-    bus={"monitor": "ipc://" + os.path.join(tempfile.mkdtemp(prefix="cosim-bus-"), "bus"),
+    bus={"monitor": "ipc://" + os.path.join(scratch("cosim-bus-"), "bus"),
          "hwm": 100000})
 s["time"] = {"dt": 1e-3, "end": N_STEPS * 1e-3}
 s["output"]["every"] = 500
 outdir = s["output"]["dir"]
-png = os.path.join(tempfile.mkdtemp(prefix="cosim-mon-"), "traction.png")
+png = os.path.join(scratch("cosim-mon-"), "traction.png")
 tool = subprocess.Popen([sys.executable, os.path.join(ROOT, "tools", "monitor.py"),
                          s["bus"]["monitor"], "--topic", "coupler.traction", "--column", "T_R",
                          "--png", png], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -79,7 +78,7 @@ print(f"monitor: {len(got['dem.series'])} of {N_STEPS} dem.series rows from step
       f"{got['dem.series'][0].step}; tools/monitor.py: {tool_out.strip()}")
 
 # 2. every dataset of a default run, through Results
-out = os.path.join(tempfile.mkdtemp(prefix="cosim-default-"), "default")
+out = os.path.join(scratch("cosim-default-"), "default")
 r = cosim.run(os.path.join(ROOT, "configs", "default.json"),
               set={"time.end": 1e-3, "output.every": 10,
                    "processes.dem.particles.settle_max_steps": 500},  # a short settle: seconds
@@ -131,7 +130,7 @@ except cosim.Interrupted as e:
         check(len(kept.series("block")) > 0, "an interrupted run keeps its rows")
 no_orphans(bad, "interrupted run")
 pts = cosim.sweep(bad, {"processes.block.stiffness": [1e5, 2e5]},
-                  out=tempfile.mkdtemp(prefix="cosim-sweep-"), jobs=2)
+                  out=scratch("cosim-sweep-"), jobs=2)
 forces = [res.series("block")["force"][-1] for _, res in pts]
 check([p["processes.block.stiffness"] for p, _ in pts] == [1e5, 2e5] and
       np.isclose(forces[1], 2 * forces[0], rtol=1e-12), f"sweep: one run per value ({forces})")

@@ -12,13 +12,12 @@ import hashlib
 import json
 import os
 import shutil
-import tempfile
 
 import h5py
 import numpy as np
 
 from rel import ROOT, check, cosim, two_spring_blocks
-from common import done, write
+from common import done, scratch, write
 
 DT = 1.953125e-5
 CKPT = "checkpoint_200.h5"
@@ -44,7 +43,7 @@ s["name"] = f"bad_checkpoint_{os.getpid()}"
 s["time"]["end"] = 400 * DT
 s["output"]["every"] = 50
 s["checkpoint"] = {"every": 100, "keep": 4}
-base = tempfile.mkdtemp(prefix="cosim-badckpt-")
+base = scratch("cosim-badckpt-")
 run_dir = s["output"]["dir"] = os.path.join(base, "run")
 scene = write(s)
 rc, out, err = cosim("run", scene, "--quiet")
