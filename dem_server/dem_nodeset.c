@@ -92,8 +92,16 @@ static int step_sweeps_current(const dem_state *s) {
   return w->box_all && w->sweep_step == s->step;
 }
 
-/* With sleep, the asleep grains' sphere box into box (min/max with it), kept
- * until the asleep set changes (exact: min/max); without, box unchanged. */
+/* box grown to hold other too (min/max: exact in any order) */
+static void box_union(double box[6], const double other[6]) {
+  for (int d = 0; d < 3; d++) {
+    box[d] = other[d] < box[d] ? other[d] : box[d];
+    box[3 + d] = other[3 + d] > box[3 + d] ? other[3 + d] : box[3 + d];
+  }
+}
+
+/* With sleep, the asleep grains' sphere box into box, kept until the asleep
+ * set changes; without, box unchanged. */
 static void with_asleep(const dem_state *s, double box[6]) {
   struct dem_work *w = s->work;
   if (!w->asleep || w->n_active == s->n) return;
@@ -102,10 +110,7 @@ static void with_asleep(const dem_state *s, double box[6]) {
     sphere_boxes(s, w->n_active, s->n, w->asleep_box);
     w->asleep_box_ok = 1;
   }
-  for (int d = 0; d < 3; d++) {
-    box[d] = w->asleep_box[d] < box[d] ? w->asleep_box[d] : box[d];
-    box[3 + d] = w->asleep_box[3 + d] > box[3 + d] ? w->asleep_box[3 + d] : box[3 + d];
-  }
+  box_union(box, w->asleep_box);
 }
 
 void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box[6]) {
@@ -114,10 +119,7 @@ void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box
   double v2;
   with_asleep(s, box); /* they stand still: |v| 0 */
   if (step_sweeps_current(s)) { /* the same min, max and |v|^2 as the sweep below */
-    for (int d = 0; d < 3; d++) {
-      box[d] = w->step_box[d] < box[d] ? w->step_box[d] : box[d];
-      box[3 + d] = w->step_box[3 + d] > box[3 + d] ? w->step_box[3 + d] : box[3 + d];
-    }
+    box_union(box, w->step_box);
     v2 = w->kick_v2;
   } else {
     v2 = sphere_boxes(s, 0, w->n_active, box);
