@@ -42,7 +42,10 @@ outdir = s["output"]["dir"]
 png = os.path.join(scratch("cosim-mon-"), "traction.png")
 tool = subprocess.Popen([sys.executable, os.path.join(ROOT, "tools", "monitor.py"),
                          s["bus"]["monitor"], "--topic", "coupler.traction", "--column", "T_R",
-                         "--png", png], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         # given an endpoint the tool ends at the run's last coupler.progress,
+                         # which it sometimes misses on a busy machine (the suite at -j2): then
+                         # it ends 10 s after its last message instead of hanging
+                         "--seconds", "10", "--png", png], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 check("listening" in tool.stderr.readline(), "tools/monitor.py started")
 ran = {}
 runner = threading.Thread(target=lambda: ran.setdefault("r", cosim.run(s, timeout=120)))
