@@ -99,7 +99,10 @@ typedef struct dem_mesh {
  * or the region reaches it. */
 typedef struct dem_sleep_config {
   int on;
-  double velocity, time, distance, overlap;
+  double velocity, time, overlap;
+  double distance[3]; /* the region's least margin along x, y, z (m; "distance": a number for all
+                         three, or [x, y, z]: a tyre's stress reaches the floor below it, less far
+                         beside it) */
   double displacement; /* at rest: moved less than this fraction of the radius over `time` */
   double wake_velocity; /* an awake grain faster than this wakes its listed asleep neighbours (m/s;
                            "wake_velocity", default DEM_WAKE_FACTOR x velocity) */

@@ -306,11 +306,31 @@ static int read_wall(dem_model *m, proto_cfg *c, int i, void *ctx) {
   return proto_cfg_end(c);
 }
 
+/* sleep.distance: one number for x, y and z, or [x, y, z] (each 0 to 1e6 m). */
+static int read_distance(proto_cfg *c, double d[3]) {
+  const cJSON *j = cJSON_GetObjectItemCaseSensitive(c->obj, "distance");
+  if (!j || cJSON_IsNumber(j)) {
+    if (proto_cfg_num(c, "distance", PROTO_OPTIONAL, 0.0, 1e6, &d[0])) return -1;
+    d[1] = d[2] = d[0];
+    return 0;
+  }
+  char p[320];
+  proto_cfg_subpath(c, "distance", -1, p, sizeof p);
+  if (!cJSON_IsArray(j) || cJSON_GetArraySize(j) != 3)
+    return proto_fail(c->err, "%s: expected a length in m or [x, y, z] (3 lengths)", p);
+  if (proto_cfg_vec(c, "distance", PROTO_OPTIONAL, d, 3, 3, NULL)) return -1;
+  for (int k = 0; k < 3; k++)
+    if (!(d[k] >= 0 && d[k] <= 1e6))
+      return proto_fail(c->err, "%s[%d]: %g is outside [0, 1e6] m", p, k, d[k]);
+  return 0;
+}
+
 /* "sleep": false | true (defaults) | {"velocity", "time", "distance", "overlap", "displacement",
  * "wake_velocity"}. */
 static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
   const cJSON *j = proto_cfg_raw(c, "sleep", PROTO_OPTIONAL);
-  *sl = (dem_sleep_config){0, DEM_SLEEP_VELOCITY, DEM_SLEEP_TIME, DEM_SLEEP_DISTANCE, DEM_SLEEP_OVERLAP,
+  *sl = (dem_sleep_config){0, DEM_SLEEP_VELOCITY, DEM_SLEEP_TIME, DEM_SLEEP_OVERLAP,
+                           {DEM_SLEEP_DISTANCE, DEM_SLEEP_DISTANCE, DEM_SLEEP_DISTANCE},
                            DEM_SLEEP_DISPLACEMENT, DEM_WAKE_FACTOR * DEM_SLEEP_VELOCITY};
   if (!j || cJSON_IsFalse(j)) return 0;
   sl->on = 1;
@@ -323,7 +343,7 @@ static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
   if (proto_cfg_open(&sc, j, p, c->err) ||
       proto_cfg_num(&sc, "velocity", PROTO_OPTIONAL, 1e-12, 1e3, &sl->velocity) ||
       proto_cfg_num(&sc, "time", PROTO_OPTIONAL, 0.0, 1e6, &sl->time) ||
-      proto_cfg_num(&sc, "distance", PROTO_OPTIONAL, 0.0, 1e6, &sl->distance) ||
+      read_distance(&sc, sl->distance) ||
       proto_cfg_num(&sc, "overlap", PROTO_OPTIONAL, 0.0, 1.0, &sl->overlap) ||
       proto_cfg_num(&sc, "displacement", PROTO_OPTIONAL, 0.0, 1e6, &sl->displacement) ||
       proto_cfg_num(&sc, "wake_velocity", PROTO_OPTIONAL, 1e-12, 1e3, &sl->wake_velocity))

@@ -29,8 +29,9 @@
  * at rest).
  *
  * The region (derivation, also dem_server/README.md): the bounding box of the
- * moving meshes' triangles within the reach of the grains' box, grown by
- *   margin = max(distance, r_max + 2 skin) + c N dt + v_mesh (N + 1) dt;
+ * moving meshes' triangles within the reach of the grains' box, grown along
+ * each axis k by
+ *   margin_k = max(distance_k, r_max + 2 skin) + c N dt + v_mesh (N + 1) dt;
  * the reach is the margin with distance 0 (a triangle farther from every
  * grain touches none, nor starts a disturbance that reaches one, before the
  * next update; `distance` widens the box around the triangles that can, as a
@@ -210,11 +211,12 @@ static int touches_mesh(const dem_model *m, const struct dem_work *w, int i) {
   return 0;
 }
 
-/* margin of the region (see the top of the file) for node speed vmax; with
- * distance 0 it is the reach: how near the grains a triangle must come to
- * touch one, or start a disturbance that reaches one, before the next update.
- * `distance` only widens the box around the triangles within that reach (a
- * wheel's triangles a distance above the bed reach no grain sooner). */
+/* margin of the region (see the top of the file) along one axis for node
+ * speed vmax; with distance 0 it is the reach: how near the grains a triangle
+ * must come to touch one, or start a disturbance that reaches one, before the
+ * next update. `distance` only widens the box around the triangles within
+ * that reach (a wheel's triangles a distance above the bed reach no grain
+ * sooner). */
 static double region_margin(const dem_model *m, const dem_state *s, double vmax, double distance) {
   double c = 0;
   for (int k = 0; k < m->n_materials; k++) c = fmax(c, sqrt(m->mat[k].E / m->mat[k].density));
@@ -262,7 +264,8 @@ static void region_update(const dem_model *m, dem_state *s) {
     vmax = fmax(vmax, w->mesh_vmax[mi]); /* the largest node speed (dem_mesh_velocities_changed) */
     moving = 1;
   }
-  const double margin = moving ? region_margin(m, s, vmax, m->sleep.distance) : 0;
+  double margin[3];
+  for (int k = 0; k < 3; k++) margin[k] = moving ? region_margin(m, s, vmax, m->sleep.distance[k]) : 0;
   const double reach = moving ? region_margin(m, s, vmax, 0) : 0;
   /* the guard (dem_sleep_guard): from here, the mesh term of the margin */
   w->region_moved = 0;
@@ -299,8 +302,8 @@ static void region_update(const dem_model *m, dem_state *s) {
   if (moving && lo[0] <= hi[0]) { /* some triangle near the grains */
     int inside = w->region_on;
     for (int k = 0; k < 3; k++) {
-      lo[k] -= margin;
-      hi[k] += margin;
+      lo[k] -= margin[k];
+      hi[k] += margin[k];
       inside &= lo[k] >= w->region_lo[k] && hi[k] <= w->region_hi[k];
     }
     if (!inside) { /* moved on: with half the reach of room ahead (hysteresis) */
@@ -323,7 +326,7 @@ static void region_update(const dem_model *m, dem_state *s) {
 }
 
 /* The grains at rest outside the region fall asleep, in batches: each batch
- * costs a full list rebuild, O(n), so at least 1/64 of all grains (a batch
+ * costs a full list rebuild, O(n), so at least 1/16 of all grains (a batch
  * then saves its rebuild within a few dozen steps of the grains it stops). */
 static void fall_asleep(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;

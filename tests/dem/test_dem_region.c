@@ -12,7 +12,9 @@
  * 2. The plate within reach: every grain within `distance` of the plate's
  *    footprint is awake, and the region holds none beyond its largest extent
  *    (the plate's path grown by the margin and the hysteresis; grains outside
- *    it fall asleep in batches, dem_sleep.c fall_asleep). */
+ *    it fall asleep in batches, dem_sleep.c fall_asleep).
+ * 3. `distance` per axis, [d, 0, d]: along x as in 2, but beside the plate
+ *    (along y) the region reaches only the reach and its hysteresis. */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 #include <string.h>
@@ -20,23 +22,25 @@
 #define R 0.003
 #define NL 20          /* grains per row of the lower layer */
 #define DISTANCE 0.04  /* sleep.distance (m) */
+#define DISTANCE_JSON "0.04"
+#define DISTANCE_XZ "[0.04, 0, 0.04]" /* part 3: along x and z only */
 #define PLATE 0.02     /* the plate's side (m) */
 #define SPEED 0.02     /* the plate's speed along x (m/s) */
 #define DT 5e-5
 #define STEPS 2400     /* 0.12 s: the rest time 0.01 s many times over */
 
-static char *scene_json(double gap) {
+static char *scene_json(double gap, const char *distance) {
   static char json[200000];
   const double s = 2 * R + 2e-4, h = sqrt(4 * R * R - 0.5 * s * s), L = NL * s + 0.01;
   const double ztop = R + 1e-5 + h + 1e-5; /* the upper layer's centres */
   const double zp = ztop + gap, x0 = 0.03, y0 = 0.5 * L - 0.5 * PLATE;
   int len = snprintf(json, sizeof json,
       "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.3,\"friction\":0.6}],"
-      "\"dt\":%g,\"sleep\":{\"velocity\":0.005,\"time\":0.01,\"distance\":%g},"
+      "\"dt\":%g,\"sleep\":{\"velocity\":0.005,\"time\":0.01,\"distance\":%s},"
       "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,1],\"open_top\":true},"
       "{\"type\":\"mesh\",\"nodes\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
       "[%.17g,%.17g,%.17g]],\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[%g,0,0]}],\"particles\":[",
-      DT, DISTANCE, L, L, x0, y0, zp, x0 + PLATE, y0, zp, x0 + PLATE, y0 + PLATE, zp, x0, y0 + PLATE, zp, SPEED);
+      DT, distance, L, L, x0, y0, zp, x0 + PLATE, y0, zp, x0 + PLATE, y0 + PLATE, zp, x0, y0 + PLATE, zp, SPEED);
   len = dem_test_two_layers(json, len, sizeof json, NL, R, s, h);
   snprintf(json + len, sizeof json - len, "]}");
   return json;
@@ -60,7 +64,7 @@ int main(void) {
   dem_model m;
   dem_state s;
   /* 1. out of reach, within distance */
-  scene(scene_json(0.027), &m, &s);
+  scene(scene_json(0.027, DISTANCE_JSON), &m, &s);
   const double g1 = 0.027, rc = reach(&m, &s);
   dem_test_steps(&m, &s, STEPS);
   printf("plate %.3f m above the grains' centres (reach %.4f m, distance %.3f m): %lld of %d asleep, region %s\n", g1,
@@ -74,7 +78,7 @@ int main(void) {
 
   /* 2. within reach */
   const double g2 = 0.004; /* the grains' tops are R below their centres: 1 mm clear */
-  scene(scene_json(g2), &m, &s);
+  scene(scene_json(g2, DISTANCE_JSON), &m, &s);
   const double margin = DISTANCE + reach(&m, &s) - fmax(R, s.work->region_rmax) - 2 * m.skin;
   dem_test_steps(&m, &s, STEPS);
   int inside = 0, inside_asleep = 0, far = 0, far_held = 0;
@@ -89,6 +93,29 @@ int main(void) {
   CHECK(inside > 20 && inside_asleep == 0, "%d of %d grains within distance of the plate sleep", inside_asleep, inside);
   CHECK(far > 20 && far_held == 0, "the region holds %d of %d grains beyond it awake", far_held, far);
   CHECK(s.wall_force[3] == 0 && s.wall_force[4] == 0 && s.wall_force[5] == 0, "the plate touched a grain");
+  dem_state_free(&s);
+  dem_model_free(&m);
+
+  /* 3. distance along x and z only */
+  scene(scene_json(g2, DISTANCE_XZ), &m, &s);
+  CHECK(m.sleep.distance[0] == DISTANCE && m.sleep.distance[1] == 0 && m.sleep.distance[2] == DISTANCE,
+        "sleep.distance %s read as [%g, %g, %g]", DISTANCE_XZ, m.sleep.distance[0], m.sleep.distance[1],
+        m.sleep.distance[2]);
+  dem_test_steps(&m, &s, STEPS);
+  const double side = reach(&m, &s) * 1.5 + R; /* beyond the y margin (the reach) and the hysteresis */
+  int ahead = 0, ahead_asleep = 0, beside = 0, beside_held = 0;
+  const double *p = s.mesh_x[0];
+  for (int i = 0; i < s.n; i++) {
+    const double *x = &s.x[3 * i];
+    const double dx = fmax(0, fmax(p[0] - x[0], x[0] - p[3])), dy = fmax(0, fmax(p[1] - x[1], x[1] - p[7]));
+    if (dy == 0 && dx < DISTANCE - R) { ahead++; ahead_asleep += s.work->asleep[i]; }
+    if (dy > side) { beside++; beside_held += !s.work->asleep[i] && s.work->near[i]; }
+  }
+  printf("distance %s: %d grains within %.3f m along x of the plate, %d asleep; %d beyond %.4f m beside it, %d held "
+         "awake by the region\n", DISTANCE_XZ, ahead, DISTANCE, ahead_asleep, beside, side, beside_held);
+  CHECK(ahead > 10 && ahead_asleep == 0, "%d of %d grains within distance along x sleep", ahead_asleep, ahead);
+  CHECK(beside > 20 && beside_held == 0, "the region holds %d of %d grains beside the plate awake", beside_held,
+        beside);
   dem_state_free(&s);
   dem_model_free(&m);
   return cosim_test_done("test_dem_region");
