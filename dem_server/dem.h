@@ -253,13 +253,13 @@ void dem_mesh_set_nodes(const dem_model *m, dem_state *s, int mesh,
 void dem_mesh_set_nodes_sparse(const dem_model *m, dem_state *s, int mesh, int64_t k,
                                const int32_t *idx, const double *x, const double *v,
                                uint8_t *node_seen, uint8_t *live);
-/* The box the grains can reach in the next coupling step of length dt:
- * every grain's sphere box grown by the margin of dem_nodeset.c, [lo, hi]. */
 /* Of s->rebuilds, the full ones (every grain listed; with sleep: grains fell
  * asleep) and the wake ones (woken grains joined the awake block); the rest
  * were partial (the awake grains moved a skin's half). For the log. */
 void dem_rebuild_kinds(const dem_state *s, int64_t *full, int64_t *wake);
 
+/* The box the grains can reach in the next coupling step of length dt:
+ * every grain's sphere box grown by the margin of dem_nodeset.c, [lo, hi]. */
 void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box[6]);
 /* The slot of a grain whose sphere box is not inside box, or -1. */
 int dem_reach_escaped(const dem_state *s, const double box[6]);

@@ -487,13 +487,13 @@ static void carry_history(const struct dem_work *w, int i, int j, double *shear)
     }
 }
 
-/* The pairs (i', j) whose row i' lies in an earlier chunk than j: for each
- * j in descending i' (the order dem_force.c adds their shares in). */
 void dem_rebuild_kinds(const dem_state *s, int64_t *full, int64_t *wake) {
   *full = s->work->full_rebuilds;
   *wake = s->work->wake_rebuilds;
 }
 
+/* The pairs (i', j) whose row i' lies in an earlier chunk than j: for each
+ * j in descending i' (the order dem_force.c adds their shares in). */
 void dem_neigh_reverse(dem_state *s) {
   struct dem_work *w = s->work;
   int n = s->n;

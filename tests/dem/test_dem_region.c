@@ -22,8 +22,6 @@
 #define R 0.003
 #define NL 20          /* grains per row of the lower layer */
 #define DISTANCE 0.04  /* sleep.distance (m) */
-#define DISTANCE_JSON "0.04"
-#define DISTANCE_XZ "[0.04, 0, 0.04]" /* part 3: along x and z only */
 #define PLATE 0.02     /* the plate's side (m) */
 #define SPEED 0.02     /* the plate's speed along x (m/s) */
 #define DT 5e-5
@@ -52,19 +50,29 @@ static double reach(const dem_model *m, const dem_state *s) {
   return fmax(R, s->work->region_rmax) + 2 * m->skin + c * N * DT + SPEED * (N + 1) * DT;
 }
 
+/* gaps along x and y from a grain's centre to the plate's footprint */
+static void plate_gaps(const dem_state *s, int i, double *dx, double *dy) {
+  const double *p = s->mesh_x[0], *x = &s->x[3 * i];
+  *dx = fmax(0, fmax(p[0] - x[0], x[0] - p[3]));
+  *dy = fmax(0, fmax(p[1] - x[1], x[1] - p[7]));
+}
+
 /* distance in x-y from a grain's centre to the plate's footprint: Euclidean,
  * and along the farther axis (the region is a box) */
 static double to_plate(const dem_state *s, int i, int box) {
-  const double *p = s->mesh_x[0], *x = &s->x[3 * i];
-  const double dx = fmax(0, fmax(p[0] - x[0], x[0] - p[3])), dy = fmax(0, fmax(p[1] - x[1], x[1] - p[7]));
+  double dx, dy;
+  plate_gaps(s, i, &dx, &dy);
   return box ? fmax(dx, dy) : sqrt(dx * dx + dy * dy);
 }
 
 int main(void) {
   dem_model m;
   dem_state s;
+  char distance_all[32], distance_xz[64]; /* one number; part 3: along x and z only */
+  snprintf(distance_all, sizeof distance_all, "%.17g", DISTANCE);
+  snprintf(distance_xz, sizeof distance_xz, "[%.17g, 0, %.17g]", DISTANCE, DISTANCE);
   /* 1. out of reach, within distance */
-  scene(scene_json(0.027, DISTANCE_JSON), &m, &s);
+  scene(scene_json(0.027, distance_all), &m, &s);
   const double g1 = 0.027, rc = reach(&m, &s);
   dem_test_steps(&m, &s, STEPS);
   printf("plate %.3f m above the grains' centres (reach %.4f m, distance %.3f m): %lld of %d asleep, region %s\n", g1,
@@ -78,7 +86,7 @@ int main(void) {
 
   /* 2. within reach */
   const double g2 = 0.004; /* the grains' tops are R below their centres: 1 mm clear */
-  scene(scene_json(g2, DISTANCE_JSON), &m, &s);
+  scene(scene_json(g2, distance_all), &m, &s);
   const double margin = DISTANCE + reach(&m, &s) - fmax(R, s.work->region_rmax) - 2 * m.skin;
   dem_test_steps(&m, &s, STEPS);
   int inside = 0, inside_asleep = 0, far = 0, far_held = 0;
@@ -97,22 +105,21 @@ int main(void) {
   dem_model_free(&m);
 
   /* 3. distance along x and z only */
-  scene(scene_json(g2, DISTANCE_XZ), &m, &s);
+  scene(scene_json(g2, distance_xz), &m, &s);
   CHECK(m.sleep.distance[0] == DISTANCE && m.sleep.distance[1] == 0 && m.sleep.distance[2] == DISTANCE,
-        "sleep.distance %s read as [%g, %g, %g]", DISTANCE_XZ, m.sleep.distance[0], m.sleep.distance[1],
+        "sleep.distance %s read as [%g, %g, %g]", distance_xz, m.sleep.distance[0], m.sleep.distance[1],
         m.sleep.distance[2]);
   dem_test_steps(&m, &s, STEPS);
   const double side = reach(&m, &s) * 1.5 + R; /* beyond the y margin (the reach) and the hysteresis */
   int ahead = 0, ahead_asleep = 0, beside = 0, beside_held = 0;
-  const double *p = s.mesh_x[0];
   for (int i = 0; i < s.n; i++) {
-    const double *x = &s.x[3 * i];
-    const double dx = fmax(0, fmax(p[0] - x[0], x[0] - p[3])), dy = fmax(0, fmax(p[1] - x[1], x[1] - p[7]));
+    double dx, dy;
+    plate_gaps(&s, i, &dx, &dy);
     if (dy == 0 && dx < DISTANCE - R) { ahead++; ahead_asleep += s.work->asleep[i]; }
     if (dy > side) { beside++; beside_held += !s.work->asleep[i] && s.work->near[i]; }
   }
   printf("distance %s: %d grains within %.3f m along x of the plate, %d asleep; %d beyond %.4f m beside it, %d held "
-         "awake by the region\n", DISTANCE_XZ, ahead, DISTANCE, ahead_asleep, beside, side, beside_held);
+         "awake by the region\n", distance_xz, ahead, DISTANCE, ahead_asleep, beside, side, beside_held);
   CHECK(ahead > 10 && ahead_asleep == 0, "%d of %d grains within distance along x sleep", ahead_asleep, ahead);
   CHECK(beside > 20 && beside_held == 0, "the region holds %d of %d grains beside the plate awake", beside_held,
         beside);
