@@ -10,6 +10,7 @@ import itertools
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -31,7 +32,9 @@ KIND = {1: "bad scene or usage", 3: "a participant failed", 4: "output error",
 
 
 def _scene_file(scene):
-    """(path, dict or None) of the scene: a dict is written to a temp file."""
+    """(path, dict or None) of the scene: a dict is written to a temp file
+    (removed by _done_with once the run succeeded: a failed run's error names
+    it, so it stays)."""
     if isinstance(scene, dict):
         path = os.path.join(tempfile.mkdtemp(prefix="cosim-scene-"), "scene.json")
         with open(path, "w") as f:
@@ -42,6 +45,12 @@ def _scene_file(scene):
             return scene, json.load(f)
     except (OSError, ValueError):
         return scene, None  # cosim names what is wrong
+
+
+def _done_with(scene, path):
+    """Removes the temp folder _scene_file made for a dict scene."""
+    if isinstance(scene, dict):
+        shutil.rmtree(os.path.dirname(path), ignore_errors=True)
 
 
 def _output_dir(data, sets):
@@ -135,6 +144,7 @@ def run(scene, set=None, output_dir=None, cosim=None, quiet=True, timeout=None,
         outdir = os.path.join(cwd, outdir)
     if p.returncode != 0 or why:
         raise _error(path, p.returncode, out, err, outdir, why)
+    _done_with(scene, path)
     r = Results(outdir)
     r.stdout, r.stderr = out, err
     return r
@@ -160,7 +170,9 @@ def settle(scene, beds, set=None, output_dir=None, **run_args):
     args = list(run_args.pop("args", ()))
     if "--overwrite" not in args:
         args.append("--overwrite")  # the settle run's own folder
-    return run(path, set=sets, output_dir=output_dir, args=args, **run_args)
+    r = run(path, set=sets, output_dir=output_dir, args=args, **run_args)
+    _done_with(scene, path)
+    return r
 
 
 def finished(run_dir):

@@ -1,5 +1,6 @@
 """Helpers for the end-to-end tests: run `cosim` on a scene written from a
 dict, read results.h5, and make sure no participant process is left behind."""
+import glob
 import json
 import os
 import shutil
@@ -23,6 +24,13 @@ def scratch(prefix):
     d = tempfile.mkdtemp(prefix=prefix)
     SCRATCH.append(d)
     return d
+
+
+def remove_run_dirs(s):
+    """The run directory of scene s's cosim killed hard (SIGKILL: it cannot
+    remove its own; cosim makes it as /tmp/cosim-<name>-XXXXXX)."""
+    for d in glob.glob(f"/tmp/cosim-{s['name']}-*"):
+        shutil.rmtree(d, ignore_errors=True)
 
 
 def check(cond, what):

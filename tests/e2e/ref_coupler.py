@@ -8,10 +8,11 @@ must give the same bits."""
 import json
 import os
 import subprocess
-import tempfile
 
 import numpy as np
 import zmq
+
+from common import scratch
 
 DTYPES = {"f8": "<f8", "i4": "<i4", "i8": "<i8", "u1": "u1"}
 CODES = {np.dtype("<f8"): "f8", np.dtype("<i4"): "i4", np.dtype("<i8"): "i8", np.dtype("u1"): "u1"}
@@ -43,7 +44,7 @@ def _recv(sock, timeout_ms=60000):
 
 def run(bin_dir, dem_section, fem_section, dt, n_steps):
     """Runs the old serial loop; returns (dem rows, fem rows) as arrays."""
-    run_dir = tempfile.mkdtemp(prefix="cosim-ref-")
+    run_dir = scratch("cosim-ref-")
     ep = f"ipc://{run_dir}/control"
     ctx = zmq.Context()
     sock = ctx.socket(zmq.ROUTER)

@@ -5,10 +5,9 @@ import os
 import signal
 import stat
 import subprocess
-import tempfile
 import time
 
-from common import COSIM, HERE, check, done, no_orphans, run, scene, write
+from common import COSIM, HERE, check, done, no_orphans, remove_run_dirs, run, scene, scratch, write
 
 ROGUE = os.path.join(HERE, "rogue.py")
 PY_BLOCK = os.path.join(HERE, "py_block.py")
@@ -81,7 +80,7 @@ expect("implicit without rollback", s, 1, ["'implicit' repeats steps", "particip
 s = block_scene("noexec"); s["processes"]["block"]["exec"] = "no_such_solver"
 expect("missing exec", s, 1, ["processes.block.exec: 'no_such_solver' not found"])
 expect("check: missing exec", s, 1, ["processes.block.exec: 'no_such_solver' not found"], cmd="check")
-d = tempfile.mkdtemp()
+d = scratch("cosim-bad-input-")
 plain = os.path.join(d, "not_executable")
 open(plain, "w").write("#!/bin/sh\n")
 os.chmod(plain, stat.S_IRUSR | stat.S_IWUSR)
@@ -140,4 +139,5 @@ time.sleep(1.0)
 p.kill()
 p.wait()
 no_orphans(s, "launcher killed with SIGKILL")
+remove_run_dirs(s)
 done()

@@ -4,13 +4,12 @@ block on them converges at every step, with both the ZOH- and the
 point-sampled Green's functions."""
 import os
 import subprocess
-import tempfile
 
 import numpy as np
 
-from common import COSIM, check, done, h5, no_orphans, run, scene
+from common import COSIM, check, done, h5, no_orphans, run, scene, scratch
 
-d = tempfile.mkdtemp(prefix="cosim-gb-")
+d = scratch("cosim-gb-")
 p = lambda name: os.path.join(d, name)
 cmds = [["road", "--out", p("road.h5"), "--points", "400", "--pitch", "5e-5", "--lambda-short", "2e-4"],
         ["springs", "--road", p("road.h5"), "--out", p("springs.h5"), "--elements", "10"],

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from common import BIN, COSIM, HERE, check, done, h5, no_orphans, processes_with, run, scene, write
+from common import BIN, COSIM, HERE, check, done, h5, no_orphans, processes_with, remove_run_dirs, run, scene, write
 
 LAUNCHER = os.path.join(HERE, "launcher.sh")
 ROGUE = os.path.join(HERE, "rogue.py")
@@ -66,6 +66,7 @@ time.sleep(1.5)
 p.kill()
 p.wait()
 no_orphans(s, "cosim killed with SIGKILL, launcher in between")
+remove_run_dirs(s)
 # a real MPI launcher, when there is one
 mpirun = shutil.which("mpirun")
 if mpirun:

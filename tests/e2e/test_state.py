@@ -14,19 +14,18 @@ whose delay lines are part of its state."""
 import json
 import os
 import subprocess
-import tempfile
 
 import numpy as np
 import zmq
 
-from common import BIN, HERE, check, done
+from common import BIN, HERE, check, done, scratch
 from ref_coupler import _recv, _send
 
 ROOT = os.path.dirname(os.path.dirname(HERE))
 
 
 def start(exe, section, dt, n_steps, rollback=True):
-    d = tempfile.mkdtemp(prefix="cosim-state-")
+    d = scratch("cosim-state-")
     ep = f"ipc://{d}/control"
     ctx = zmq.Context()
     sock = ctx.socket(zmq.ROUTER)

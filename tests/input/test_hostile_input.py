@@ -7,14 +7,13 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 
 import h5py
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "e2e"))
-from common import BIN, COSIM, check, done, no_orphans, run, scene, write  # noqa: E402
+from common import BIN, COSIM, check, done, no_orphans, run, scene, scratch, write  # noqa: E402
 
 HOSTILE = os.path.join(HERE, "hostile.py")
 FUZZ_CORPUS = os.path.join(HERE, "..", "fuzz", "corpus")
@@ -75,7 +74,7 @@ text = dup_text(s, '"nx": 4', '"nx": 4, "nx": 8')
 expect("a key twice in a participant's own section", s, 1,
        ["processes.block.grid.nx: duplicate key"], cmd="check", text=text)
 # a participant alone: --check-config refuses it as well
-d = tempfile.mkdtemp(prefix="cosim-hostile-")
+d = scratch("cosim-hostile-")
 for exe in ("block_stub", "contact_block", "dem_server", "fem_server", "dem_stub", "fem_stub"):
     path = os.path.join(d, f"{exe}.json")
     with open(path, "w") as f:

@@ -21,7 +21,6 @@ import random
 import re
 import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -31,7 +30,7 @@ import numpy as np
 # after cosim has exited: read without taking the lock
 os.environ.setdefault("HDF5_USE_FILE_LOCKING", "FALSE")
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "e2e"))
-from common import BIN, COSIM, check, done, h5, no_orphans, run, scene, write  # noqa: E402
+from common import BIN, COSIM, check, done, h5, no_orphans, run, scene, scratch, write  # noqa: E402
 
 MPI_ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_rmaps_base_oversubscribe="1")
@@ -229,7 +228,7 @@ def tyre_scene(name, particles, end):
 
 # the bed, settled by dem_server once (a settled bed overlaps by a few % of a
 # radius, hence overlap_tolerance)
-bed = os.path.join(tempfile.mkdtemp(prefix="cosim-lgd-"), "settled_bed.h5")
+bed = os.path.join(scratch("cosim-lgd-"), "settled_bed.h5")
 settle = tyre_scene("lgd_bed", {"generate": "bed", "scale": 0.04, "size": [0.3, 0.2],
                                 "settle_max_steps": 4000, "save": bed}, 5e-5)
 rc, _, err = run(settle, timeout=600)

@@ -6,7 +6,6 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -14,7 +13,7 @@ import zmq
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "e2e"))
-from common import check, done  # noqa: E402
+from common import check, done, scratch  # noqa: E402
 
 import cosim  # noqa: E402
 from cosim import protocol as P  # noqa: E402
@@ -24,7 +23,7 @@ ctx = zmq.Context.instance()
 server_pub, server_sec = zmq.curve_keypair()
 client_pub, client_sec = zmq.curve_keypair()
 other_pub, _ = zmq.curve_keypair()
-d = tempfile.mkdtemp(prefix="cosim-curve-")
+d = scratch("cosim-curve-")
 
 
 def key_file(name, server, mode=0o600):

@@ -16,14 +16,13 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import time
 
 import zmq
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "e2e"))
-from common import COSIM, check, done  # noqa: E402
+from common import COSIM, check, done, scratch  # noqa: E402
 
 from cosim import protocol as P  # noqa: E402
 
@@ -93,7 +92,7 @@ else:
 # 2. a table with heartbeats
 if not has_beats:
     table["messages"].append({"type": "heartbeat", "direction": "participant->coupler"})
-path = os.path.join(tempfile.mkdtemp(prefix="cosim-roles-"), "roles.json")
+path = os.path.join(scratch("cosim-roles-"), "roles.json")
 with open(path, "w") as f:
     json.dump(table, f)
 got = drive({"COSIM_ROLES": path}, 1.5)

@@ -14,14 +14,13 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 
 import h5py
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "e2e"))
-from common import COSIM, check, done, scene, write  # noqa: E402
+from common import COSIM, check, done, scene, scratch, write  # noqa: E402
 import cosim  # noqa: E402
 
 SLIPS = [0.0, 0.2]
@@ -35,7 +34,7 @@ s = scene("sweep", {
     scenario=SCEN)
 s["time"] = {"dt": 1e-3, "end": 0.25}
 path = write(s)
-out = tempfile.mkdtemp(prefix="cosim-sweep-")
+out = scratch("cosim-sweep-")
 
 
 BATCH_TIME = 0.004  # s: batches of at least 4 rows (dt 1e-3)
@@ -131,7 +130,7 @@ check(f"# load_N: {SCEN['sinkage_force']}" in ref and "T_over_r" in ref,
 
 # a record given with --reference from elsewhere is copied into the sweep's dir (which then
 # holds everything its plot draws)
-elsewhere = os.path.join(tempfile.mkdtemp(prefix="cosim-sweep-ref-"), "my_reference.csv")
+elsewhere = os.path.join(scratch("cosim-sweep-ref-"), "my_reference.csv")
 open(elsewhere, "w").write(ref)
 os.remove(ref_path)
 rc, so, se = sweep(path, "--values", "scenario.slip=" + ",".join(map(str, SLIPS)), "--out", out,
@@ -140,7 +139,7 @@ check(rc == 0 and os.path.exists(ref_path) and open(ref_path).read() == ref,
       f"--reference is copied to the sweep's reference.csv (got {rc}: {se.strip()[-300:]})")
 
 # 2. bad arguments: exit 1, the message names the problem, no run started
-bad = tempfile.mkdtemp(prefix="cosim-sweep-bad-")
+bad = scratch("cosim-sweep-bad-")
 cases = [
     ([path, "--out", bad], "--values"),
     ([path, "--values", "scenario.slip", "--out", bad], "KEY.PATH=V1,V2"),

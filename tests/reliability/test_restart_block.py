@@ -15,11 +15,10 @@ import json
 import os
 import signal
 import subprocess
-import tempfile
 import time
 
 from rel import COSIM, FORCE_ROAD, ROOT, check, cosim, differences, two_spring_blocks
-from common import done, processes_with, write
+from common import done, processes_with, scratch, write
 
 SCENE = os.path.join(ROOT, "configs", "tread_block.json")
 N = 160  # of 343 steps
@@ -38,7 +37,7 @@ def scene(name, **changes):
 
 
 def straight_and_restarted(label, s):
-    base = tempfile.mkdtemp(prefix="cosim-restart-")
+    base = scratch("cosim-restart-")
     a, b = os.path.join(base, "straight"), os.path.join(base, "restarted")
     s["output"]["dir"] = a
     rc, out, err = cosim("run", write(s), "--quiet")
@@ -75,7 +74,7 @@ s = two_spring_blocks(scene("restart_crash"))
 s["time"]["end"] = 8000 * DT
 s["output"]["every"] = 100
 s["checkpoint"] = {"every": 1000, "keep": 2}
-base = tempfile.mkdtemp(prefix="cosim-restart-")
+base = scratch("cosim-restart-")
 s["output"]["dir"] = os.path.join(base, "straight")
 rc, out, err = cosim("run", write(s), "--quiet")
 check(rc == 0, f"crash: the straight run ({err[-300:]})")

@@ -7,17 +7,16 @@ sinkage_force and the rim starts travelling before the checkpoint of step N.
 aside), as N steps, then `--restart` from the checkpoint for N more; the
 restarted dem_server does not settle its bed again (the checkpoint holds it)."""
 import os
-import tempfile
 
 import h5py
 import numpy as np
 
 from rel import ROOT, check, cosim, differences
-from common import done
+from common import done, scratch
 
 SCENE = os.path.join(ROOT, "configs", "default.json")
 N, DT = 160, 5e-5
-base = tempfile.mkdtemp(prefix="cosim-restart-tyre-")
+base = scratch("cosim-restart-tyre-")
 common = ["--quiet", "--set", f"name=restart_tyre_{os.getpid()}", "--set", f"checkpoint.every={N}",
           "--set", "output.every=40", "--set", "scenario.sinkage_velocity=2.5",
           "--set", "scenario.sinkage_force=5"]

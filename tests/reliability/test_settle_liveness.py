@@ -10,16 +10,15 @@ import re
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "e2e"))
-from common import COSIM, check, done, no_orphans, pid_of  # noqa: E402
+from common import COSIM, check, done, no_orphans, pid_of, scratch  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
-out_dir = os.path.join(tempfile.mkdtemp(prefix="cosim-settle-"), "settle")
+out_dir = os.path.join(scratch("cosim-settle-"), "settle")
 default = os.path.join(ROOT, "configs", "default.json")
 marker = f"settle_{os.getpid()}"
 # one DEM thread and a settling that runs all 20 000 steps (about 3 s here;
