@@ -14,8 +14,10 @@ import os
 import subprocess
 import sys
 import threading
+import time
 
 import numpy as np
+import zmq
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.join(HERE, "..", "..")
@@ -43,9 +45,9 @@ png = os.path.join(scratch("cosim-mon-"), "traction.png")
 tool = subprocess.Popen([sys.executable, os.path.join(ROOT, "tools", "monitor.py"),
                          s["bus"]["monitor"], "--topic", "coupler.traction", "--column", "T_R",
                          # given an endpoint the tool ends at the run's last coupler.progress,
-                         # which it sometimes misses on a busy machine (the suite at -j2): then
-                         # it ends 10 s after its last message instead of hanging
-                         "--seconds", "10", "--png", png], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         # or, when it missed that one (a busy machine: the suite at -j2),
+                         # PROGRESS_LOST_S after the last progress it got: no --seconds
+                         "--png", png], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 check("listening" in tool.stderr.readline(), "tools/monitor.py started")
 ran = {}
 runner = threading.Thread(target=lambda: ran.setdefault("r", cosim.run(s, timeout=120)))
@@ -58,7 +60,7 @@ with cosim.Monitor(outdir, topics=list(SERIES), timeout=60) as mon:
     for msg in mon:
         got[msg.topic].append(msg)
 runner.join()
-tool_out, tool_err = tool.communicate(timeout=30)
+tool_out, tool_err = tool.communicate(timeout=30 + cosim.monitor.PROGRESS_LOST_S)
 r = ran.get("r")
 check(r is not None, "the run finished")
 no_orphans(s, "monitored run")
@@ -131,6 +133,26 @@ except cosim.Interrupted as e:
     check(e.returncode == 130 and "did not finish within 1.5 s" in str(e), f"Interrupted: {e}")
     with cosim.Results(e.output_dir) as kept:
         check(len(kept.series("block")) > 0, "an interrupted run keeps its rows")
+
+# 4. given an endpoint, a monitor that missed the last coupler.progress ends
+#    progress_lost s after the last one it got (a bare publisher that sends
+#    progress of a 100-step run up to step 50, then falls silent)
+ctx = zmq.Context()
+pub = ctx.socket(zmq.PUB)
+ep = "ipc://" + os.path.join(scratch("cosim-lost-"), "bus")
+pub.bind(ep)
+mon = cosim.Monitor(ep, topics=["nothing.else"], progress_lost=1.0, timeout=10)  # 10: fails, not hangs
+time.sleep(0.3)  # the subscription reaches the publisher
+for k in range(1, 51):
+    pub.send_multipart(cosim.protocol.encode("coupler.progress", "progress", k, k * 1e-3,
+                                             fields={"n_steps": 100}))
+t0 = time.monotonic()
+left = list(mon)
+waited = time.monotonic() - t0
+check(left == [] and 1.0 <= waited < 5.0, f"a monitor that missed the end stopped {waited:.2f} s after "
+      f"the last progress (expected 1-5 s)")
+pub.close(0)
+ctx.term()
 no_orphans(bad, "interrupted run")
 pts = cosim.sweep(bad, {"processes.block.stiffness": [1e5, 2e5]},
                   out=scratch("cosim-sweep-"), jobs=2)
