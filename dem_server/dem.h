@@ -43,6 +43,9 @@
  * 1/20 of `overlap`: a grain frozen while creeping below it reaches the wake
  * overlap only after 20 x `time`. */
 #define DEM_SLEEP_DISPLACEMENT 1e-3
+/* force rule off by default (dem_sleep_push.c): a scene that loads the bed
+ * slowly through its asleep grains sets it (the deep tyre scene) */
+#define DEM_SLEEP_FORCE 0.0
 
 typedef struct dem_material {
   double density, E, nu, G; /* G = E/(2(1+nu)) unless given */
@@ -96,7 +99,8 @@ typedef struct dem_mesh {
  * integrated, not in the list rebuild, its contacts with other sleeping
  * grains frozen; it wakes when an awake grain listed with it moves faster
  * than `velocity` or presses into it beyond `overlap` of the smaller radius,
- * or the region reaches it. */
+ * when its awake neighbours' push on it has changed since it fell asleep by
+ * more than `force` times its weight, or the region reaches it. */
 typedef struct dem_sleep_config {
   int on;
   double velocity, time, overlap;
@@ -106,6 +110,8 @@ typedef struct dem_sleep_config {
   double displacement; /* at rest: moved less than this fraction of the radius over `time` */
   double wake_velocity; /* an awake grain faster than this wakes its listed asleep neighbours (m/s;
                            "wake_velocity", default DEM_WAKE_FACTOR x velocity) */
+  double force;         /* wake when the awake neighbours' push changed by this x the grain's weight
+                           (0: off; dem_sleep_push.c) */
 } dem_sleep_config;
 
 /* Preparation of a packing ("particles.prepare" of a generated bed; terra's

@@ -326,12 +326,12 @@ static int read_distance(proto_cfg *c, double d[3]) {
 }
 
 /* "sleep": false | true (defaults) | {"velocity", "time", "distance", "overlap", "displacement",
- * "wake_velocity"}. */
+ * "wake_velocity", "force"}. */
 static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
   const cJSON *j = proto_cfg_raw(c, "sleep", PROTO_OPTIONAL);
   *sl = (dem_sleep_config){0, DEM_SLEEP_VELOCITY, DEM_SLEEP_TIME, DEM_SLEEP_OVERLAP,
                            {DEM_SLEEP_DISTANCE, DEM_SLEEP_DISTANCE, DEM_SLEEP_DISTANCE},
-                           DEM_SLEEP_DISPLACEMENT, DEM_WAKE_FACTOR * DEM_SLEEP_VELOCITY};
+                           DEM_SLEEP_DISPLACEMENT, DEM_WAKE_FACTOR * DEM_SLEEP_VELOCITY, DEM_SLEEP_FORCE};
   if (!j || cJSON_IsFalse(j)) return 0;
   sl->on = 1;
   if (cJSON_IsTrue(j)) return 0;
@@ -346,7 +346,8 @@ static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
       read_distance(&sc, sl->distance) ||
       proto_cfg_num(&sc, "overlap", PROTO_OPTIONAL, 0.0, 1.0, &sl->overlap) ||
       proto_cfg_num(&sc, "displacement", PROTO_OPTIONAL, 0.0, 1e6, &sl->displacement) ||
-      proto_cfg_num(&sc, "wake_velocity", PROTO_OPTIONAL, 1e-12, 1e3, &sl->wake_velocity))
+      proto_cfg_num(&sc, "wake_velocity", PROTO_OPTIONAL, 1e-12, 1e3, &sl->wake_velocity) ||
+      proto_cfg_num(&sc, "force", PROTO_OPTIONAL, 0.0, 1e6, &sl->force))
     return -1;
   if (sl->wake_velocity < 0) sl->wake_velocity = DEM_WAKE_FACTOR * sl->velocity;
   else if (sl->wake_velocity < sl->velocity)

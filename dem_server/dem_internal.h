@@ -139,6 +139,12 @@ struct dem_work {
   int64_t sweep_step;
   int box_all;
   int asleep_box_ok;           /* valid: cleared when the asleep set changes (dem_sleep.c) */
+  /* the force rule (dem_sleep_push.c), by grain id: DEM_PUSH_REC doubles
+   * each (base or D of force and torque, the awake neighbours' force and
+   * torque at the last gather, state) */
+  double *push;
+  uint8_t *push_seen;          /* [n] by id: seen by the last gather */
+  int *push_list, push_list_n; /* the ids the last gather saw (-1: not known, after an import) */
   int settling;                /* dem_bed_settle: the sleep rules wait (a settling bed is slow before it is at rest) */
   double io_active[20];   /* dem_state_io.c: the active block's state (region, grid, guard) */
   /* meshes: far from every grain (dem_mesh.c) */
@@ -282,6 +288,24 @@ static inline void dem_wake(struct dem_work *w, int i) {
   if (!__atomic_exchange_n(&w->wake[i], 1, __ATOMIC_RELAXED))
     w->wake_list[__atomic_fetch_add(&w->n_wake, 1, __ATOMIC_RELAXED)] = i;
 }
+/* The asleep grains j != i whose centres lie within h of grain i's, found in
+ * the cells of the last full rebuild around i's (grid_ok; h at most one
+ * cell): visit(s, j, ctx) for each, in slot order within each cell. */
+void dem_asleep_near(dem_state *s, int i, double h, void (*visit)(dem_state *s, int j, void *ctx), void *ctx);
+/* dem_sleep_push.c: the force rule (sleep.force) */
+/* a grain's record in push: base (or kept change) of force and torque,
+ * the awake neighbours' force and torque at the last gather, state */
+enum { DEM_PUSH_B = 0, DEM_PUSH_NOW = 6, DEM_PUSH_STATE = 12, DEM_PUSH_REC = 13 };
+int dem_push_alloc(const dem_model *m, dem_state *s, proto_err *err);
+void dem_push_free(struct dem_work *w);
+/* End of a step, before the region: the asleep grains' change of push, and
+ * the wake marks of those beyond sleep.force times their weight. */
+void dem_push_gather(const dem_model *m, dem_state *s);
+/* Before a rebuild that changes the awake set: D kept for the asleep grains
+ * whose awake neighbours change. */
+void dem_push_fold(const dem_model *m, dem_state *s);
+/* Slot i wakes (asleep 0) or falls asleep (asleep 1). */
+void dem_push_set(const dem_model *m, dem_state *s, int i, int asleep);
 /* Region update interval (steps): the region's margin covers what moves in it. */
 #define DEM_REGION_STEPS 5
 /* w->compact: grains woke (the asleep block keeps its order), or fell asleep (full rebuild) */

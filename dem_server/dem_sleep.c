@@ -5,8 +5,9 @@
  * Data flow: the force sweep (dem_force.c) counts each awake grain's steps at
  * rest (dem_sleep_chunk) and marks asleep grains listed with a fast awake one
  * (dem_wake); before the forces the guard moves the region early if a mesh
- * moved farther than its margin allows; at the end of dem_step, dem_sleep_update wakes those, every
- * DEM_REGION_STEPS steps moves the region with the meshes (wakes the asleep
+ * moved farther than its margin allows; at the end of dem_step,
+ * dem_sleep_update marks those whose push changed (dem_sleep_push.c), wakes
+ * the marked, every DEM_REGION_STEPS steps moves the region with the meshes (wakes the asleep
  * grains it reaches, marks the awake ones in it `near`) and puts to sleep the
  * grains at rest outside it, then asks dem_neigh.c for a full rebuild when the
  * asleep set changed. dem_neigh.c keeps the awake grains in slots
@@ -24,7 +25,9 @@
  * and touches no mesh: v = ω = 0, not
  * integrated. It wakes when an awake grain listed with it (within r_i + r_j +
  * skin at the last rebuild) moves faster than `velocity`, or presses into it
- * beyond `overlap` of the smaller radius, or the region reaches it; it
+ * beyond `overlap` of the smaller radius, or its awake neighbours' push has
+ * changed by `force` times its weight since it fell asleep (dem_sleep_push.c),
+ * or the region reaches it; it
  * restarts from rest in equilibrium (force −m g: the next half kick leaves it
  * at rest).
  *
@@ -353,6 +356,7 @@ static void fall_asleep(const dem_model *m, dem_state *s) {
   for (int i = 0; i < na; i++)
     if (w->rest[i] >= rest_steps && !w->near[i] && !touches_mesh(m, w, i)) { /* near: also fast partners */
       w->asleep[i] = 1;
+      dem_push_set(m, s, i, 1);
       memset(&s->v[3 * i], 0, 3 * sizeof(double));
       memset(&s->omega[3 * i], 0, 3 * sizeof(double));
       if (m->n_meshes > 0) { /* no mesh contact (mc_key 0): nothing kept, zero (a wake rebuild skips them) */
@@ -373,25 +377,32 @@ static void fall_asleep(const dem_model *m, dem_state *s) {
  * layer, nearly every step at a moving front. A grain woken early is at rest
  * (as one woken in time); it falls asleep again after `time` if nothing
  * reaches it. The set woken does not depend on the order of wake_list. */
+static void halo_one(dem_state *s, int j, void *ctx) {
+  (void)ctx;
+  if (!s->work->wake[j]) dem_wake(s->work, j);
+}
+
 static void wake_halo(dem_state *s) {
   struct dem_work *w = s->work;
   if (!w->grid_ok) return;
-  const double h2 = w->cell_size * w->cell_size;
   const int first = w->n_wake;
-  for (int q = 0; q < first; q++) {
-    const double *xi = &s->x[3 * w->wake_list[q]];
-    int cc[3];
-    for (int k = 0; k < 3; k++) cc[k] = dem_cell_coord(w, xi[k], k);
-    for (int z = cc[2] > 0 ? cc[2] - 1 : 0; z <= cc[2] + 1 && z < w->cell_dim[2]; z++)
-      for (int y = cc[1] > 0 ? cc[1] - 1 : 0; y <= cc[1] + 1 && y < w->cell_dim[1]; y++)
-        for (int x = cc[0] > 0 ? cc[0] - 1 : 0; x <= cc[0] + 1 && x < w->cell_dim[0]; x++) {
-          const int r = w->cell_rank[dem_cell_index(w, x, y, z)];
-          for (int j = w->frz_start[r]; j < w->frz_start[r + 1]; j++) {
-            const double *xj = &s->x[3 * j], d0 = xj[0] - xi[0], d1 = xj[1] - xi[1], d2 = xj[2] - xi[2];
-            if (!w->wake[j] && d0 * d0 + d1 * d1 + d2 * d2 < h2) dem_wake(w, j);
-          }
+  for (int q = 0; q < first; q++) dem_asleep_near(s, w->wake_list[q], w->cell_size, halo_one, NULL);
+}
+
+void dem_asleep_near(dem_state *s, int i, double h, void (*visit)(dem_state *s, int j, void *ctx), void *ctx) {
+  const struct dem_work *w = s->work;
+  const double *xi = &s->x[3 * i], h2 = h * h;
+  int cc[3];
+  for (int k = 0; k < 3; k++) cc[k] = dem_cell_coord(w, xi[k], k);
+  for (int z = cc[2] > 0 ? cc[2] - 1 : 0; z <= cc[2] + 1 && z < w->cell_dim[2]; z++)
+    for (int y = cc[1] > 0 ? cc[1] - 1 : 0; y <= cc[1] + 1 && y < w->cell_dim[1]; y++)
+      for (int x = cc[0] > 0 ? cc[0] - 1 : 0; x <= cc[0] + 1 && x < w->cell_dim[0]; x++) {
+        const int r = w->cell_rank[dem_cell_index(w, x, y, z)];
+        for (int j = w->frz_start[r]; j < w->frz_start[r + 1]; j++) {
+          const double *xj = &s->x[3 * j], d0 = xj[0] - xi[0], d1 = xj[1] - xi[1], d2 = xj[2] - xi[2];
+          if (j != i && d0 * d0 + d1 * d1 + d2 * d2 < h2) visit(s, j, ctx);
         }
-  }
+      }
 }
 
 /* The woken grains join the awake block (a wake rebuild, or a full one when
@@ -400,11 +411,13 @@ static int wake_woken(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
   const double *g = m->gravity;
   if (w->n_wake > 0) wake_halo(s);
+  if (w->n_wake > 0 || w->compact) dem_push_fold(m, s); /* before the flags change */
   for (int q = 0; q < w->n_wake; q++) {
     const int i = w->wake_list[q];
     w->wake[i] = 0;
     if (!w->asleep[i]) continue;
     w->asleep[i] = 0;
+    dem_push_set(m, s, i, 0);
     w->rest[i] = 0;
     w->near[i] = 1; /* until the next region update */
     for (int a = 0; a < 3; a++) {
@@ -422,6 +435,7 @@ static int wake_woken(const dem_model *m, dem_state *s, proto_err *err) {
 
 int dem_sleep_update(const dem_model *m, dem_state *s, proto_err *err) {
   if (!m->sleep.on || s->work->settling) return 0;
+  dem_push_gather(m, s); /* this step's forces on the asleep grains */
   if (s->step % DEM_REGION_STEPS == 0) {
     region_update(m, s);
     fall_asleep(m, s);

@@ -134,7 +134,7 @@ int dem_state_init(const dem_model *m, dem_state *s, double coupling_dt, proto_e
     dem_grain_constants(m, s, i, i);
     if (m->fix_rotation[i]) memset(&s->omega[3 * i], 0, 3 * sizeof(double));
   }
-  if (dem_neigh_alloc(m, s, err) || dem_mesh_alloc(m, s, err) || dem_sleep_alloc(m, s, err) ||
+  if (dem_neigh_alloc(m, s, err) || dem_mesh_alloc(m, s, err) || dem_sleep_alloc(m, s, err) || dem_push_alloc(m, s, err) ||
       dem_neigh_rebuild(m, s, err) ||
       check_initial(m, s, err))
     goto fail;
@@ -156,6 +156,7 @@ void dem_state_free(dem_state *s) {
     dem_neigh_free(w);
     dem_mesh_free(NULL, s);
     dem_sleep_free(w);
+    dem_push_free(w);
     free(w->wall_shear); free(w->wall_part); free(w->chunk); free(w->mass); free(w->inertia);
     free(w->io_mesh);
     free(w);

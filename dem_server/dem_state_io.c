@@ -28,7 +28,7 @@ _Static_assert(sizeof(int) == 4, "neighbour-list indices travel as i4");
  * "near" flags, so it travels too) */
 enum { IO_C_FORMAT, IO_C_MODEL, IO_C_STEP, IO_C_REBUILDS, IO_C_CONTACTS, IO_C_SLEEPING, IO_C_MESH_FLAGS, IO_NCOUNTERS };
 enum { IO_S_T, IO_S_KE, IO_S_ELASTIC, IO_S_OVERLAP, IO_NSCALARS };
-#define IO_MAX 32 /* the arrays of one export (PROTO_MAX_ARRAYS) */
+#define IO_MAX 40 /* the arrays of one export (PROTO_MAX_ARRAYS) */
 /* The parts of the model fingerprint (state.model), named in a refusal. */
 enum { IO_M_GRAINS, IO_M_MATERIALS, IO_M_WALLS, IO_M_MESHES, IO_M_SKIN, IO_M_SLEEP, IO_NPARTS };
 static const char *const io_part_name[IO_NPARTS] = {
@@ -47,13 +47,14 @@ typedef struct io_entry {
   int ndim;
   int64_t shape[PROTO_MAX_NDIM];
   void *data;
+  int optional; /* may be missing from a state with no grain asleep: then zero */
 } io_entry;
 
 static const size_t io_size[] = {[PROTO_F8] = 8, [PROTO_I4] = 4, [PROTO_I8] = 8, [PROTO_U1] = 1};
 
 static void add(io_entry *e, int *n, const char *name, proto_dtype dt, void *data, int ndim,
                 int64_t a, int64_t b, int64_t c) {
-  e[*n] = (io_entry){name, dt, ndim, {a, b, c}, data};
+  e[*n] = (io_entry){name, dt, ndim, {a, b, c}, data, 0};
   (*n)++;
 }
 
@@ -111,6 +112,11 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
     add(e, &c, PROTO_P_STATE "rest", PROTO_I4, w->rest, 1, n, 0, 0);
     add(e, &c, PROTO_P_STATE "near", PROTO_U1, w->near, 1, n, 0, 0);
     add(e, &c, PROTO_P_STATE "rest_x", PROTO_F8, w->rest_x, 2, n, 3, 0);
+    /* the force rule's book (dem_sleep_push.c), by grain id, not slot: absent
+     * from the states of earlier versions, which is exact when no grain is
+     * asleep (a settled bed: a bed settles all awake) */
+    add(e, &c, PROTO_P_STATE "push", PROTO_F8, w->push, 2, n, DEM_PUSH_REC, 0);
+    e[c - 1].optional = 1;
   }
   /* ---- the active block (dem_sleep.c): region and the grid of the last full
    * rebuild, which the asleep grains are sorted by (owner: the sleep code) ---- */
@@ -257,6 +263,7 @@ static int check_contents(const dem_model *m, dem_state *s, const void *const *s
   const int32_t *id = NULL, *start = NULL, *nj = NULL;
   const uint8_t *touch = NULL, *mesh = NULL, *asleep = NULL, *near = NULL;
   const int32_t *rest = NULL;
+  const double *push = NULL;
   const int64_t *key = NULL, *mask = NULL, *ptouch = NULL, *cnt = NULL;
   int64_t npairs = 0;
   for (int k = 0; k < ne; k++) {
@@ -273,6 +280,7 @@ static int check_contents(const dem_model *m, dem_state *s, const void *const *s
     else if (!strcmp(nm, PROTO_P_STATE "asleep")) asleep = src[k];
     else if (!strcmp(nm, PROTO_P_STATE "rest")) rest = src[k];
     else if (!strcmp(nm, PROTO_P_STATE "near")) near = src[k];
+    else if (!strcmp(nm, PROTO_P_STATE "push")) push = src[k];
   }
   int *seen = s->work->old_of; /* scratch outside a rebuild */
   memset(seen, 0, sizeof(int) * (size_t)n);
@@ -306,6 +314,11 @@ static int check_contents(const dem_model *m, dem_state *s, const void *const *s
     if (asleep[i] > 1 || rest[i] < 0 || near[i] > 1)
       return proto_fail(err, "state import: 'state.asleep'/'state.rest'/'state.near'[%d] = %d/%d/%d (expected 0/1, "
                         ">= 0, 0/1)", i, (int)asleep[i], (int)rest[i], (int)near[i]);
+  for (int i = 0; push && i < n; i++) {
+    const double st = push[DEM_PUSH_REC * i + DEM_PUSH_STATE];
+    if (!(st == 0 || st == 1 || st == 2))
+      return proto_fail(err, "state import: 'state.push'[%d] has state %g (expected 0, 1 or 2)", i, st);
+  }
   if (cnt[IO_C_STEP] < 0 || cnt[IO_C_REBUILDS] < 0)
     return proto_fail(err, "state import: 'state.counters' has a negative step or rebuild count");
   return 0;
@@ -316,7 +329,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   const int n = s->n;
   if (n != m->n_grains) return proto_fail(err, "state import: the state does not belong to this model");
   /* the model first: the other shapes mean nothing for another model */
-  const io_entry counters = {PROTO_P_STATE "counters", PROTO_I8, 1, {IO_NCOUNTERS}, NULL};
+  const io_entry counters = {PROTO_P_STATE "counters", PROTO_I8, 1, {IO_NCOUNTERS}, NULL, 0};
   const int64_t *cnt = get(in, &counters, err);
   if (!cnt) return -1;
   if (cnt[IO_C_FORMAT] != IO_FORMAT)
@@ -325,7 +338,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   int64_t mine[IO_NPARTS];
   model_parts(m, mine);
   if (cnt[IO_C_MODEL] != model_fingerprint(mine)) {
-    const io_entry parts = {PROTO_P_STATE "model", PROTO_I8, 1, {IO_NPARTS}, NULL};
+    const io_entry parts = {PROTO_P_STATE "model", PROTO_I8, 1, {IO_NPARTS}, NULL, 0};
     const int64_t *theirs = get(in, &parts, err);
     char what[512];
     if (!theirs) return -1;
@@ -335,7 +348,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
                       (unsigned long long)cnt[IO_C_MODEL], (unsigned long long)model_fingerprint(mine),
                       what[0] ? what : "'state.model' and 'state.counters'", what[0] ? "" : " (damaged)");
   }
-  const io_entry start = {PROTO_P_STATE "nl_start", PROTO_I4, 1, {n + 1}, NULL};
+  const io_entry start = {PROTO_P_STATE "nl_start", PROTO_I4, 1, {n + 1}, NULL, 0};
   const int32_t *st = get(in, &start, err);
   if (!st) return -1;
   const int64_t npairs = st[n];
@@ -345,8 +358,17 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   io_entry e[IO_MAX];
   const void *src[IO_MAX];
   const int ne = layout(m, s, npairs, e);
-  for (int k = 0; k < ne; k++)
+  for (int k = 0; k < ne; k++) {
+    if (e[k].optional && !proto_msg_find(in, e[k].name)) {
+      if (cnt[IO_C_SLEEPING] != 0)
+        return proto_fail(err, "state import: '%s' is missing and %lld grains are asleep (a state of an earlier "
+                          "version can continue only with every grain awake)", e[k].name,
+                          (long long)cnt[IO_C_SLEEPING]);
+      src[k] = NULL;
+      continue;
+    }
     if (!(src[k] = get(in, &e[k], err))) return proto_wrap(err, "state import");
+  }
   for (int a = 0; a < in->narrays; a++) {
     const char *nm = in->arrays[a].name;
     int known = strncmp(nm, PROTO_P_STATE, strlen(PROTO_P_STATE)) != 0;
@@ -358,7 +380,10 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   if (dem_neigh_reserve(m, s, (int)npairs, err)) return -1;
   layout(m, s, npairs, e);
   for (int k = 0; k < ne; k++) /* empty entries (no pairs yet) may have no buffer */
-    if (entry_bytes(&e[k])) memcpy(e[k].data, src[k], entry_bytes(&e[k]));
+    if (entry_bytes(&e[k])) {
+      if (src[k]) memcpy(e[k].data, src[k], entry_bytes(&e[k]));
+      else memset(e[k].data, 0, entry_bytes(&e[k]));
+    }
   s->step = cnt[IO_C_STEP];
   s->work->sweep_step = -1; /* x, v are not what the last sweeps left */
   s->rebuilds = cnt[IO_C_REBUILDS];
@@ -375,6 +400,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   dem_neigh_reverse(s);
   dem_sleep_count(m, s);
   if (w->wake) memset(w->wake, 0, (size_t)n);
+  w->push_list_n = -1; /* the push book's `now` is cleared whole at the next gather */
   if (dem_sleep_partners(m, s, err)) return -1;
   w->have_old = 1;
   const int64_t nodes = total_nodes(m);

@@ -2,7 +2,8 @@
  * box fall asleep; sleeping grains do not move; a plate (mesh) moving into
  * them wakes the grains it approaches and no sleeping grain ever touches it;
  * results stay bitwise identical for 1, 2 and 4 threads and across
- * export/import, as without sleep. */
+ * export/import, as without sleep; all of it again with the force rule
+ * (sleep.force, its book by grain id through the export). */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 #include <string.h>
@@ -10,17 +11,19 @@
 #define R 0.003
 #define NL 20 /* grains per row of the lower layer */
 
+static const char *g_force = ""; /* "" or ",\"force\":F" inside "sleep" */
+
 static char *scene_json(int threads) {
   static char json[200000];
   const double s = 2 * R + 2e-4, h = sqrt(4 * R * R - 0.5 * s * s), L = NL * s + 0.01;
   int len = snprintf(json, sizeof json,
       "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.3,\"friction\":0.6}],"
-      "\"threads\":%d,\"dt\":5e-5,\"sleep\":{\"velocity\":0.005,\"time\":0.01,\"distance\":0.005},"
+      "\"threads\":%d,\"dt\":5e-5,\"sleep\":{\"velocity\":0.005,\"time\":0.01,\"distance\":0.005%s},"
       "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,1],\"open_top\":true},"
       /* a plate across the box coming in along +x from x = -0.07: arrives at t = 0.175 s */
       "{\"type\":\"mesh\",\"nodes\":[[-0.07,0.002,0.001],[-0.07,%.17g,0.001],[-0.07,%.17g,0.03],[-0.07,0.002,0.03]],"
       "\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[0.4,0,0]}],\"particles\":[",
-      threads, L, L, L - 0.002, L - 0.002);
+      threads, g_force, L, L, L - 0.002, L - 0.002);
   len = dem_test_two_layers(json, len, sizeof json, NL, R, s, h);
   snprintf(json + len, sizeof json - len, "]}");
   return json;
@@ -43,8 +46,9 @@ static void roundtrip(const dem_model *m, dem_state *from, int threads, dem_mode
   proto_msg_free(&msg);
 }
 
-int main(void) {
+static double run(void) {
   const int rest = 2000, plough = 2400; /* the plate reaches the grains at step 3500 */
+  printf("sleep%s:\n", g_force);
   dem_model m;
   dem_state s;
   scene(scene_json(1), &m, &s);
@@ -120,5 +124,14 @@ int main(void) {
   dem_state_free(&s);
   dem_model_free(&m);
   free(x0); free(x1); free(a0); free(a1);
+  return ke;
+}
+
+int main(void) {
+  const double plain = run();
+  g_force = ",\"force\":0.05"; /* a twentieth of a grain's weight: the plate's push wakes grains sooner */
+  const double pushed = run();
+  CHECK(pushed != plain, "the force rule changed nothing here (KE %.17g both): the checks above did not test it",
+        plain);
   return cosim_test_done("test_dem_sleep");
 }

@@ -150,27 +150,31 @@ static void wake_below_velocity(void) {
   else dem_model_free(&m);
 }
 
-/* sleep.distance neither a number nor [x, y, z] of lengths: refused by name. */
-static void bad_distance(const char *distance, const char *name) {
+/* A bad sleep value ("key": value inside "sleep"; sleep.distance neither a
+ * number nor [x, y, z] of lengths, sleep.force not a number >= 0): refused
+ * by name. */
+static void bad_sleep(const char *entry, const char *name) {
   char json[400];
   snprintf(json, sizeof json, "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,"
-           "\"friction\":0.5}],\"sleep\":{\"distance\":%s},\"particles\":[{\"x\":[0,0,0],\"r\":0.005}]}", distance);
+           "\"friction\":0.5}],\"sleep\":{%s},\"particles\":[{\"x\":[0,0,0],\"r\":0.005}]}", entry);
   cJSON *j = cJSON_Parse(json);
   dem_model m;
   proto_err err = {{0}};
   const int rc = dem_model_from_json(&m, j, "processes.dem", &err);
   cJSON_Delete(j);
-  printf("sleep.distance %s -> %s\n", distance, rc ? err.msg : "accepted");
-  CHECK(rc != 0, "sleep.distance %s accepted", distance);
+  printf("sleep {%s} -> %s\n", entry, rc ? err.msg : "accepted");
+  CHECK(rc != 0, "sleep {%s} accepted", entry);
   if (rc) CHECK_MSG(err, name);
   else dem_model_free(&m);
 }
 
 int main(void) {
-  bad_distance("[0.1, 0.2]", "processes.dem.sleep.distance");
-  bad_distance("[0.1, -0.2, 0.3]", "processes.dem.sleep.distance[1]");
-  bad_distance("\"far\"", "processes.dem.sleep.distance");
-  bad_distance("-1", "processes.dem.sleep.distance");
+  bad_sleep("\"distance\":[0.1, 0.2]", "processes.dem.sleep.distance");
+  bad_sleep("\"distance\":[0.1, -0.2, 0.3]", "processes.dem.sleep.distance[1]");
+  bad_sleep("\"distance\":\"far\"", "processes.dem.sleep.distance");
+  bad_sleep("\"distance\":-1", "processes.dem.sleep.distance");
+  bad_sleep("\"force\":-1", "processes.dem.sleep.force");
+  bad_sleep("\"force\":\"strong\"", "processes.dem.sleep.force");
   rest_not_slow();
   int first_listed, first_pressed;
   double gap_listed, gap_pressed;
