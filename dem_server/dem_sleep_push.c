@@ -64,7 +64,8 @@ void dem_push_free(struct dem_work *w) {
 
 /* The asleep neighbours' forces from this step's sweep (the share of an
  * awake–asleep pair k is stored in pair_ft, not added: dem_force.c), the base
- * of the grains in state 2, and the test. */
+ * of the grains in state 2 (every step: a base must be that of the first sum
+ * after a fold), and the test. */
 void dem_push_gather(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
   const int na = w->n_active;
@@ -98,6 +99,10 @@ void dem_push_gather(const dem_model *m, dem_state *s) {
     }
   }
   const double g = sqrt(dem_dot(m->gravity, m->gravity)), fw = m->sleep.force * g;
+  /* tested every DEM_REGION_STEPS steps, with the region and the grains
+   * falling asleep: their wakes share one rebuild (each one a copy of the
+   * asleep block; at every step they came every 4 steps on the deep bed) */
+  const int test = s->step % DEM_REGION_STEPS == 0;
   for (int q = 0; q < nl; q++) {
     const int j = w->push_list[q], id = s->id[j];
     double *b = &p[DEM_PUSH_REC * id + DEM_PUSH_B];
@@ -111,7 +116,7 @@ void dem_push_gather(const dem_model *m, dem_state *s) {
       dt += (now[3 + a] - b[3 + a]) * (now[3 + a] - b[3 + a]);
     }
     const double lim = fw * w->mass[j], tlim = lim * s->radius[j]; /* torque: the weight at the radius */
-    if (df > lim * lim || dt > tlim * tlim) dem_wake(w, j);
+    if (test && (df > lim * lim || dt > tlim * tlim)) dem_wake(w, j);
     w->push_list[q] = id;
   }
   w->push_list_n = nl;
