@@ -261,8 +261,7 @@ static void pair_rows(const dem_model *m, dem_state *s, int lo, int hi, dem_chun
   if (hi > na) hi = na;
   for (int i = hi - 1; i >= lo; i--) {
     const int kbeg = w->nl_start[i], kend = w->nl_start[i + 1];
-    int kas = kend; /* first asleep partner (rows ascend in j) */
-    while (kas > kbeg && w->nl_j[kas - 1] >= na) kas--;
+    const int kas = dem_row_asleep(w, i, na);
     int found = 0;
     for (int k0 = kbeg; k0 < kend;) {
       const int lim = k0 < kas ? kas : kend;

@@ -288,6 +288,13 @@ static inline void dem_wake(struct dem_work *w, int i) {
   if (!__atomic_exchange_n(&w->wake[i], 1, __ATOMIC_RELAXED))
     w->wake_list[__atomic_fetch_add(&w->n_wake, 1, __ATOMIC_RELAXED)] = i;
 }
+/* The first entry of awake row i that lists an asleep grain (slot >= na):
+ * rows ascend in j, so the asleep partners end the row. */
+static inline int dem_row_asleep(const struct dem_work *w, int i, int na) {
+  int k = w->nl_start[i + 1];
+  while (k > w->nl_start[i] && w->nl_j[k - 1] >= na) k--;
+  return k;
+}
 /* The asleep grains j != i whose centres lie within h of grain i's, found in
  * the cells of the last full rebuild around i's (grid_ok; h at most one
  * cell): visit(s, j, ctx) for each, in slot order within each cell. */

@@ -82,8 +82,7 @@ void dem_push_gather(const dem_model *m, dem_state *s) {
     }
   int nl = 0;
   for (int i = 0; i < na; i++) {
-    const int kend = w->nl_start[i + 1];
-    for (int k = kend - 1; k >= w->nl_start[i] && w->nl_j[k] >= na; k--) { /* asleep partners end the row */
+    for (int k = w->nl_start[i + 1] - 1, kas = dem_row_asleep(w, i, na); k >= kas; k--) {
       if (!w->pair_touch[k]) continue;
       const int j = w->nl_j[k], id = s->id[j];
       double *now = &p[DEM_PUSH_REC * id + DEM_PUSH_NOW];
@@ -110,14 +109,15 @@ void dem_push_gather(const dem_model *m, dem_state *s) {
     if (b[DEM_PUSH_STATE] == 2) /* the base from D kept across a change of the awake set */
       for (int a = 0; a < 6; a++) b[a] = now[a] - b[a];
     b[DEM_PUSH_STATE] = 1;
+    w->push_list[q] = id;
+    if (!test) continue;
     double df = 0, dt = 0;
     for (int a = 0; a < 3; a++) {
       df += (now[a] - b[a]) * (now[a] - b[a]);
       dt += (now[3 + a] - b[3 + a]) * (now[3 + a] - b[3 + a]);
     }
     const double lim = fw * w->mass[j], tlim = lim * s->radius[j]; /* torque: the weight at the radius */
-    if (test && (df > lim * lim || dt > tlim * tlim)) dem_wake(w, j);
-    w->push_list[q] = id;
+    if (df > lim * lim || dt > tlim * tlim) dem_wake(w, j);
   }
   w->push_list_n = nl;
 }
@@ -155,7 +155,7 @@ void dem_push_fold(const dem_model *m, dem_state *s) {
   const int na = w->n_active;
   for (int i = 0; i < na; i++) { /* falling asleep: their asleep partners end their rows */
     if (!w->asleep[i]) continue;
-    for (int k = w->nl_start[i + 1] - 1; k >= w->nl_start[i] && w->nl_j[k] >= na; k--)
+    for (int k = dem_row_asleep(w, i, na); k < w->nl_start[i + 1]; k++)
       if (w->pair_touch[k]) fold_one(p, s->id[w->nl_j[k]]);
   }
   if (w->n_wake == 0) return;
