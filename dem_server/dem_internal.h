@@ -114,6 +114,7 @@ struct dem_work {
   int *wake_list, n_wake; /* asleep grains woken this step (any order: only flags are set from it) */
   int compact;            /* the asleep set changes (DEM_COMPACT_*): list rebuild at the end of the step */
   int64_t full_rebuilds, wake_rebuilds; /* of s->rebuilds (the rest: partial) */
+  int64_t wait_sum, wait_checks; /* grains at rest outside the region still awake, summed over the checks (log) */
   int *frz_start;         /* [cell_cap] by Morton rank: the slot ranges of the asleep grains in the
                            * cells of the last full rebuild (partial rebuilds reuse them) */
   int grid_ok;            /* the grid (cell_lo, cell_size, cell_dim) and frz_start are valid */

@@ -545,6 +545,9 @@ int dem_neigh_asleep_cells(const dem_model *m, dem_state *s, proto_err *err) {
 static void asleep_rows(dem_state *s, const int *new_of, int fill) {
   struct dem_work *w = s->work;
   const int n = s->n, na = w->n_active;
+  /* each row reads its old row and writes its own range (or length): rows in
+   * parallel, the same bytes as in one thread */
+#pragma omp parallel for schedule(static, 1024) num_threads(w->nthreads)
   for (int i = na; i < n; i++) {
     const int oi = w->old_of[i];
     int k = fill ? w->nl_start[i] : 0;
@@ -636,7 +639,8 @@ static int wake_rebuild(const dem_model *m, dem_state *s, int ncell, proto_err *
   { size_t t = w->old_cap; w->old_cap = w->cap; w->cap = t; }
   if (permute_grains(m, s, na_old, n - na_old, err)) return -1;
   int *new_of = w->rev_fill; /* scratch until dem_neigh_reverse */
-  for (int i = 0; i < n; i++) new_of[w->old_of[i]] = i;
+#pragma omp parallel for schedule(static) num_threads(w->nthreads)
+  for (int i = 0; i < n; i++) new_of[w->old_of[i]] = i; /* a permutation: no two i write one slot */
   memcpy(w->nl_start, w->old_start, sizeof(int) * (size_t)(na_old + 1));
   if (rows_from_cells(m, s, na_old, na, 0))
     return proto_fail(err, "out of memory for the neighbour list of %d grains", n);

@@ -345,9 +345,12 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
     int64_t r[3] = {s->rebuilds};
     dem_rebuild_kinds(s, &r[1], &r[2]);
     const int64_t *l = a->rebuilds_logged, full = r[1] - l[1], wake = r[2] - l[2];
-    fprintf(stderr, "dem_server: t = %.6g s: %lld of %d grains active (sleep); list rebuilds since the last output: "
-            "%lld partial, %lld full, %lld wake\n", t, (long long)(s->n - s->sleeping), s->n,
-            (long long)(r[0] - l[0] - full - wake), (long long)full, (long long)wake);
+    double waiting;
+    dem_sleep_waiting(s, &waiting);
+    fprintf(stderr, "dem_server: t = %.6g s: %lld of %d grains active (sleep), %.0f of them at rest outside the "
+            "region (mean); list rebuilds since the last output: %lld partial, %lld full, %lld wake\n", t,
+            (long long)(s->n - s->sleeping), s->n, waiting, (long long)(r[0] - l[0] - full - wake), (long long)full,
+            (long long)wake);
     memcpy(a->rebuilds_logged, r, sizeof r);
   }
   if (info->output) {

@@ -339,6 +339,8 @@ static void fall_asleep(const dem_model *m, dem_state *s) {
   int cand = 0;
   for (int i = 0; i < na; i++)
     cand += w->rest[i] >= rest_steps && !w->near[i] && !w->wake[i] && !touches_mesh(m, w, i);
+  w->wait_sum += cand;
+  w->wait_checks++;
   if (cand < batch && cand < na) return;
   /* not next to a fast grain: it would wake at once, and might touch it in
    * the same step (its reaction then lost) */
@@ -541,4 +543,10 @@ int dem_sleep_guard(const dem_model *m, dem_state *s, proto_err *err) {
   region_update(m, s);
   w->guard_updates++;
   return wake_woken(m, s, err);
+}
+
+void dem_sleep_waiting(dem_state *s, double *mean) {
+  struct dem_work *w = s->work;
+  *mean = w->wait_checks ? (double)w->wait_sum / (double)w->wait_checks : 0;
+  w->wait_sum = w->wait_checks = 0;
 }
