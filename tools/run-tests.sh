@@ -3,7 +3,9 @@
 # once in a Release build, then once more built with AddressSanitizer and
 # UndefinedBehaviorSanitizer (skip that pass with COSIM_NO_SANITIZE=1), then
 # a short run of each fuzz harness (tests/fuzz, clang's libFuzzer under ASan +
-# UBSan with LeakSanitizer; COSIM_FUZZ_SECONDS each, default 20; skip with
+# UBSan with LeakSanitizer; COSIM_FUZZ_SECONDS each, default 10: a smoke run that
+# keeps the whole under 15 minutes on 2 cores, the corpus replays run in both
+# passes above, tests/fuzz/README.md has the longer runs; skip with
 # COSIM_NO_FUZZ=1).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,8 +21,8 @@ if [ "${COSIM_NO_SANITIZE:-0}" != 1 ]; then
     ctest --test-dir build-asan --output-on-failure -j"$jobs" --timeout 900 -LE slow
 fi
 if [ "${COSIM_NO_FUZZ:-0}" != 1 ]; then
-  echo "== fuzz (libFuzzer, ASan + UBSan, ${COSIM_FUZZ_SECONDS:-20} s per harness)"
+  echo "== fuzz (libFuzzer, ASan + UBSan, ${COSIM_FUZZ_SECONDS:-10} s per harness)"
   COSIM_BUILD_DIR=build-fuzz COSIM_BUILD_TARGET=fuzz_all bash tools/setup.sh \
-    -DCMAKE_C_COMPILER=clang -DCOSIM_FUZZ=ON -DFUZZ_SECONDS="${COSIM_FUZZ_SECONDS:-20}"
+    -DCMAKE_C_COMPILER=clang -DCOSIM_FUZZ=ON -DFUZZ_SECONDS="${COSIM_FUZZ_SECONDS:-10}"
   ctest --test-dir build-fuzz --output-on-failure -j"$jobs" -L fuzz
 fi
