@@ -263,9 +263,9 @@ void dem_mesh_set_nodes_sparse(const dem_model *m, dem_state *s, int mesh, int64
  * asleep) and the wake ones (woken grains joined the awake block); the rest
  * were partial (the awake grains moved a skin's half). For the log. */
 void dem_rebuild_kinds(const dem_state *s, int64_t *full, int64_t *wake);
-/* The mean number of awake grains at rest outside the region (they wait for a
- * batch to fall asleep) over the checks since the last call (dem_sleep.c). */
-void dem_sleep_waiting(dem_state *s, double *mean);
+/* The awake grains at rest outside the region (they wait for a batch to fall
+ * asleep), summed over the checks, and the checks so far (dem_sleep.c). For the log. */
+void dem_sleep_waiting(const dem_state *s, int64_t *sum, int64_t *checks);
 
 /* The box the grains can reach in the next coupling step of length dt:
  * every grain's sphere box grown by the margin of dem_nodeset.c, [lo, hi]. */

@@ -35,7 +35,7 @@ typedef struct dem_app {
   int64_t restart_step; /* > 0: a restart, whose state replaces the settled bed */
   int surface;         /* mesh index of the coupled FEM surface, -1 if none */
   int threads_logged;  /* thread count last written to the log */
-  int64_t rebuilds_logged[3]; /* s->rebuilds, full, wake at the last output's log line (sleep) */
+  int64_t logged[5]; /* log_counts at the last output's log line (sleep) */
   double series[DEM_N_SERIES];
   double *wall_row;    /* t, then Fx Fy Fz per wall (means over the step) */
   double *surface_force; /* [n*3] nodal force, mean over the step's sub-steps */
@@ -144,7 +144,7 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
   const dem_model *m = &a->model;
   if (add_surface(a, welcome, err) || dem_state_init(m, &a->state, a->run_dt, err)) return -1;
   a->have_state = 1;
-  a->rebuilds_logged[0] = -1;
+  a->logged[0] = -1;
   log_threads(a);
   if (m->cfg.bed_file[0] && a->restart_step == 0 && continue_bed(a, err)) return -1;
   /* a restart's state (dem_state_import into a fresh state, bitwise) takes
@@ -287,6 +287,14 @@ static int add_force(dem_app *a, proto_msg *reply, int sparse, int64_t *rows) {
   return proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, n, 3, a->surface_force);
 }
 
+/* The active block's counters for the log (sleep): rebuilds, full, wake, and
+ * the grains waiting to fall asleep summed over the checks, and the checks. */
+static void log_counts(const dem_state *s, int64_t c[5]) {
+  c[0] = s->rebuilds;
+  dem_rebuild_kinds(s, &c[1], &c[2]);
+  dem_sleep_waiting(s, &c[3], &c[4]);
+}
+
 static int step(void *user, proto_peer *peer, const proto_step_info *info, const proto_msg *req,
                 proto_msg *reply, proto_err *err) {
   dem_app *a = user;
@@ -308,10 +316,7 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
    * force sampled once per sub-step is the mean of the samples */
   long long nsub = llround(dt / s->dt);
   if (nsub < 1) nsub = 1;
-  if (a->rebuilds_logged[0] < 0) { /* the run's first step: the bed's rebuilds are not its */
-    a->rebuilds_logged[0] = s->rebuilds;
-    dem_rebuild_kinds(s, &a->rebuilds_logged[1], &a->rebuilds_logged[2]);
-  }
+  if (a->logged[0] < 0) log_counts(s, a->logged); /* the run's first step: the bed's rebuilds are not its */
   for (long long k = 0; k < nsub; k++) {
     if (dem_step(m, s, err)) return proto_wrap(err, "coupling step %lld", (long long)info->k);
     const int out = k_x >= 0 ? dem_reach_escaped(s, reach) : -1;
@@ -342,16 +347,14 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
             "force of %lld\n", t, (long long)(k_x >= 0 ? k_x : m->meshes[a->surface].n_nodes),
             m->meshes[a->surface].n_nodes, (long long)k_f);
   if (info->output && m->sleep.on) { /* the active block (dem_sleep.c); its rebuilds are its overhead */
-    int64_t r[3] = {s->rebuilds};
-    dem_rebuild_kinds(s, &r[1], &r[2]);
-    const int64_t *l = a->rebuilds_logged, full = r[1] - l[1], wake = r[2] - l[2];
-    double waiting;
-    dem_sleep_waiting(s, &waiting);
+    int64_t r[5];
+    log_counts(s, r);
+    const int64_t *l = a->logged, full = r[1] - l[1], wake = r[2] - l[2], checks = r[4] - l[4];
     fprintf(stderr, "dem_server: t = %.6g s: %lld of %d grains active (sleep), %.0f of them at rest outside the "
             "region (mean); list rebuilds since the last output: %lld partial, %lld full, %lld wake\n", t,
-            (long long)(s->n - s->sleeping), s->n, waiting, (long long)(r[0] - l[0] - full - wake), (long long)full,
-            (long long)wake);
-    memcpy(a->rebuilds_logged, r, sizeof r);
+            (long long)(s->n - s->sleeping), s->n, checks > 0 ? (double)(r[3] - l[3]) / (double)checks : 0.0,
+            (long long)(r[0] - l[0] - full - wake), (long long)full, (long long)wake);
+    memcpy(a->logged, r, sizeof r);
   }
   if (info->output) {
     dem_gather(s, s->x, 3, a->snap_x);

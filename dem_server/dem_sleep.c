@@ -545,8 +545,7 @@ int dem_sleep_guard(const dem_model *m, dem_state *s, proto_err *err) {
   return wake_woken(m, s, err);
 }
 
-void dem_sleep_waiting(dem_state *s, double *mean) {
-  struct dem_work *w = s->work;
-  *mean = w->wait_checks ? (double)w->wait_sum / (double)w->wait_checks : 0;
-  w->wait_sum = w->wait_checks = 0;
+void dem_sleep_waiting(const dem_state *s, int64_t *sum, int64_t *checks) {
+  *sum = s->work->wait_sum;
+  *checks = s->work->wait_checks;
 }

@@ -21,8 +21,9 @@ if [ "${COSIM_NO_SANITIZE:-0}" != 1 ]; then
     ctest --test-dir build-asan --output-on-failure -j"$jobs" --timeout 900 -LE slow
 fi
 if [ "${COSIM_NO_FUZZ:-0}" != 1 ]; then
-  echo "== fuzz (libFuzzer, ASan + UBSan, ${COSIM_FUZZ_SECONDS:-10} s per harness)"
+  fuzz_seconds=${COSIM_FUZZ_SECONDS:-10}
+  echo "== fuzz (libFuzzer, ASan + UBSan, $fuzz_seconds s per harness)"
   COSIM_BUILD_DIR=build-fuzz COSIM_BUILD_TARGET=fuzz_all bash tools/setup.sh \
-    -DCMAKE_C_COMPILER=clang -DCOSIM_FUZZ=ON -DFUZZ_SECONDS="${COSIM_FUZZ_SECONDS:-10}"
+    -DCMAKE_C_COMPILER=clang -DCOSIM_FUZZ=ON -DFUZZ_SECONDS="$fuzz_seconds"
   ctest --test-dir build-fuzz --output-on-failure -j"$jobs" -L fuzz
 fi
