@@ -438,10 +438,8 @@ static int wake_woken(const dem_model *m, dem_state *s, proto_err *err) {
 int dem_sleep_update(const dem_model *m, dem_state *s, proto_err *err) {
   if (!m->sleep.on || s->work->settling) return 0;
   dem_push_gather(m, s); /* this step's forces on the asleep grains */
-  if (s->step % DEM_REGION_STEPS == 0) {
-    region_update(m, s);
-    fall_asleep(m, s);
-  }
+  if (s->step % DEM_REGION_STEPS == 0) region_update(m, s);
+  if (s->step % m->sleep.test_steps == 0) fall_asleep(m, s);
   return wake_woken(m, s, err);
 }
 

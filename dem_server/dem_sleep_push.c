@@ -98,10 +98,10 @@ void dem_push_gather(const dem_model *m, dem_state *s) {
     }
   }
   const double g = sqrt(dem_dot(m->gravity, m->gravity)), fw = m->sleep.force * g;
-  /* tested every DEM_REGION_STEPS steps, with the region and the grains
-   * falling asleep: their wakes share one rebuild (each one a copy of the
-   * asleep block; at every step they came every 4 steps on the deep bed) */
-  const int test = s->step % DEM_REGION_STEPS == 0;
+  /* tested every `test_steps` steps, with the grains falling asleep (and the
+   * region): their wakes share one rebuild (each one a copy of the asleep
+   * block; at every step they came every 4 steps on the deep bed) */
+  const int test = s->step % m->sleep.test_steps == 0;
   for (int q = 0; q < nl; q++) {
     const int j = w->push_list[q], id = s->id[j];
     double *b = &p[DEM_PUSH_REC * id + DEM_PUSH_B];

@@ -15,7 +15,9 @@
  * grown by `force` times a grain's weight since they fell asleep, i.e. when
  * the plate, pressing quasi-statically, carries about that much (the push on
  * the upper asleep grain is the weight of the five above plus the plate's
- * force); the end force again within 1 % of all awake. With neither rule the
+ * force); the end force again within 1 % of all awake, also with the rule
+ * tested every 20 steps (sleep.test_steps: the wake at a multiple of 20,
+ * not before the force). With neither rule the
  * two stay asleep and the end force is far off (the test's own check that
  * the column can tell). */
 #include "dem_test.h"
@@ -76,6 +78,8 @@ static double awake_pairs_ratio(const dem_state *s, const uint8_t *was) {
  * grains than when it arrived (-1: none woke); *d0: the vertical change of
  * push on grain 1 (the upper asleep one) when the plate arrived, in weights
  * (the column settled on after it fell asleep: it counts). */
+static int64_t first_wake_step; /* s.step after the step of the first wake (press) */
+
 static double press(const char *sleep, int64_t *asleep_at_touch, int64_t *asleep_end, int *hidden,
                     double *woke_f, double *d0) {
   dem_model m;
@@ -95,7 +99,10 @@ static double press(const char *sleep, int64_t *asleep_at_touch, int64_t *asleep
       const double *p = s.work->push ? &s.work->push[DEM_PUSH_REC * 1] : NULL; /* grain 1, the upper asleep one */
       if (p && p[DEM_PUSH_STATE] == 1) *d0 = (p[DEM_PUSH_NOW + 2] - p[DEM_PUSH_B + 2]) / weight;
     }
-    if (k > REST_STEPS && *woke_f < 0 && asleep < *asleep_at_touch) *woke_f = s.wall_force[3 * 1 + 2] / weight;
+    if (k > REST_STEPS && *woke_f < 0 && asleep < *asleep_at_touch) {
+      *woke_f = s.wall_force[3 * 1 + 2] / weight;
+      first_wake_step = s.step;
+    }
     if (awake_pairs_ratio(&s, was) > s.max_overlap_ratio * (1 + 1e-12) + 1e-15) (*hidden)++;
     for (int i = 0; s.work->asleep && i < s.n; i++) was[s.id[i]] = s.work->asleep[i];
   }
@@ -118,6 +125,12 @@ int main(void) {
   const double awake = press("false", &t0, &e0, &h0, &w0, &x0), slept = press(SLEEP "}", &t1, &e1, &h1, &w1, &x1);
   const double pushed = press(force, &t2, &e2, &h2, &w2, &x2);
   const double frozen = press(SLEEP ",\"overlap\":1}", &t3, &e3, &h3, &w3, &x3);
+  /* the force rule tested every 20 steps (sleep.test_steps) */
+  int64_t t4, e4;
+  int h4;
+  double w4, x4;
+  snprintf(force, sizeof force, "%s,\"overlap\":1,\"force\":%g,\"test_steps\":20}", SLEEP, FORCE);
+  const double pushed20 = press(force, &t4, &e4, &h4, &w4, &x4);
   CHECK(fabs(awake) > 0.05, "the plate does not press the column (%g N)", awake);
   CHECK(t1 == 2, "the two lower grains were not asleep when the plate arrived (%lld)", (long long)t1);
   CHECK(e1 == 0, "grains still asleep under the plate (%lld)", (long long)e1);
@@ -135,6 +148,16 @@ int main(void) {
   CHECK(fabs(pushed - awake) < 0.01 * fabs(awake), "force rule: plate force %.6g N, all awake %.6g N (%.2f %%)",
         pushed, awake, 100 * (pushed - awake) / awake);
   CHECK(h2 == 0, "force rule: the largest overlap left out a contact with an awake grain (%d steps)", h2);
+  /* tested every 20 steps: the wake comes at a test, not before the force
+   * (within the column's vibration), and the end is the same */
+  CHECK(t4 == 2 && first_wake_step % 20 == 0, "force rule every 20 steps: %lld asleep when the plate arrived, "
+        "first wake after step %lld (expected 2, a multiple of 20)", (long long)t4, (long long)first_wake_step);
+  CHECK(w4 > FORCE + x4 - 0.1, "force rule every 20 steps: woke with the plate at %.3f weights, before %g - %.3f",
+        w4, FORCE, -x4);
+  CHECK(fabs(pushed20 - awake) < 0.01 * fabs(awake), "force rule every 20 steps: plate force %.6g N, all awake "
+        "%.6g N (%.2f %%)", pushed20, awake, 100 * (pushed20 - awake) / awake);
+  CHECK(h4 == 0, "force rule every 20 steps: the largest overlap left out a contact with an awake grain (%d steps)",
+        h4);
   /* neither rule: the column can tell */
   CHECK(e3 == 2 && fabs(frozen - awake) > 0.1 * fabs(awake), "neither rule: %lld asleep at the end, plate force "
         "%.6g N against %.6g N all awake (expected 2 and far off)", (long long)e3, frozen, awake);

@@ -175,6 +175,9 @@ int main(void) {
   bad_sleep("\"distance\":-1", "processes.dem.sleep.distance");
   bad_sleep("\"force\":-1", "processes.dem.sleep.force");
   bad_sleep("\"force\":\"strong\"", "processes.dem.sleep.force");
+  bad_sleep("\"test_steps\":7", "processes.dem.sleep.test_steps");
+  bad_sleep("\"test_steps\":0", "processes.dem.sleep.test_steps");
+  bad_sleep("\"test_steps\":2.5", "processes.dem.sleep.test_steps");
   rest_not_slow();
   int first_listed, first_pressed;
   double gap_listed, gap_pressed;

@@ -18,6 +18,12 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 COSIM = os.path.join(BIN, "cosim")
 FAILURES = []
 SCRATCH = []  # temporary folders of this test: removed when every check passed
+# Python's temporary files and folders of this test go into one folder of its
+# own, removed with the others: cosim.run keeps the scene file it wrote for a
+# dict scene when the run fails (its error names the file), and tests fail
+# runs on purpose
+tempfile.tempdir = tempfile.mkdtemp(prefix="cosim-test-")
+SCRATCH.append(tempfile.tempdir)
 
 
 def scratch(prefix):
