@@ -281,8 +281,9 @@ void dem_sleep_mesh_jump(const dem_model *m, dem_state *s, int mesh, int64_t k, 
  * follows at once and wakes what it reaches (a wake rebuild). */
 int dem_sleep_guard(const dem_model *m, dem_state *s, proto_err *err);
 /* End of a step: wake the woken, every DEM_REGION_STEPS steps update the
- * region (wake what it holds) and put to sleep the grains at rest outside
- * it; then a full list rebuild if the asleep set changed. */
+ * region (wake what it holds), every sleep.test_steps steps (a multiple)
+ * test the force rule and put to sleep the grains at rest outside it; then a
+ * list rebuild if the asleep set changed. */
 int dem_sleep_update(const dem_model *m, dem_state *s, proto_err *err);
 /* An asleep grain listed with an awake one moving faster than the threshold. */
 static inline void dem_wake(struct dem_work *w, int i) {

@@ -6,10 +6,11 @@
  * rest (dem_sleep_chunk) and marks asleep grains listed with a fast awake one
  * (dem_wake); before the forces the guard moves the region early if a mesh
  * moved farther than its margin allows; at the end of dem_step,
- * dem_sleep_update marks those whose push changed (dem_sleep_push.c), wakes
- * the marked, every DEM_REGION_STEPS steps moves the region with the meshes (wakes the asleep
- * grains it reaches, marks the awake ones in it `near`) and puts to sleep the
- * grains at rest outside it, then asks dem_neigh.c for a full rebuild when the
+ * dem_sleep_update marks those whose push changed (dem_sleep_push.c, every
+ * sleep.test_steps steps), wakes the marked, every DEM_REGION_STEPS steps
+ * moves the region with the meshes (wakes the asleep grains it reaches, marks
+ * the awake ones in it `near`), every sleep.test_steps steps puts to sleep the
+ * grains at rest outside it, then asks dem_neigh.c for a list rebuild when the
  * asleep set changed. dem_neigh.c keeps the awake grains in slots
  * [0, n_active) and the asleep ones after them, so every per-step loop (drift,
  * pairs, walls, meshes, kick) and the partial list rebuild run over the awake
