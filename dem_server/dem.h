@@ -46,10 +46,6 @@
 /* force rule off by default (dem_sleep_push.c): a scene that loads the bed
  * slowly through its asleep grains sets it (the deep tyre scene) */
 #define DEM_SLEEP_FORCE 0.0
-/* the force rule's test and the batches falling asleep, every 5 steps by
- * default (with the region's update, DEM_REGION_STEPS): each test that wakes
- * a grain costs a wake rebuild (a copy of the asleep block) */
-#define DEM_SLEEP_TEST_STEPS 5
 
 typedef struct dem_material {
   double density, E, nu, G; /* G = E/(2(1+nu)) unless given */
@@ -117,7 +113,8 @@ typedef struct dem_sleep_config {
   double force;         /* wake when the awake neighbours' push changed by this x the grain's weight
                            (0: off; dem_sleep_push.c) */
   int test_steps;       /* steps between the force rule's tests and the batches falling asleep
-                           ("test_steps", a multiple of DEM_REGION_STEPS: at a region update) */
+                           ("test_steps", a multiple of the region's update interval, by default
+                           that interval: each test that wakes a grain costs a wake rebuild) */
 } dem_sleep_config;
 
 /* Preparation of a packing ("particles.prepare" of a generated bed; terra's
