@@ -137,6 +137,7 @@ struct dem_work {
    * asleep grains' box, dem_reach_box and dem_reach_escaped use them without a
    * sweep of their own (dem_nodeset.c) */
   double step_box[6], kick_v2;
+  double step_cbox[6];         /* the drift's box of the awake centres (grains_box, dem_sleep.c) */
   int64_t sweep_step;
   int box_all;
   int asleep_box_ok;           /* valid: cleared when the asleep set changes (dem_sleep.c) */
@@ -146,6 +147,10 @@ struct dem_work {
   double *push;
   uint8_t *push_seen;          /* [n] by id: seen by the last gather */
   int *push_list, push_list_n; /* the ids the last gather saw (-1: not known, after an import) */
+  uint8_t *push_two;           /* [n] by id: state 2 (a copy of the record's, for the scan) */
+  int push_fresh;              /* `now` is of the last sweep's pair_ft (dem_push_fresh) */
+  int *push_rows, push_rows_n; /* [2 n] the awake rows with asleep partners: (i, first such k) */
+  int64_t push_rows_at;        /* s->rebuilds when push_rows was made (-1: to make) */
   int settling;                /* dem_bed_settle: the sleep rules wait (a settling bed is slow before it is at rest) */
   double io_active[20];   /* dem_state_io.c: the active block's state (region, grid, guard) */
   /* meshes: far from every grain (dem_mesh.c) */
@@ -308,8 +313,14 @@ enum { DEM_PUSH_B = 0, DEM_PUSH_NOW = 6, DEM_PUSH_STATE = 12, DEM_PUSH_REC = 13 
 int dem_push_alloc(const dem_model *m, dem_state *s, proto_err *err);
 void dem_push_free(struct dem_work *w);
 /* End of a step, before the region: the asleep grains' change of push, and
- * the wake marks of those beyond sleep.force times their weight. */
+ * the wake marks of those beyond sleep.force times their weight (gathered
+ * only when a test or a base needs it). */
 void dem_push_gather(const dem_model *m, dem_state *s);
+/* The book's `now` from the last sweep if it was not gathered: before
+ * anything reads it or replaces pair_ft (a rebuild, an export). */
+void dem_push_fresh(const dem_model *m, dem_state *s);
+/* After a state import: push_two from the records; `now` as exported. */
+void dem_push_import(const dem_model *m, dem_state *s);
 /* Before a rebuild that changes the awake set: D kept for the asleep grains
  * whose awake neighbours change. */
 void dem_push_fold(const dem_model *m, dem_state *s);

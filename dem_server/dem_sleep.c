@@ -239,13 +239,22 @@ static int in_box(const double *x, double r, const double *lo, const double *hi)
 }
 
 /* The box of every grain's centre: the awake ones' and the grid of the last
- * full rebuild, which held the asleep ones (they have not moved since). */
+ * full rebuild, which held the asleep ones (they have not moved since). The
+ * awake ones' from the drift's sweep while it is current (its grains, not
+ * moved since; min and max are exact in any order: the same box). */
 static void grains_box(const dem_state *s, double *lo, double *hi) {
   const struct dem_work *w = s->work;
   const int all = w->grid_ok ? w->n_active : s->n;
   for (int k = 0; k < 3; k++) {
     lo[k] = w->grid_ok ? w->cell_lo[k] : INFINITY;
     hi[k] = w->grid_ok ? w->cell_lo[k] + w->cell_dim[k] * w->cell_size : -INFINITY;
+  }
+  if (w->grid_ok && w->box_all && w->sweep_step == s->step) {
+    for (int k = 0; k < 3; k++) {
+      lo[k] = dem_min(lo[k], w->step_cbox[k]);
+      hi[k] = dem_max(hi[k], w->step_cbox[3 + k]);
+    }
+    return;
   }
   for (int i = 0; i < all; i++)
     for (int k = 0; k < 3; k++) {

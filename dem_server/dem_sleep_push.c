@@ -5,7 +5,8 @@
  *
  * Data flow: (pair_ft of the awake–asleep contacts, pair_touch, pair_roll)
  * => (push: per asleep grain the change D of force and torque, wake marks),
- * at the end of every step (dem_sleep_update); at a change of the awake set
+ * at the end of a step (dem_sleep_update) when the test or a base needs it,
+ * else when something reads it (dem_push_fresh); at a change of the awake set
  * (dem_push_fold, before the rebuild) the D of each asleep grain whose awake
  * neighbours change is kept across it.
  *
@@ -38,8 +39,9 @@
  * new). A grain falling asleep starts in state 2 with D = 0. A grain that
  * loses every awake contact is not tested until one touches it again (D
  * counts from its last base, which is right then); a neighbour leaving fast
- * wakes it by the velocity rule. The gather is serial, in slot order: the
- * same bits for any number of threads. */
+ * wakes it by the velocity rule. The gather is serial, in slot order (over
+ * the awake rows with asleep partners, kept from one rebuild to the next):
+ * the same bits for any number of threads. */
 #include "dem_server/dem_internal.h"
 
 #include <math.h>
@@ -52,24 +54,60 @@ int dem_push_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->push = calloc(DEM_PUSH_REC * (size_t)s->n + 1, sizeof(double));
   w->push_seen = calloc((size_t)s->n + 1, 1);
   w->push_list = malloc(sizeof(int) * ((size_t)s->n + 1));
+  w->push_two = calloc((size_t)s->n + 1, 1);
+  w->push_rows = malloc(sizeof(int) * (2 * (size_t)s->n + 2));
   w->push_list_n = 0;
-  if (!w->push || !w->push_seen || !w->push_list)
+  w->push_fresh = 1;
+  w->push_rows_at = -1;
+  if (!w->push || !w->push_seen || !w->push_list || !w->push_two || !w->push_rows)
     return proto_fail(err, "out of memory for the sleep push state of %d grains", s->n);
   return 0;
 }
 
 void dem_push_free(struct dem_work *w) {
-  free(w->push); free(w->push_seen); free(w->push_list);
+  free(w->push); free(w->push_seen); free(w->push_list); free(w->push_two); free(w->push_rows);
 }
 
-/* The asleep neighbours' forces from this step's sweep (the share of an
- * awake–asleep pair k is stored in pair_ft, not added: dem_force.c), the base
- * of the grains in state 2 (every step: a base must be that of the first sum
- * after a fold), and the test. */
-void dem_push_gather(const dem_model *m, dem_state *s) {
+/* A grain's state, and its copy in push_two (what base_due reads). */
+static void set_state(struct dem_work *w, int id, int state) {
+  w->push[DEM_PUSH_REC * id + DEM_PUSH_STATE] = state;
+  w->push_two[id] = state == 2;
+}
+
+void dem_push_import(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
+  if (!m->sleep.on || !(m->sleep.force > 0)) return;
+  for (int id = 0; id < s->n; id++) w->push_two[id] = w->push[DEM_PUSH_REC * id + DEM_PUSH_STATE] == 2;
+  w->push_list_n = -1; /* `now` is cleared whole at the next gather */
+  w->push_fresh = 1;   /* the exporter brought it up to date (dem_state_export) */
+  w->push_rows_at = -1;
+}
+
+/* The awake rows that end in asleep partners, as (i, the first such k), in
+ * slot order. nl_j and n_active change only at a rebuild (s->rebuilds), so
+ * the list is kept until the next: on the deep bed about one awake row in
+ * five has one. */
+static void boundary_rows(dem_state *s) {
+  struct dem_work *w = s->work;
+  if (w->push_rows_at == s->rebuilds) return;
   const int na = w->n_active;
-  if (!(m->sleep.force > 0) || na == s->n) return;
+  int nr = 0;
+  for (int i = 0; i < na; i++) {
+    const int kas = dem_row_asleep(w, i, na);
+    if (kas == w->nl_start[i + 1]) continue;
+    w->push_rows[2 * nr] = i;
+    w->push_rows[2 * nr + 1] = kas;
+    nr++;
+  }
+  w->push_rows_n = nr;
+  w->push_rows_at = s->rebuilds;
+}
+
+/* The asleep neighbours' forces from the last sweep (the share of an
+ * awake–asleep pair k is stored in pair_ft, not added: dem_force.c), the base
+ * of the grains in state 2 it sees, and with `test` the test. */
+static void gather(const dem_model *m, dem_state *s, int test) {
+  struct dem_work *w = s->work;
   double *p = w->push;
   if (w->push_list_n < 0) { /* after a state import: where the last gather wrote is not known */
     for (int id = 0; id < s->n; id++) memset(&p[DEM_PUSH_REC * id + DEM_PUSH_NOW], 0, 6 * sizeof(double));
@@ -81,8 +119,10 @@ void dem_push_gather(const dem_model *m, dem_state *s) {
       w->push_seen[id] = 0;
     }
   int nl = 0;
-  for (int i = 0; i < na; i++) {
-    for (int k = w->nl_start[i + 1] - 1, kas = dem_row_asleep(w, i, na); k >= kas; k--) {
+  boundary_rows(s);
+  for (int r = 0; r < w->push_rows_n; r++) { /* rows in slot order */
+    const int i = w->push_rows[2 * r], kas = w->push_rows[2 * r + 1];
+    for (int k = w->nl_start[i + 1] - 1; k >= kas; k--) {
       if (!w->pair_touch[k]) continue;
       const int j = w->nl_j[k], id = s->id[j];
       double *now = &p[DEM_PUSH_REC * id + DEM_PUSH_NOW];
@@ -98,17 +138,13 @@ void dem_push_gather(const dem_model *m, dem_state *s) {
     }
   }
   const double g = sqrt(dem_dot(m->gravity, m->gravity)), fw = m->sleep.force * g;
-  /* tested every `test_steps` steps, with the grains falling asleep (and the
-   * region): their wakes share one rebuild (each one a copy of the asleep
-   * block; at every step they came every 4 steps on the deep bed) */
-  const int test = s->step % m->sleep.test_steps == 0;
   for (int q = 0; q < nl; q++) {
     const int j = w->push_list[q], id = s->id[j];
     double *b = &p[DEM_PUSH_REC * id + DEM_PUSH_B];
     const double *now = &p[DEM_PUSH_REC * id + DEM_PUSH_NOW];
     if (b[DEM_PUSH_STATE] == 2) /* the base from D kept across a change of the awake set */
       for (int a = 0; a < 6; a++) b[a] = now[a] - b[a];
-    b[DEM_PUSH_STATE] = 1;
+    set_state(w, id, 1);
     w->push_list[q] = id;
     if (!test) continue;
     double df = 0, dt = 0;
@@ -120,14 +156,51 @@ void dem_push_gather(const dem_model *m, dem_state *s) {
     if (df > lim * lim || dt > tlim * tlim) dem_wake(w, j);
   }
   w->push_list_n = nl;
+  w->push_fresh = 1;
+}
+
+/* Whether a gather now would take a base: an awake grain touches an asleep
+ * one in state 2. Reads a byte per touching awake–asleep pair, where the
+ * gather writes a record. */
+static int base_due(dem_state *s) {
+  const struct dem_work *w = s->work;
+  boundary_rows(s);
+  for (int r = 0; r < w->push_rows_n; r++) {
+    const int i = w->push_rows[2 * r];
+    for (int k = w->push_rows[2 * r + 1]; k < w->nl_start[i + 1]; k++)
+      if (w->pair_touch[k] && w->push_two[s->id[w->nl_j[k]]]) return 1;
+  }
+  return 0;
+}
+
+/* End of a step. `now` is read by three things only: the test (every
+ * `test_steps` steps, with the grains falling asleep and the region: their
+ * wakes share one rebuild, each one a copy of the asleep block), the base of
+ * a grain in state 2 (that of the first sum that sees it after a fold) and
+ * dem_push_fold. So the gather runs for the first two, and the fold (or a
+ * rebuild, an export: anything that reads `now` or replaces pair_ft) brings
+ * it up to date first through dem_push_fresh, from the same pair_ft: the
+ * same bits as a gather at every step, which cost 3.7 % of the deep bed's
+ * run in one thread (bench/results/tire_soil.md, stop 42). */
+void dem_push_gather(const dem_model *m, dem_state *s) {
+  struct dem_work *w = s->work;
+  if (!(m->sleep.force > 0) || w->n_active == s->n) return;
+  const int test = s->step % m->sleep.test_steps == 0;
+  if (test || base_due(s)) gather(m, s, test);
+}
+
+void dem_push_fresh(const dem_model *m, dem_state *s) {
+  struct dem_work *w = s->work;
+  if (!m->sleep.on || !(m->sleep.force > 0) || w->n_active == s->n || w->push_fresh) return;
+  gather(m, s, 0);
 }
 
 /* Asleep grain j keeps its D across a change of its awake neighbours. */
-static void fold_one(double *p, int id) {
-  double *b = &p[DEM_PUSH_REC * id];
+static void fold_one(struct dem_work *w, int id) {
+  double *b = &w->push[DEM_PUSH_REC * id];
   if (b[DEM_PUSH_STATE] != 1) return;
   for (int a = 0; a < 6; a++) b[a] = b[DEM_PUSH_NOW + a] - b[a];
-  b[DEM_PUSH_STATE] = 2;
+  set_state(w, id, 2);
 }
 
 /* dem_asleep_near's visit: j folds if it touches grain *ctx and is not
@@ -136,7 +209,7 @@ static void fold_touching(dem_state *s, int j, void *ctx) {
   const int i = *(const int *)ctx;
   const double *xi = &s->x[3 * i], *xj = &s->x[3 * j], rs = s->radius[i] + s->radius[j];
   const double d0 = xj[0] - xi[0], d1 = xj[1] - xi[1], d2 = xj[2] - xi[2];
-  if (!s->work->wake[j] && d0 * d0 + d1 * d1 + d2 * d2 < rs * rs) fold_one(s->work->push, s->id[j]);
+  if (!s->work->wake[j] && d0 * d0 + d1 * d1 + d2 * d2 < rs * rs) fold_one(s->work, s->id[j]);
 }
 
 /* Before a rebuild that changes the awake set (slots as before it: the
@@ -151,16 +224,16 @@ static void fold_touching(dem_state *s, int j, void *ctx) {
 void dem_push_fold(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
   if (!(m->sleep.force > 0)) return;
-  double *p = w->push;
+  dem_push_fresh(m, s); /* `now` of the last sweep */
   const int na = w->n_active;
   for (int i = 0; i < na; i++) { /* falling asleep: their asleep partners end their rows */
     if (!w->asleep[i]) continue;
     for (int k = dem_row_asleep(w, i, na); k < w->nl_start[i + 1]; k++)
-      if (w->pair_touch[k]) fold_one(p, s->id[w->nl_j[k]]);
+      if (w->pair_touch[k]) fold_one(w, s->id[w->nl_j[k]]);
   }
   if (w->n_wake == 0) return;
   if (!w->grid_ok) {
-    for (int j = na; j < s->n; j++) fold_one(p, s->id[j]);
+    for (int j = na; j < s->n; j++) fold_one(w, s->id[j]);
     return;
   }
   for (int q = 0; q < w->n_wake; q++) {
@@ -172,7 +245,6 @@ void dem_push_fold(const dem_model *m, dem_state *s) {
 /* Grain in slot i wakes (state 0, no base) or falls asleep (state 2, D = 0). */
 void dem_push_set(const dem_model *m, dem_state *s, int i, int asleep) {
   if (!(m->sleep.force > 0)) return;
-  double *b = &s->work->push[DEM_PUSH_REC * s->id[i]];
-  memset(b, 0, 6 * sizeof(double));
-  b[DEM_PUSH_STATE] = asleep ? 2 : 0;
+  memset(&s->work->push[DEM_PUSH_REC * s->id[i]], 0, 6 * sizeof(double));
+  set_state(s->work, s->id[i], asleep ? 2 : 0);
 }

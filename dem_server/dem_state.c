@@ -211,8 +211,9 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   /* the moved grains' sphere box, for the sparse exchange (dem_nodeset.c): min
    * and max are exact in any order, so it does not depend on the threads */
   double blo[3] = {INFINITY, INFINITY, INFINITY}, bhi[3] = {-INFINITY, -INFINITY, -INFINITY};
-#pragma omp parallel for schedule(dynamic, 1) reduction(| : rebuild, jumped) reduction(min : blo[:3]) \
-    reduction(max : bhi[:3]) num_threads(w->nthreads)
+  double clo[3] = {INFINITY, INFINITY, INFINITY}, chi[3] = {-INFINITY, -INFINITY, -INFINITY}; /* centres: dem_sleep.c */
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : rebuild, jumped) reduction(min : blo[:3], clo[:3]) \
+    reduction(max : bhi[:3], chi[:3]) num_threads(w->nthreads)
   for (int c = 0; c < nchunk; c++) {
     const int hi = (c + 1) * DEM_CHUNK < n ? (c + 1) * DEM_CHUNK : n;
     for (int i = c * DEM_CHUNK; i < hi; i++) {
@@ -227,6 +228,8 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
         d2 += (x[a] - xr[a]) * (x[a] - xr[a]);
         blo[a] = x[a] - r < blo[a] ? x[a] - r : blo[a]; /* as dem_nodeset.c sphere_boxes */
         bhi[a] = x[a] + r > bhi[a] ? x[a] + r : bhi[a];
+        clo[a] = x[a] < clo[a] ? x[a] : clo[a];
+        chi[a] = x[a] > chi[a] ? x[a] : chi[a];
       }
       rebuild |= d2 > lim2;
       jumped |= !(dem_dot(v, v) * dt * dt <= r * r); /* moved more than its radius, or NaN */
@@ -237,11 +240,14 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   s->step++;
   memcpy(w->step_box, blo, sizeof blo);
   memcpy(w->step_box + 3, bhi, sizeof bhi);
+  memcpy(w->step_cbox, clo, sizeof clo);
+  memcpy(w->step_cbox + 3, chi, sizeof chi);
   w->box_all = 1; /* the awake block's box: every grain's without sleep (dem_sleep.c clears it at a wake or sleep) */
   if (jumped) {
     s->kinetic_energy = NAN;
     return check_health(m, s, 2.0, err);
   }
+  if (rebuild && w->asleep) dem_push_fresh(m, s); /* before the list (and pair_ft's index) changes */
   if (rebuild ? dem_neigh_rebuild(m, s, err) : (m->n_meshes > 0 && dem_mesh_lists_check(m, s, err))) return -1;
   if (w->asleep && dem_sleep_guard(m, s, err)) return -1; /* a mesh beyond the region's margin */
   dem_compute_forces(m, s, 1); /* and the second half kick */

@@ -206,8 +206,9 @@ static int io_scratch(const dem_model *m, dem_state *s, proto_err *err) {
 }
 
 int dem_state_export(const dem_model *m, const dem_state *cs, proto_msg *out, proto_err *err) {
-  dem_state *s = (dem_state *)cs; /* only the export scratch is written */
-  struct dem_work *w = s->work;
+  dem_state *s = (dem_state *)cs; /* writes the export scratch, and sums the force rule's */
+  struct dem_work *w = s->work;      /* book if the step did not (dem_push_fresh: the same bits) */
+  dem_push_fresh(m, s);
   if (io_scratch(m, s, err)) return -1;
   w->io_counters[IO_C_FORMAT] = IO_FORMAT;
   dem_sleep_export(m, s); /* the active block's "state.active" */
@@ -400,7 +401,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   dem_neigh_reverse(s);
   dem_sleep_count(m, s);
   if (w->wake) memset(w->wake, 0, (size_t)n);
-  w->push_list_n = -1; /* the push book's `now` is cleared whole at the next gather */
+  dem_push_import(m, s); /* the force rule's book */
   if (dem_sleep_partners(m, s, err)) return -1;
   w->have_old = 1;
   const int64_t nodes = total_nodes(m);

@@ -96,6 +96,7 @@ static double press(const char *sleep, int64_t *asleep_at_touch, int64_t *asleep
     const int64_t asleep = s.n - s.work->n_active;
     if (k == REST_STEPS) {
       *asleep_at_touch = asleep;
+      dem_push_fresh(&m, &s); /* the book's `now` as of this step (gathered when read) */
       const double *p = s.work->push ? &s.work->push[DEM_PUSH_REC * 1] : NULL; /* grain 1, the upper asleep one */
       if (p && p[DEM_PUSH_STATE] == 1) *d0 = (p[DEM_PUSH_NOW + 2] - p[DEM_PUSH_B + 2]) / weight;
     }
