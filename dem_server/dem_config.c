@@ -350,7 +350,7 @@ static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
       proto_cfg_num(&sc, "wake_velocity", PROTO_OPTIONAL, 1e-12, 1e3, &sl->wake_velocity) ||
       proto_cfg_num(&sc, "force", PROTO_OPTIONAL, 0.0, 1e6, &sl->force))
     return -1;
-  int64_t every = DEM_REGION_STEPS; /* the default: with every region update */
+  int64_t every = sl->test_steps; /* the default: with every region update */
   if (proto_cfg_int(&sc, "test_steps", PROTO_OPTIONAL, DEM_REGION_STEPS, 1000000, &every)) return -1;
   if (every % DEM_REGION_STEPS)
     return proto_fail(c->err, "%s.test_steps: %lld is not a multiple of %d (the tests come with the region's "

@@ -490,7 +490,6 @@ void dem_compute_forces(const dem_model *m, dem_state *s, int kick) {
   }
   if (m->n_meshes > 0) dem_mesh_reactions(m, s);
   if (w->asleep) s->sleeping = s->n - n;
-  w->push_fresh = 0; /* pair_ft is this sweep's (dem_sleep_push.c) */
   s->contacts = contacts;
   w->pair_contacts = pairs;
   s->max_overlap_ratio = ratio;

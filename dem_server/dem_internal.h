@@ -140,6 +140,7 @@ struct dem_work {
   double step_cbox[6];         /* the drift's box of the awake centres (grains_box, dem_sleep.c) */
   int64_t sweep_step;
   int box_all;
+  int64_t push_sweep;          /* the book's `now` is of the sweep of this step (dem_sleep_push.c) */
   int asleep_box_ok;           /* valid: cleared when the asleep set changes (dem_sleep.c) */
   /* the force rule (dem_sleep_push.c), by grain id: DEM_PUSH_REC doubles
    * each (base or D of force and torque, the awake neighbours' force and
@@ -148,7 +149,6 @@ struct dem_work {
   uint8_t *push_seen;          /* [n] by id: seen by the last gather */
   int *push_list, push_list_n; /* the ids the last gather saw (-1: not known, after an import) */
   uint8_t *push_two;           /* [n] by id: state 2 (a copy of the record's, for the scan) */
-  int push_fresh;              /* `now` is of the last sweep's pair_ft (dem_push_fresh) */
   int *push_rows, push_rows_n; /* [2 n] the awake rows with asleep partners: (i, first such k) */
   int64_t push_rows_at;        /* s->rebuilds when push_rows was made (-1: to make) */
   int settling;                /* dem_bed_settle: the sleep rules wait (a settling bed is slow before it is at rest) */
@@ -290,6 +290,15 @@ int dem_sleep_guard(const dem_model *m, dem_state *s, proto_err *err);
  * test the force rule and put to sleep the grains at rest outside it; then a
  * list rebuild if the asleep set changed. */
 int dem_sleep_update(const dem_model *m, dem_state *s, proto_err *err);
+/* The step's own sweeps cover every awake grain as they are now: dem_step
+ * moved them (the asleep ones stand still) and kicked them last, and nothing
+ * has touched x or v since (a wake or sleep after the drift, a state import or
+ * a bed's clock reset clears the steps). */
+static inline int dem_sweeps_current(const dem_state *s) {
+  return s->work->box_all && s->work->sweep_step == s->step;
+}
+/* The force rule's book holds the last sweep's push (dem_push_fresh). */
+static inline int dem_push_current(const struct dem_work *w) { return w->push_sweep == w->sweep_step; }
 /* An asleep grain listed with an awake one moving faster than the threshold. */
 static inline void dem_wake(struct dem_work *w, int i) {
   if (!__atomic_exchange_n(&w->wake[i], 1, __ATOMIC_RELAXED))

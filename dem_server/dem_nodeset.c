@@ -83,15 +83,6 @@ static double sphere_boxes(const dem_state *s, int lo, int hi, double box[6]) {
   return v2;
 }
 
-/* The step's own sweeps cover every awake grain as they are now: dem_step
- * moved them (the asleep ones stand still) and kicked them last, and nothing
- * has touched x or v since (a wake or sleep after the drift, a state import or
- * a bed's clock reset clears the steps). */
-static int step_sweeps_current(const dem_state *s) {
-  const struct dem_work *w = s->work;
-  return w->box_all && w->sweep_step == s->step;
-}
-
 /* box grown to hold other too (min/max: exact in any order) */
 static void box_union(double box[6], const double other[6]) {
   for (int d = 0; d < 3; d++) {
@@ -118,7 +109,7 @@ void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box
   for (int d = 0; d < 3; d++) box[d] = INFINITY, box[3 + d] = -INFINITY;
   double v2;
   with_asleep(s, box); /* they stand still: |v| 0 */
-  if (step_sweeps_current(s)) { /* the same min, max and |v|^2 as the sweep below */
+  if (dem_sweeps_current(s)) { /* the same min, max and |v|^2 as the sweep below */
     box_union(box, w->step_box);
     v2 = w->kick_v2;
   } else {
@@ -134,7 +125,7 @@ void dem_reach_box(const dem_model *m, const dem_state *s, double dt, double box
 
 int dem_reach_escaped(const dem_state *s, const double box[6]) {
   int out = 0;
-  if (step_sweeps_current(s)) { /* every sphere box inside: their union is */
+  if (dem_sweeps_current(s)) { /* every sphere box inside: their union is */
     double u[6];
     memcpy(u, s->work->step_box, sizeof u);
     with_asleep(s, u);

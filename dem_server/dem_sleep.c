@@ -249,7 +249,7 @@ static void grains_box(const dem_state *s, double *lo, double *hi) {
     lo[k] = w->grid_ok ? w->cell_lo[k] : INFINITY;
     hi[k] = w->grid_ok ? w->cell_lo[k] + w->cell_dim[k] * w->cell_size : -INFINITY;
   }
-  if (w->grid_ok && w->box_all && w->sweep_step == s->step) {
+  if (w->grid_ok && dem_sweeps_current(s)) {
     for (int k = 0; k < 3; k++) {
       lo[k] = dem_min(lo[k], w->step_cbox[k]);
       hi[k] = dem_max(hi[k], w->step_cbox[3 + k]);

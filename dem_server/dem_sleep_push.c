@@ -57,7 +57,7 @@ int dem_push_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->push_two = calloc((size_t)s->n + 1, 1);
   w->push_rows = malloc(sizeof(int) * (2 * (size_t)s->n + 2));
   w->push_list_n = 0;
-  w->push_fresh = 1;
+  w->push_sweep = w->sweep_step;
   w->push_rows_at = -1;
   if (!w->push || !w->push_seen || !w->push_list || !w->push_two || !w->push_rows)
     return proto_fail(err, "out of memory for the sleep push state of %d grains", s->n);
@@ -79,7 +79,7 @@ void dem_push_import(const dem_model *m, dem_state *s) {
   if (!m->sleep.on || !(m->sleep.force > 0)) return;
   for (int id = 0; id < s->n; id++) w->push_two[id] = w->push[DEM_PUSH_REC * id + DEM_PUSH_STATE] == 2;
   w->push_list_n = -1; /* `now` is cleared whole at the next gather */
-  w->push_fresh = 1;   /* the exporter brought it up to date (dem_state_export) */
+  w->push_sweep = w->sweep_step; /* as the exporter left it, up to date (dem_state_export) */
   w->push_rows_at = -1;
 }
 
@@ -156,7 +156,7 @@ static void gather(const dem_model *m, dem_state *s, int test) {
     if (df > lim * lim || dt > tlim * tlim) dem_wake(w, j);
   }
   w->push_list_n = nl;
-  w->push_fresh = 1;
+  w->push_sweep = w->sweep_step;
 }
 
 /* Whether a gather now would take a base: an awake grain touches an asleep
@@ -191,7 +191,7 @@ void dem_push_gather(const dem_model *m, dem_state *s) {
 
 void dem_push_fresh(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
-  if (!m->sleep.on || !(m->sleep.force > 0) || w->n_active == s->n || w->push_fresh) return;
+  if (!m->sleep.on || !(m->sleep.force > 0) || w->n_active == s->n || dem_push_current(w)) return;
   gather(m, s, 0);
 }
 

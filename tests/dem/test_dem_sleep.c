@@ -129,7 +129,7 @@ static double run(void) {
     int skipped = 0;
     for (int k = 0; k < plough; k++) {
       dem_test_steps(&mt, &st, 1);
-      skipped += st.work->push && !st.work->push_fresh && st.work->n_active < st.n;
+      skipped += st.work->push && !dem_push_current(st.work) && st.work->n_active < st.n;
       dem_push_fresh(&mt, &st);
     }
     by_id(&st, x1, NULL);
