@@ -64,6 +64,10 @@ int dem_push_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   return 0;
 }
 
+/* The rule is on: sleep on and sleep.force > 0 (the one test of every entry
+ * point below; w->push exists then). */
+static int rule_on(const dem_model *m) { return m->sleep.on && m->sleep.force > 0; }
+
 void dem_push_free(struct dem_work *w) {
   free(w->push); free(w->push_seen); free(w->push_list); free(w->push_two); free(w->push_rows);
 }
@@ -76,7 +80,7 @@ static void set_state(struct dem_work *w, int id, int state) {
 
 void dem_push_import(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
-  if (!m->sleep.on || !(m->sleep.force > 0)) return;
+  if (!rule_on(m)) return;
   for (int id = 0; id < s->n; id++) w->push_two[id] = w->push[DEM_PUSH_REC * id + DEM_PUSH_STATE] == 2;
   w->push_list_n = -1; /* `now` is cleared whole at the next gather */
   w->push_sweep = w->sweep_step; /* as the exporter left it, up to date (dem_state_export) */
@@ -184,14 +188,14 @@ static int base_due(dem_state *s) {
  * run in one thread (bench/results/tire_soil.md, stop 42). */
 void dem_push_gather(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
-  if (!(m->sleep.force > 0) || w->n_active == s->n) return;
+  if (!rule_on(m) || w->n_active == s->n) return;
   const int test = s->step % m->sleep.test_steps == 0;
   if (test || base_due(s)) gather(m, s, test);
 }
 
 void dem_push_fresh(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
-  if (!m->sleep.on || !(m->sleep.force > 0) || w->n_active == s->n || dem_push_current(w)) return;
+  if (!rule_on(m) || w->n_active == s->n || dem_push_current(w)) return;
   gather(m, s, 0);
 }
 
@@ -223,7 +227,7 @@ static void fold_touching(dem_state *s, int j, void *ctx) {
  * contact lies within one cell); without that grid, every asleep grain folds. */
 void dem_push_fold(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
-  if (!(m->sleep.force > 0)) return;
+  if (!rule_on(m)) return;
   dem_push_fresh(m, s); /* `now` of the last sweep */
   const int na = w->n_active;
   for (int i = 0; i < na; i++) { /* falling asleep: their asleep partners end their rows */
@@ -244,7 +248,7 @@ void dem_push_fold(const dem_model *m, dem_state *s) {
 
 /* Grain in slot i wakes (state 0, no base) or falls asleep (state 2, D = 0). */
 void dem_push_set(const dem_model *m, dem_state *s, int i, int asleep) {
-  if (!(m->sleep.force > 0)) return;
+  if (!rule_on(m)) return;
   memset(&s->work->push[DEM_PUSH_REC * s->id[i]], 0, 6 * sizeof(double));
   set_state(s->work, s->id[i], asleep ? 2 : 0);
 }

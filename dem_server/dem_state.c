@@ -249,7 +249,7 @@ int dem_step(const dem_model *m, dem_state *s, proto_err *err) {
   }
   /* the force rule's book before the list (and pair_ft's index) changes; here,
    * not in dem_neigh_rebuild, which calls nothing of the sleep files (no cycle) */
-  if (rebuild && w->asleep) dem_push_fresh(m, s);
+  if (rebuild) dem_push_fresh(m, s);
   if (rebuild ? dem_neigh_rebuild(m, s, err) : (m->n_meshes > 0 && dem_mesh_lists_check(m, s, err))) return -1;
   if (w->asleep && dem_sleep_guard(m, s, err)) return -1; /* a mesh beyond the region's margin */
   dem_compute_forces(m, s, 1); /* and the second half kick */
