@@ -223,7 +223,7 @@ static int bells_of(cpl_runner *r, int expect, proto_shm **rds, int *who) {
 /* (sockets, bells, children, watch clock) -> (the next message, or the culprit named) */
 int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
                 proto_msg *m, int *from) {
-  const double start = cpl_watch(r);
+  const double start = cpl_watch(r), began = proto_now();
   while (1) {
     if (cpl_interrupted)
       return proto_fail(&r->err, "interrupted by signal %d", cpl_interrupted);
@@ -243,7 +243,7 @@ int cpl_receive(cpl_runner *r, int expect, double timeout_s, const char *key,
     int who[CPL_MAX_PROCS];
     const int nb = bells_of(r, expect, rds, who);
     const int got = proto_wait_in(r->router, rds, nb,
-                                  left > POLL_MS * 1e-3 ? POLL_MS : (int)(left * 1e3) + 1);
+                                  left > POLL_MS * 1e-3 ? POLL_MS : (int)(left * 1e3) + 1, began);
     if (got <= 0) continue;
     char identity[PROTO_NAME_LEN] = {0};
     proto_msg *dst = m ? m : &r->inbox;

@@ -446,7 +446,7 @@ static void say_stop(cpl_runner *r) {
       double until = proto_now() + 2.0;
       proto_shm *bell = r->peers[i].shm_on ? r->peers[i].shm_in : NULL;
       int got;
-      while (proto_now() < until && (got = proto_wait_in(r->router, &bell, 1, 100)) > 0) {
+      while (proto_now() < until && (got = proto_wait_in(r->router, &bell, 1, 100, 0)) > 0) {
         char id[PROTO_NAME_LEN];
         snprintf(id, sizeof id, "%s", r->peers[i].proc->name); /* posted: from it */
         if (proto_recv_found(r->router, got, &bell, &reply, id, NULL, NULL, &ignore) == 0 &&

@@ -294,7 +294,8 @@ static proto_shm *coupler_segment(void *ctx, const char *identity);
 static int wait_message(proto_peer *p, proto_msg *m, const char *phase,
                         double timeout_s, proto_err *err) {
   set_phase(p, phase, p->prog.step);
-  double until = timeout_s > 0 ? proto_now() + timeout_s : 0;
+  const double began = proto_now();
+  double until = timeout_s > 0 ? began + timeout_s : 0;
   while (1) {
     double left = until > 0 ? until - proto_now() : WAIT_SLICE_MS * 1e-3;
     if (left <= 0)
@@ -304,7 +305,7 @@ static int wait_message(proto_peer *p, proto_msg *m, const char *phase,
     pthread_mutex_lock(&p->io);
     if (proto_now() - p->last_sent >= HEARTBEAT_DUE_S) heartbeat_locked(p);
     proto_shm *bell = p->shm_on ? p->shm_in : NULL;
-    int r = proto_wait_in(p->dealer, &bell, 1, slice), rc = 0;
+    int r = proto_wait_in(p->dealer, &bell, 1, slice, began), rc = 0;
     if (r > 0)
       rc = proto_recv_found(p->dealer, r, &bell, m, NULL, p->shm_on ? coupler_segment : NULL,
                             p, err);

@@ -647,12 +647,18 @@ int proto_poll_in(void *socket, int timeout_ms) {
   return rc > 0 ? 1 : 0;
 }
 
-int proto_wait_in(void *socket, proto_shm *const *rds, int n, int timeout_ms) {
+double proto_bell_slice(double waited_s) {
+  const double s = PROTO_BELL_SLICE_GROWTH * waited_s;
+  return s < PROTO_BELL_SLICE_S ? PROTO_BELL_SLICE_S : s > PROTO_BELL_SLICE_MAX_S ? PROTO_BELL_SLICE_MAX_S : s;
+}
+
+int proto_wait_in(void *socket, proto_shm *const *rds, int n, int timeout_ms, double since) {
   int first = -1;
   for (int i = 0; i < n; i++)
     if (proto_shm_attached(rds[i]) && first < 0) first = i;
   if (first < 0) return proto_poll_in(socket, timeout_ms);
-  const double until = proto_now() + 1e-3 * timeout_ms;
+  const double start = proto_now(), until = start + 1e-3 * timeout_ms;
+  if (since <= 0 || since > start) since = start;
   while (1) {
     for (int i = 0; i < n; i++)
       if (proto_shm_pending(rds[i])) return 2 + i;
@@ -660,7 +666,7 @@ int proto_wait_in(void *socket, proto_shm *const *rds, int n, int timeout_ms) {
     /* sleep on the first reader's bell (a futex waits on one word), then
      * look at the socket. The bell comes first: a process that just woke its
      * peer should be asleep before the peer needs the core */
-    const double slice = PROTO_BELL_SLICE_S;
+    const double slice = proto_bell_slice(proto_now() - since);
     if (left > 0) proto_shm_wait(rds[first], (int)(1e6 * (left < slice ? left : slice)) + 1);
     for (int i = 0; i < n; i++)
       if (proto_shm_pending(rds[i])) return 2 + i;

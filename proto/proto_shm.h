@@ -41,14 +41,21 @@ typedef struct proto_shm proto_shm; /* one direction: a writer or a reader */
 #define PROTO_SHM_MAX_BUFFER_BYTES ((size_t)1 << 30)
 
 /* Waiting for a posted message, the socket is looked at between futex
- * waits of this length: a heartbeat, or a control message that takes the
- * socket (stop, a segment announced), waits at most this long (s). Short
- * slices cost a wake-up each, and a process woken while it waits takes a
- * core from a peer that computes. With several readers the futex sleeps on
- * the first: a message posted in another is taken when the first's comes
- * or the slice ends, which costs nothing when (as in a stage) every reply
- * is needed before the coupler goes on. */
-#define PROTO_BELL_SLICE_S 20e-3
+ * waits (slices): a heartbeat, or a control message that takes the socket
+ * (stop, a segment announced), waits at most a slice. Each slice costs a
+ * wake-up, and a process woken while it waits takes a core from a peer that
+ * computes. So the slice grows with the wait: PROTO_BELL_SLICE_S at first
+ * (a wait in the coupled loop lasts milliseconds), then a quarter of what
+ * the wait has lasted, at most PROTO_BELL_SLICE_MAX_S (a participant idle
+ * while another settles a bed for minutes wakes 4 times a second, not 50:
+ * a socket message then waits at most a quarter of the wait before it).
+ * With several readers the futex sleeps on the first: a message posted in
+ * another is taken when the first's comes or the slice ends, which costs
+ * nothing when (as in a stage) every reply is needed before the coupler
+ * goes on. */
+#define PROTO_BELL_SLICE_S 20e-3     /* s: the first slices of a wait */
+#define PROTO_BELL_SLICE_GROWTH 0.25 /* slice / time waited so far */
+#define PROTO_BELL_SLICE_MAX_S 0.25  /* s: the longest slice (4 wake-ups a second) */
 
 /* Header fields (PROTOCOL.md "Shared memory"). */
 #define PROTO_H_HOST "host"           /* hello: {name, boot_id}: it can map segments */
@@ -98,10 +105,13 @@ int proto_shm_wait(const proto_shm *rd, int timeout_us);
 /* Reader: the posted message into m (decoded and checked as a received
  * one: proto_decode_via); -1 with err naming the defect. */
 int proto_shm_take(proto_shm *rd, proto_msg *m, proto_err *err);
+/* The bell's slice (s) after waiting waited_s (see PROTO_BELL_SLICE_S). */
+double proto_bell_slice(double waited_s);
 /* Waits up to timeout_ms for the socket (1) or a message posted in readers
  * rds[i] (2 + i); 0 on timeout, -1 on a poll error. NULL readers are
- * skipped. */
-int proto_wait_in(void *socket, proto_shm *const *rds, int n, int timeout_ms);
+ * skipped. since: when the caller's wait began (proto_now(); 0: at this
+ * call), which sets the bell's slices (proto_bell_slice). */
+int proto_wait_in(void *socket, proto_shm *const *rds, int n, int timeout_ms, double since);
 
 /* proto_send / proto_send_to through a writer (NULL: plain frames).
  * identity: the ROUTER identity, or NULL on a DEALER. */

@@ -51,7 +51,7 @@ static proto_shm *reader_ctx(void *ctx, const char *identity) {
  * announces a larger segment (the first one of more than 64 kB). */
 static int shm_recv(void *s, int router, proto_shm *rd, proto_msg *m, proto_err *err) {
   int got;
-  while ((got = proto_wait_in(s, &rd, 1, 1000)) == 0) {
+  while ((got = proto_wait_in(s, &rd, 1, 1000, 0)) == 0) {
   }
   char who[PROTO_NAME_LEN];
   return got < 0 ? -1 : proto_recv_found(s, got, &rd, m, router ? who : NULL, reader_ctx, rd, err);

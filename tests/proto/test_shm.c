@@ -279,7 +279,7 @@ static void test_doorbell(void) {
   CHECK(proto_shm_rings(w));
   CHECK(send_x(a, w, x2, N_NODES, 0, "two", &err) == 0, "%s", err.msg);
   CHECK(proto_poll_in(b, 0) == 0, "no socket message for a posted one");
-  CHECK(proto_shm_pending(rd) && proto_wait_in(b, &rd, 1, 0) == 2);
+  CHECK(proto_shm_pending(rd) && proto_wait_in(b, &rd, 1, 0, 0) == 2);
   CHECK(proto_shm_take(rd, &m2, &err) == 0, "%s", err.msg);
   CHECK(strcmp(m2.type, "done") == 0 && strcmp(m2.topic, "tyre") == 0 && m2.step == 7 &&
         m2.t == 0.25);
@@ -363,7 +363,25 @@ static void test_doorbell(void) {
   pair_close(&P);
 }
 
+/* The bell's slice: PROTO_BELL_SLICE_S while a wait is young, then a
+ * quarter of the wait so far, never above PROTO_BELL_SLICE_MAX_S, and never
+ * shorter for a longer wait. */
+static void test_slices(void) {
+  CHECK(proto_bell_slice(0) == PROTO_BELL_SLICE_S);
+  CHECK(proto_bell_slice(-1) == PROTO_BELL_SLICE_S, "a clock that went back: the shortest slice");
+  CHECK(proto_bell_slice(PROTO_BELL_SLICE_S / PROTO_BELL_SLICE_GROWTH) == PROTO_BELL_SLICE_S);
+  CHECK(fabs(proto_bell_slice(0.4) - 0.4 * PROTO_BELL_SLICE_GROWTH) < 1e-15);
+  CHECK(proto_bell_slice(1e9) == PROTO_BELL_SLICE_MAX_S);
+  int monotone = 1;
+  for (int i = 0; i < 400; i++)
+    monotone &= proto_bell_slice(0.01 * (i + 1)) >= proto_bell_slice(0.01 * i);
+  CHECK(monotone);
+  /* idle for a minute: about 4 wake-ups a second, not 50 */
+  CHECK(60.0 / proto_bell_slice(60.0) <= 4 * 60.0 + 1e-9);
+}
+
 int main(void) {
+  test_slices();
   test_round_trip();
   test_doorbell();
   test_descriptors_refused();
