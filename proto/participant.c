@@ -10,7 +10,6 @@
 #include <errno.h>
 #include <math.h>
 #include <pthread.h>
-#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,7 +25,14 @@
  * solver's data: a process that is stopped or dead goes silent, whatever
  * its init or step time. */
 #define HEARTBEAT_DUE_S (0.5 * PROTO_HEARTBEAT_S) /* silent this long: send one */
-#define HEARTBEAT_TICK_NS 100000000L             /* the thread looks every 0.1 s */
+/* The thread sleeps until the next heartbeat is due (it wakes twice a second
+ * while the main thread computes, not ten times); when the main thread holds
+ * the socket (sending, or waiting: then it sends its own) it looks again
+ * after this long, so the silence stays below HEARTBEAT_DUE_S plus the main
+ * thread's wait slice (WAIT_SLICE_MS) plus this: 0.95 s, inside the promised
+ * PROTO_HEARTBEAT_S (s). */
+#define HEARTBEAT_BUSY_RETRY_S (0.2 * PROTO_HEARTBEAT_S)
+#define HEARTBEAT_MIN_WAIT_S 1e-3 /* s: never a busy loop */
 #define WAIT_SLICE_MS 250                        /* waits poll in slices */
 #define WHAT_LEN 96
 #define WELCOME_TIMEOUT_S 600.0 /* started by hand: give up on a coupler gone this long */
@@ -75,7 +81,10 @@ struct proto_peer {
   double last_sent;      /* when anything was last sent (under io) */
   pthread_t hb_thread;
   int hb_started;
-  atomic_int hb_stop;
+  /* the heartbeat thread's sleep, cut short by hb_stop (under hb_lock) */
+  pthread_mutex_t hb_lock;
+  pthread_cond_t hb_wake; /* on CLOCK_MONOTONIC */
+  int hb_stop;
   progress_rec prog;
   int curve_on;          /* CURVE keys from --curve / COSIM_CURVE_FILE */
   proto_curve curve;
@@ -152,14 +161,33 @@ static void heartbeat_locked(proto_peer *p) {
 
 static void *heartbeat_main(void *arg) {
   proto_peer *p = arg;
-  const struct timespec tick = {0, HEARTBEAT_TICK_NS};
-  while (!atomic_load(&p->hb_stop)) {
-    nanosleep(&tick, NULL);
+  double wait = HEARTBEAT_DUE_S;
+  pthread_mutex_lock(&p->hb_lock);
+  while (!p->hb_stop) {
+    struct timespec until;
+    clock_gettime(CLOCK_MONOTONIC, &until);
+    const long long ns = until.tv_nsec + (long long)(wait * 1e9);
+    until.tv_sec += (time_t)(ns / 1000000000LL);
+    until.tv_nsec = (long)(ns % 1000000000LL);
+    while (!p->hb_stop && pthread_cond_timedwait(&p->hb_wake, &p->hb_lock, &until) == 0) {
+    } /* woken early (the stop, or spuriously): the loop decides */
+    if (p->hb_stop) break;
+    pthread_mutex_unlock(&p->hb_lock);
     /* busy: the main thread is sending, or waiting (then it sends its own) */
-    if (pthread_mutex_trylock(&p->io) != 0) continue;
-    if (proto_now() - p->last_sent >= HEARTBEAT_DUE_S) heartbeat_locked(p);
-    pthread_mutex_unlock(&p->io);
+    wait = HEARTBEAT_BUSY_RETRY_S;
+    if (pthread_mutex_trylock(&p->io) == 0) {
+      double silent = proto_now() - p->last_sent;
+      if (silent >= HEARTBEAT_DUE_S) {
+        heartbeat_locked(p);
+        silent = 0;
+      }
+      wait = HEARTBEAT_DUE_S - silent;
+      pthread_mutex_unlock(&p->io);
+    }
+    if (wait < HEARTBEAT_MIN_WAIT_S) wait = HEARTBEAT_MIN_WAIT_S;
+    pthread_mutex_lock(&p->hb_lock);
   }
+  pthread_mutex_unlock(&p->hb_lock);
   return NULL;
 }
 
@@ -617,6 +645,12 @@ int proto_participant_main(int argc, char **argv,
   p.state.step = -1;
   pthread_mutex_init(&p.io, NULL);
   pthread_mutex_init(&p.prog.lock, NULL);
+  pthread_mutex_init(&p.hb_lock, NULL);
+  pthread_condattr_t hb_attr;
+  pthread_condattr_init(&hb_attr);
+  pthread_condattr_setclock(&hb_attr, CLOCK_MONOTONIC);
+  pthread_cond_init(&p.hb_wake, &hb_attr);
+  pthread_condattr_destroy(&hb_attr);
   set_phase(&p, PHASE_WELCOME, 0);
   proto_dims_init(&p.dims);
   p.ctx = zmq_ctx_new();
@@ -635,7 +669,10 @@ int proto_participant_main(int argc, char **argv,
     send_simple(&p, proto_msg_type(PROTO_MSG_ERROR), 0, 0, err.msg);
   }
   if (p.hb_started) {
-    atomic_store(&p.hb_stop, 1);
+    pthread_mutex_lock(&p.hb_lock);
+    p.hb_stop = 1;
+    pthread_cond_signal(&p.hb_wake);
+    pthread_mutex_unlock(&p.hb_lock);
     pthread_join(p.hb_thread, NULL);
   }
   proto_msg_free(&welcome);
