@@ -4,7 +4,7 @@
 # UndefinedBehaviorSanitizer (skip that pass with COSIM_NO_SANITIZE=1; no
 # benchmarks built there: no test runs them), then
 # a short run of each fuzz harness (tests/fuzz, clang's libFuzzer under ASan +
-# UBSan with LeakSanitizer; COSIM_FUZZ_SECONDS each, default 10: a smoke run that
+# UBSan with LeakSanitizer; COSIM_FUZZ_SECONDS each, default 5: a smoke run that
 # keeps the whole under 15 minutes on 2 cores, the corpus replays run in both
 # passes above, tests/fuzz/README.md has the longer runs; skip with
 # COSIM_NO_FUZZ=1).
@@ -22,7 +22,7 @@ if [ "${COSIM_NO_SANITIZE:-0}" != 1 ]; then
     ctest --test-dir build-asan --output-on-failure -j"$jobs" --timeout 900 -LE slow
 fi
 if [ "${COSIM_NO_FUZZ:-0}" != 1 ]; then
-  fuzz_seconds=${COSIM_FUZZ_SECONDS:-10}
+  fuzz_seconds=${COSIM_FUZZ_SECONDS:-5}
   echo "== fuzz (libFuzzer, ASan + UBSan, $fuzz_seconds s per harness)"
   COSIM_BUILD_DIR=build-fuzz COSIM_BUILD_TARGET=fuzz_all bash tools/setup.sh \
     -DCMAKE_C_COMPILER=clang -DCOSIM_FUZZ=ON -DFUZZ_SECONDS="$fuzz_seconds"
