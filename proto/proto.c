@@ -648,8 +648,7 @@ int proto_poll_in(void *socket, int timeout_ms) {
 }
 
 double proto_bell_slice(double waited_s) {
-  const double s = PROTO_BELL_SLICE_GROWTH * waited_s;
-  return s < PROTO_BELL_SLICE_S ? PROTO_BELL_SLICE_S : s > PROTO_BELL_SLICE_MAX_S ? PROTO_BELL_SLICE_MAX_S : s;
+  return waited_s < PROTO_BELL_IDLE_S ? PROTO_BELL_SLICE_S : PROTO_BELL_SLICE_IDLE_S;
 }
 
 int proto_wait_in(void *socket, proto_shm *const *rds, int n, int timeout_ms, double since) {

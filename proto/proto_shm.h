@@ -44,18 +44,17 @@ typedef struct proto_shm proto_shm; /* one direction: a writer or a reader */
  * waits (slices): a heartbeat, or a control message that takes the socket
  * (stop, a segment announced), waits at most a slice. Each slice costs a
  * wake-up, and a process woken while it waits takes a core from a peer that
- * computes. So the slice grows with the wait: PROTO_BELL_SLICE_S at first
- * (a wait in the coupled loop lasts milliseconds), then a quarter of what
- * the wait has lasted, at most PROTO_BELL_SLICE_MAX_S (a participant idle
- * while another settles a bed for minutes wakes 4 times a second, not 50:
- * a socket message then waits at most a quarter of the wait before it).
- * With several readers the futex sleeps on the first: a message posted in
- * another is taken when the first's comes or the slice ends, which costs
- * nothing when (as in a stage) every reply is needed before the coupler
- * goes on. */
-#define PROTO_BELL_SLICE_S 20e-3     /* s: the first slices of a wait */
-#define PROTO_BELL_SLICE_GROWTH 0.25 /* slice / time waited so far */
-#define PROTO_BELL_SLICE_MAX_S 0.25  /* s: the longest slice (4 wake-ups a second) */
+ * computes. So a wait that has lasted PROTO_BELL_IDLE_S is an idle process
+ * and sleeps in longer slices: the waits of the coupled loop (milliseconds)
+ * and of a short init keep 20 ms, while a participant idle for minutes (the
+ * tread while the grains settle a bed) wakes 4 times a second, not 50; a
+ * socket message then waits at most 5 % of the wait before it. With several
+ * readers the futex sleeps on the first: a message posted in another is
+ * taken when the first's comes or the slice ends, which costs nothing when
+ * (as in a stage) every reply is needed before the coupler goes on. */
+#define PROTO_BELL_SLICE_S 20e-3     /* s: the slice of a wait younger than PROTO_BELL_IDLE_S */
+#define PROTO_BELL_IDLE_S 5.0        /* s: a wait this long is an idle process */
+#define PROTO_BELL_SLICE_IDLE_S 0.25 /* s: its slice (4 wake-ups a second) */
 
 /* Header fields (PROTOCOL.md "Shared memory"). */
 #define PROTO_H_HOST "host"           /* hello: {name, boot_id}: it can map segments */

@@ -363,21 +363,22 @@ static void test_doorbell(void) {
   pair_close(&P);
 }
 
-/* The bell's slice: PROTO_BELL_SLICE_S while a wait is young, then a
- * quarter of the wait so far, never above PROTO_BELL_SLICE_MAX_S, and never
- * shorter for a longer wait. */
+/* The bell's slice: PROTO_BELL_SLICE_S while a wait is younger than
+ * PROTO_BELL_IDLE_S, then PROTO_BELL_SLICE_IDLE_S; never shorter for a longer
+ * wait, and a socket message after an idle wait waits at most 5 % of it. */
 static void test_slices(void) {
   CHECK(proto_bell_slice(0) == PROTO_BELL_SLICE_S);
-  CHECK(proto_bell_slice(-1) == PROTO_BELL_SLICE_S, "a clock that went back: the shortest slice");
-  CHECK(proto_bell_slice(PROTO_BELL_SLICE_S / PROTO_BELL_SLICE_GROWTH) == PROTO_BELL_SLICE_S);
-  CHECK(fabs(proto_bell_slice(0.4) - 0.4 * PROTO_BELL_SLICE_GROWTH) < 1e-15);
-  CHECK(proto_bell_slice(1e9) == PROTO_BELL_SLICE_MAX_S);
+  CHECK(proto_bell_slice(-1) == PROTO_BELL_SLICE_S, "a clock that went back: the short slice");
+  CHECK(proto_bell_slice(0.999 * PROTO_BELL_IDLE_S) == PROTO_BELL_SLICE_S);
+  CHECK(proto_bell_slice(PROTO_BELL_IDLE_S) == PROTO_BELL_SLICE_IDLE_S);
+  CHECK(proto_bell_slice(1e9) == PROTO_BELL_SLICE_IDLE_S);
   int monotone = 1;
-  for (int i = 0; i < 400; i++)
+  for (int i = 0; i < 1000; i++)
     monotone &= proto_bell_slice(0.01 * (i + 1)) >= proto_bell_slice(0.01 * i);
   CHECK(monotone);
+  CHECK(PROTO_BELL_SLICE_IDLE_S <= 0.05 * PROTO_BELL_IDLE_S + 1e-12);
   /* idle for a minute: about 4 wake-ups a second, not 50 */
-  CHECK(60.0 / proto_bell_slice(60.0) <= 4 * 60.0 + 1e-9);
+  CHECK(1.0 / proto_bell_slice(60.0) <= 4.0 + 1e-9);
 }
 
 int main(void) {
