@@ -159,6 +159,15 @@ static void heartbeat_locked(proto_peer *p) {
   proto_msg_free(&m);
 }
 
+/* A heartbeat if the process has been silent HEARTBEAT_DUE_S (the caller
+ * holds io); the seconds until the next one is due. */
+static double beat_if_due(proto_peer *p) {
+  const double silent = proto_now() - p->last_sent;
+  if (silent < HEARTBEAT_DUE_S) return HEARTBEAT_DUE_S - silent;
+  heartbeat_locked(p);
+  return HEARTBEAT_DUE_S;
+}
+
 static void *heartbeat_main(void *arg) {
   proto_peer *p = arg;
   double wait = HEARTBEAT_DUE_S;
@@ -176,12 +185,7 @@ static void *heartbeat_main(void *arg) {
     /* busy: the main thread is sending, or waiting (then it sends its own) */
     wait = HEARTBEAT_BUSY_RETRY_S;
     if (pthread_mutex_trylock(&p->io) == 0) {
-      double silent = proto_now() - p->last_sent;
-      if (silent >= HEARTBEAT_DUE_S) {
-        heartbeat_locked(p);
-        silent = 0;
-      }
-      wait = HEARTBEAT_DUE_S - silent;
+      wait = beat_if_due(p);
       pthread_mutex_unlock(&p->io);
     }
     if (wait < HEARTBEAT_MIN_WAIT_S) wait = HEARTBEAT_MIN_WAIT_S;
@@ -331,7 +335,7 @@ static int wait_message(proto_peer *p, proto_msg *m, const char *phase,
                         timeout_s);
     int slice = left > WAIT_SLICE_MS * 1e-3 ? WAIT_SLICE_MS : (int)(left * 1000) + 1;
     pthread_mutex_lock(&p->io);
-    if (proto_now() - p->last_sent >= HEARTBEAT_DUE_S) heartbeat_locked(p);
+    beat_if_due(p);
     proto_shm *bell = p->shm_on ? p->shm_in : NULL;
     int r = proto_wait_in(p->dealer, &bell, 1, slice, began), rc = 0;
     if (r > 0)
