@@ -266,6 +266,10 @@ void dem_mesh_set_nodes_sparse(const dem_model *m, dem_state *s, int mesh, int64
  * asleep) and the wake ones (woken grains joined the awake block); the rest
  * were partial (the awake grains moved a skin's half). For the log. */
 void dem_rebuild_kinds(const dem_state *s, int64_t *full, int64_t *wake);
+/* The mesh candidate lists built for a mesh's node moves alone (not with a
+ * neighbour rebuild), and the checks that found every moved triangle clear
+ * of the grains and kept them (dem_mesh.c moved_clear). For the log. */
+void dem_mesh_list_counts(const dem_state *s, int64_t *built, int64_t *kept);
 /* The awake grains at rest outside the region (they wait for a batch to fall
  * asleep), summed over the checks, and the checks so far (dem_sleep.c). For the log. */
 void dem_sleep_waiting(const dem_state *s, int64_t *sum, int64_t *checks);

@@ -101,6 +101,7 @@ struct dem_work {
   int32_t **ml_cbuf;
   int *ml_cbuf_cap;               /* [nchunk] a chunk's lists during a build */
   double *mesh_xref[DEM_MAX_MESHES]; /* node positions when the lists were built */
+  uint8_t *mesh_node_moved[DEM_MAX_MESHES]; /* [nodes] moved more than skin/2 since (dem_mesh_lists_check) */
   int lists_dirty;                /* a mesh started moving: rebuild the lists (and "near") */
   double *ratio; /* [n] max overlap ratio of i's contacts (i's own pairs, walls, meshes) */
   /* sleeping grains, the active block (dem_sleep.c): between steps slots
@@ -128,6 +129,7 @@ struct dem_work {
   int64_t guard_updates;  /* region updates the guard made between the regular ones */
   double jump_box[6], jump_dt; /* dem_sleep_jump_box: the filter of the next mesh set's jump */
   int jump_on;
+  uint8_t *jump_mask;          /* [nodes] jump_near's scratch: the sides of the jump box a node's path reaches */
   int32_t *jump_pos;           /* [largest mesh's nodes] scratch: a node's row in a sparse set */
   double asleep_box[6];        /* dem_reach_box: the asleep grains' sphere boxes (they stand still) */
   /* the awake grains' sphere box and largest |v|^2 as the step's own sweeps
@@ -159,9 +161,12 @@ struct dem_work {
   double mesh_gap[DEM_MAX_MESHES];  /* its box's distance to the grains' box at the list build, minus reach */
   double mesh_moved[DEM_MAX_MESHES];/* bound on any node's move since the list build */
   double mesh_vmax[DEM_MAX_MESHES]; /* largest node speed */
-  double grains_lo[3], grains_hi[3], grains_rmax; /* centres' box at the last list rebuild */
+  double grains_rmax; /* the awake grains' largest radius at the last list build (the awake set
+                      * changes only with one) */
   uint8_t mesh_moving[DEM_MAX_MESHES]; /* some node velocity is not zero */
   uint8_t mesh_set[DEM_MAX_MESHES];    /* nodes set since the last list build */
+  int64_t mesh_builds, mesh_clear; /* list builds for a mesh's node moves alone; checks that found
+                                    * every moved triangle clear of the grains (dem_mesh_lists_check) */
   /* dem_state_export/import scratch (dem_state_io.c) */
   int64_t io_counters[8];
   int64_t io_model[8]; /* the model's fingerprint by part ("state.model") */

@@ -197,7 +197,8 @@ int dem_mesh_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   for (int mi = 0; mi < m->n_meshes; mi++) {
     if (m->meshes[mi].n_tri >= 1 << DEM_TRI_BITS)
       return proto_fail(err, "mesh %d: %d triangles, at most %d", mi, m->meshes[mi].n_tri, (1 << DEM_TRI_BITS) - 1);
-    if (!(w->mesh_xref[mi] = malloc(sizeof(double) * 3 * (size_t)(m->meshes[mi].n_nodes + 1))))
+    if (!(w->mesh_xref[mi] = malloc(sizeof(double) * 3 * (size_t)(m->meshes[mi].n_nodes + 1))) ||
+        !(w->mesh_node_moved[mi] = calloc((size_t)m->meshes[mi].n_nodes + 1, 1)))
       return proto_fail(err, "out of memory for mesh %d", mi);
   }
   w->ml_start = calloc((size_t)s->n + 1, sizeof(int));
@@ -227,6 +228,8 @@ void dem_mesh_free(const dem_model *m, dem_state *s) {
     s->mesh_x[mi] = s->mesh_v[mi] = s->mesh_force[mi] = NULL;
     dem_bvh_free(&w->bvh[mi]);
     free(w->mesh_xref[mi]);
+    free(w->mesh_node_moved[mi]);
+    w->mesh_node_moved[mi] = NULL;
   }
   if (w->ml_cbuf)
     for (int c = 0; c < w->nchunk; c++) free(w->ml_cbuf[c]);
@@ -446,6 +449,7 @@ static void far_meshes(const dem_model *m, dem_state *s) {
     }
     rmax = dem_max(rmax, s->radius[i]);
   }
+  w->grains_rmax = rmax;
   for (int mi = 0; mi < m->n_meshes; mi++) {
     const dem_bvh *b = &w->bvh[mi]; /* refitted: its root is the node box */
     w->mesh_far[mi] = 0;
@@ -515,6 +519,56 @@ int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err) {
   return 0;
 }
 
+/* Some node of mesh mi moved more than skin/2 since the build: do the lists
+ * still hold? A grain i touches a triangle only within r_i of its centre. A
+ * triangle whose nodes all moved at most skin/2 comes no nearer than r_i to a
+ * grain it was not listed for (the grains move less than skin/2 too: the
+ * Verlet argument). One with a node moved more touches no grain now if its
+ * node box lies farther than r_max + skin from the box of the awake centres
+ * (far_meshes' test, per triangle). The check runs at every step the mesh
+ * moves or is set, right after the drift (dem_step: step_cbox holds this
+ * step's awake centres; grains_rmax is the build's, and the awake set changes
+ * only with a build) and before the forces, so a triangle clear now is looked
+ * at again before it can touch. Clear: every triangle with a node flagged in
+ * mesh_node_moved is (the caller builds the lists when a position is not
+ * finite: the health check then names it). The nodes a sparse exchange did not send keep their stale positions,
+ * and those coming into the sent set jump from them: without this test every
+ * node entering the set rebuilt the lists (5.7x the rebuilds of the dense
+ * exchange on the paper scene). */
+static int moved_clear(const dem_model *m, const dem_state *s, int mi) {
+  const struct dem_work *w = s->work;
+  if (w->n_active == 0) return 0;
+  const double *glo = w->step_cbox, *ghi = w->step_cbox + 3; /* this step's drift: the awake centres */
+  const double reach = w->grains_rmax + m->skin;
+  const dem_mesh *me = &m->meshes[mi];
+  const double *x = s->mesh_x[mi];
+  const uint8_t *moved = w->mesh_node_moved[mi];
+  for (int t = 0; t < me->n_tri; t++) {
+    const int32_t *tn = &me->tri[3 * t];
+    if (!(moved[tn[0]] | moved[tn[1]] | moved[tn[2]])) continue;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int a = 0; a < 3; a++) {
+      const double *p = &x[3 * (size_t)tn[a]];
+      for (int k = 0; k < 3; k++) {
+        lo[k] = dem_min(lo[k], p[k]);
+        hi[k] = dem_max(hi[k], p[k]);
+      }
+    }
+    double e2 = 0;
+    for (int k = 0; k < 3; k++) {
+      const double e = dem_max(0.0, dem_max(lo[k] - ghi[k], glo[k] - hi[k]));
+      e2 += e * e;
+    }
+    if (!(e2 > reach * reach)) return 0; /* near a grain */
+  }
+  return 1;
+}
+
+void dem_mesh_list_counts(const dem_state *s, int64_t *built, int64_t *kept) {
+  *built = s->work->mesh_builds;
+  *kept = s->work->mesh_clear;
+}
+
 int dem_mesh_lists_check(const dem_model *m, dem_state *s, proto_err *err) {
   const double lim2 = 0.25 * m->skin * m->skin;
   if (s->work->lists_dirty) return dem_mesh_lists(m, s, err);
@@ -522,16 +576,26 @@ int dem_mesh_lists_check(const dem_model *m, dem_state *s, proto_err *err) {
     if (!s->work->mesh_moving[mi] && !s->work->mesh_set[mi]) continue; /* not moved since the build */
     if (s->work->mesh_far[mi]) { /* far from every grain: one comparison */
       if (s->work->mesh_moved[mi] < s->work->mesh_gap[mi] + 0.5 * m->skin) continue;
+      s->work->mesh_builds++;
       return dem_mesh_lists(m, s, err);
     }
     const double *x = s->mesh_x[mi], *x0 = s->work->mesh_xref[mi];
-    double worst = 0;
+    uint8_t *moved = s->work->mesh_node_moved[mi];
+    int any = 0, finite = 1;
     for (int a = 0; a < m->meshes[mi].n_nodes; a++) {
       const double d0 = x[3 * a] - x0[3 * a], d1 = x[3 * a + 1] - x0[3 * a + 1], d2 = x[3 * a + 2] - x0[3 * a + 2];
       const double dd = d0 * d0 + d1 * d1 + d2 * d2;
-      worst = dd > worst ? dd : worst;
+      moved[a] = !(dd <= lim2); /* or not finite */
+      any |= moved[a];
+      finite &= isfinite(dd);
     }
-    if (!(worst <= lim2)) return dem_mesh_lists(m, s, err); /* moved, or not finite */
+    if (!any) continue;
+    if (finite && moved_clear(m, s, mi)) {
+      s->work->mesh_clear++;
+      continue;
+    }
+    s->work->mesh_builds++;
+    return dem_mesh_lists(m, s, err); /* moved near a grain, or not finite */
   }
   return 0;
 }

@@ -20,8 +20,10 @@
  * exchange. A triangle not live does not meet R, so no grain touches it in
  * either exchange; it only takes up room in the candidate lists (which are
  * valid for either: dem_mesh_lists_check compares node positions with those of
- * the build, stale ones included). The contacts, forces and so every result are
- * the same bit for bit; a force row not sent is +0.0 in the dense reply too.
+ * the build, stale ones included, and builds them again when a moved
+ * triangle comes near a grain; a stale node joining the set far from the
+ * grains keeps them). The contacts, forces and so every result are the same
+ * bit for bit; a force row not sent is +0.0 in the dense reply too.
  *
  * The margin of R. The coupler sends the surface's exact path over the step
  * (x, x + v dt), so R need not grow by the surface's speed times dt (that is

@@ -35,7 +35,7 @@ typedef struct dem_app {
   int64_t restart_step; /* > 0: a restart, whose state replaces the settled bed */
   int surface;         /* mesh index of the coupled FEM surface, -1 if none */
   int threads_logged;  /* thread count last written to the log */
-  int64_t logged[5]; /* log_counts at the last output's log line (sleep) */
+  int64_t logged[7]; /* log_counts at the last output's log line (sleep) */
   double series[DEM_N_SERIES];
   double *wall_row;    /* t, then Fx Fy Fz per wall (means over the step) */
   double *surface_force; /* [n*3] nodal force, mean over the step's sub-steps */
@@ -287,12 +287,15 @@ static int add_force(dem_app *a, proto_msg *reply, int sparse, int64_t *rows) {
   return proto_msg_add_f8(reply, PROTO_A_NODAL_FORCE, n, 3, a->surface_force);
 }
 
-/* The active block's counters for the log (sleep): rebuilds, full, wake, and
- * the grains waiting to fall asleep summed over the checks, and the checks. */
-static void log_counts(const dem_state *s, int64_t c[5]) {
+/* The active block's counters for the log (sleep): rebuilds, full, wake, the
+ * grains waiting to fall asleep summed over the checks, the checks, and the
+ * mesh lists built for the surface's moves and kept through moves clear of
+ * the grains. */
+static void log_counts(const dem_state *s, int64_t c[7]) {
   c[0] = s->rebuilds;
   dem_rebuild_kinds(s, &c[1], &c[2]);
   dem_sleep_waiting(s, &c[3], &c[4]);
+  dem_mesh_list_counts(s, &c[5], &c[6]);
 }
 
 static int step(void *user, proto_peer *peer, const proto_step_info *info, const proto_msg *req,
@@ -347,13 +350,16 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
             "force of %lld\n", t, (long long)(k_x >= 0 ? k_x : m->meshes[a->surface].n_nodes),
             m->meshes[a->surface].n_nodes, (long long)k_f);
   if (info->output && m->sleep.on) { /* the active block (dem_sleep.c); its rebuilds are its overhead */
-    int64_t r[5];
+    int64_t r[7];
     log_counts(s, r);
     const int64_t *l = a->logged, full = r[1] - l[1], wake = r[2] - l[2], checks = r[4] - l[4];
     fprintf(stderr, "dem_server: t = %.6g s: %lld of %d grains active (sleep), %.0f of them at rest outside the "
-            "region (mean); list rebuilds since the last output: %lld partial, %lld full, %lld wake\n", t,
-            (long long)(s->n - s->sleeping), s->n, checks > 0 ? (double)(r[3] - l[3]) / (double)checks : 0.0,
-            (long long)(r[0] - l[0] - full - wake), (long long)full, (long long)wake);
+            "region (mean); list rebuilds since the last output: %lld partial, %lld full, %lld wake; "
+            "mesh lists built %lld times for the surface's moves, kept through %lld moves clear of the "
+            "grains\n", t, (long long)(s->n - s->sleeping), s->n,
+            checks > 0 ? (double)(r[3] - l[3]) / (double)checks : 0.0,
+            (long long)(r[0] - l[0] - full - wake), (long long)full, (long long)wake, (long long)(r[5] - l[5]),
+            (long long)(r[6] - l[6]));
     memcpy(a->logged, r, sizeof r);
   }
   if (info->output) {

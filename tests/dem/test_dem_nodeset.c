@@ -10,12 +10,18 @@
  * into the grains and out again, so some steps carry forces while most nodes
  * stay out of the set. And the guard fires: a box one grain diameter too low
  * lets grains out, which dem_reach_escaped reports.
+ * A third copy C takes every node and builds its mesh candidate lists at
+ * every sub-step: A and B, which build them only when a moved triangle comes
+ * near a grain (dem_mesh_lists_check), give C's forces to the bit, and B,
+ * whose left-out nodes jump when they join the set again, found such jumps
+ * clear of the grains (the lists kept) at least once.
  *
  * The scene: 6 x 4 x 2 grains of r = 5 mm in contact, no gravity, no walls,
  * and a triangulated rim sector (radius 0.1 m, +-60 deg) sinking, travelling
  * and turning over them (node velocities v_c + w x (x - c)), 4 DEM sub-steps
  * per coupling step. */
 #include "dem_test.h"
+#include "dem_server/dem_internal.h"
 
 #include <string.h>
 
@@ -75,7 +81,67 @@ static int row_zero(const double *f) {
   return f[0] == 0 && f[1] == 0 && f[2] == 0 && !signbit(f[0]) && !signbit(f[1]) && !signbit(f[2]);
 }
 
+/* The lists check alone: one grain at rest, a plate (2 triangles) coming down
+ * on it from 10 mm above its top at 1 m/s, and a far pair of triangles in the
+ * same mesh jumping 1 cm every step (a sparse set's stale nodes). The grain
+ * has no neighbour to rebuild for: only the check can list the plate before
+ * it touches. Against a copy that builds its lists at every step: the same
+ * forces to the bit, the far jumps kept the lists, and the plate pushed the
+ * grain. Returns the rows that differ. */
+static int plate_on_grain(void) {
+  const double r = 0.005, h = r + 0.01, far = 1.0;
+  double x[8 * 3] = {-0.05, -0.05, h, 0.05, -0.05, h, 0.05, 0.05, h, -0.05, 0.05, h,
+                     far, 0, 0, far + 0.01, 0, 0, far + 0.01, 0.01, 0, far, 0.01, 0};
+  const int32_t tri[4 * 3] = {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7};
+  double v[8 * 3] = {0};
+  for (int a = 0; a < 4; a++) v[3 * a + 2] = -1.0;
+  const char *json = "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,"
+                     "\"friction\":0.6}],\"gravity\":[0,0,0],\"dt\":1e-5,\"skin\":0.002,"
+                     "\"particles\":[{\"x\":[0,0,0],\"r\":0.005}]}";
+  dem_model m[2];
+  dem_state s[2];
+  proto_err err = {{0}};
+  for (int c = 0; c < 2; c++) {
+    cJSON *j = cJSON_Parse(json);
+    if (!j || dem_model_from_json(&m[c], j, "processes.dem", &err) ||
+        dem_model_set_surface(&m[c], 8, x, 4, tri, &err) || dem_state_init(&m[c], &s[c], 0, &err)) {
+      fprintf(stderr, "plate setup: %s\n", err.msg);
+      exit(2);
+    }
+    cJSON_Delete(j);
+  }
+  int differ = 0, touched = 0;
+  for (int k = 0; k < 1500; k++) {
+    for (int a = 0; a < 4; a++) x[3 * a + 2] = h - 1.0 * 1e-5 * k;
+    for (int a = 4; a < 8; a++) x[3 * a + 1] = 0.01 * (k % 7) + (a >= 6 ? 0.01 : 0);
+    for (int c = 0; c < 2; c++) dem_mesh_set_nodes(&m[c], &s[c], 0, x, v);
+    s[1].work->lists_dirty = 1;
+    for (int c = 0; c < 2; c++)
+      if (dem_step(&m[c], &s[c], &err)) {
+        fprintf(stderr, "plate step %d: %s\n", k, err.msg);
+        exit(2);
+      }
+    differ += memcmp(s[0].mesh_force[0], s[1].mesh_force[0], sizeof(double) * 3 * 8) != 0;
+    touched |= s[1].mesh_force[0][2] != 0;
+  }
+  printf("plate: %lld list builds for node moves, %lld checks with every moved triangle clear; "
+         "grain at %.3e m/s\n", (long long)s[0].work->mesh_builds, (long long)s[0].work->mesh_clear, s[0].v[2]);
+  CHECK(touched && s[1].v[2] < 0, "the plate pushed the grain (v_z %g m/s)", s[1].v[2]);
+  CHECK(s[0].work->mesh_clear > 100 && s[0].work->mesh_builds > 0,
+        "the far jumps kept the lists (%lld checks), the plate's approach built them (%lld)",
+        (long long)s[0].work->mesh_clear, (long long)s[0].work->mesh_builds);
+  CHECK(memcmp(s[0].x, s[1].x, 3 * sizeof(double)) == 0 && memcmp(s[0].v, s[1].v, 3 * sizeof(double)) == 0,
+        "the grain ends as the same bits");
+  for (int c = 0; c < 2; c++) {
+    dem_state_free(&s[c]);
+    dem_model_free(&m[c]);
+  }
+  return differ;
+}
+
 int main(void) {
+  CHECK(plate_on_grain() == 0, "lists built when a moved triangle comes near a grain give the forces of "
+        "lists built at every step, to the bit");
   rig g = {{-0.01, 0.0, RIM + 0.001}, {0.5, 0.0, -0.5}, 5.0, {0}};
   for (int a = 0; a < NA; a++)
     for (int b = 0; b < NW; b++) {
@@ -98,18 +164,20 @@ int main(void) {
   int32_t idx[NN];
   uint8_t mark[NN], seen[NN], live[NT];
   surface_nodes(&g, 0, x, v);
-  dem_model ma, mb;
-  dem_state A, B;
+  dem_model ma, mb, mc;
+  dem_state A, B, C;
   build(&ma, &A, x, tri);
   build(&mb, &B, x, tri);
+  build(&mc, &C, x, tri);
   proto_err err = {{0}};
   const double dt = NSUB * DT_DEM;
-  int have_box = 0, missing = 0, differ = 0, escaped = 0, box_differ = 0;
+  int have_box = 0, missing = 0, differ = 0, escaped = 0, box_differ = 0, differ_c = 0;
   int force_steps = 0, sparse_steps = 0, fewest_out = NN;
   for (int k = 0; k < STEPS; k++) {
     if (k == STEPS / 2) g.v[2] = 0.5; /* back out: contacts open */
     surface_nodes(&g, g.w * A.t, x, v);
     dem_mesh_set_nodes(&ma, &A, 0, x, v);
+    dem_mesh_set_nodes(&mc, &C, 0, x, v);
     int64_t kx = NN;
     if (have_box) {
       kx = proto_reach_nodes(x, v, dt, tri, NT, NN, box, mark, idx);
@@ -124,7 +192,8 @@ int main(void) {
     }
     int forced = 0;
     for (int sub = 0; sub < NSUB; sub++) {
-      if (dem_step(&ma, &A, &err) || dem_step(&mb, &B, &err)) {
+      C.work->lists_dirty = 1; /* its lists built again at this step */
+      if (dem_step(&ma, &A, &err) || dem_step(&mb, &B, &err) || dem_step(&mc, &C, &err)) {
         fprintf(stderr, "step %d: %s\n", k, err.msg);
         return 2;
       }
@@ -132,6 +201,7 @@ int main(void) {
         const double *fa = &A.mesh_force[0][3 * q], *fb = &B.mesh_force[0][3 * q];
         if (!row_zero(fa)) forced = 1, missing += !mark[q];
         differ += memcmp(fa, fb, 3 * sizeof(double)) != 0;
+        differ_c += memcmp(fa, &C.mesh_force[0][3 * q], 3 * sizeof(double)) != 0;
       }
       escaped += have_box && dem_reach_escaped(&B, box) >= 0;
     }
@@ -156,6 +226,13 @@ int main(void) {
   CHECK(sparse_steps > STEPS / 2, "the set left nodes out in %d of %d steps", sparse_steps, STEPS);
   CHECK(fewest_out > NN / 4, "while carrying force, at least %d of %d nodes were left out",
         fewest_out, NN);
+  printf("mesh list builds for node moves: A %lld, B %lld; checks with every moved triangle clear: "
+         "A %lld, B %lld\n", (long long)A.work->mesh_builds, (long long)B.work->mesh_builds,
+         (long long)A.work->mesh_clear, (long long)B.work->mesh_clear);
+  CHECK(differ_c == 0, "lists built only when a moved triangle comes near a grain give the forces of "
+        "lists built every sub-step, to the bit (%d rows differ)", differ_c);
+  CHECK(B.work->mesh_clear > 0, "the sparse copy kept its lists through moves clear of the grains "
+        "(%lld checks)", (long long)B.work->mesh_clear);
   const size_t b3 = sizeof(double) * 3 * (size_t)A.n;
   CHECK(A.n == B.n && memcmp(A.x, B.x, b3) == 0 && memcmp(A.v, B.v, b3) == 0 &&
             memcmp(A.omega, B.omega, b3) == 0,
@@ -167,7 +244,9 @@ int main(void) {
   CHECK(dem_reach_escaped(&B, low) >= 0, "a grain outside a box is reported");
   dem_state_free(&A);
   dem_state_free(&B);
+  dem_state_free(&C);
   dem_model_free(&ma);
   dem_model_free(&mb);
+  dem_model_free(&mc);
   return cosim_test_done("dem_nodeset");
 }
