@@ -204,6 +204,42 @@ static int tb_printf(text_buf *b, const char *fmt, ...) {
   }
 }
 
+/* A string that needs no escaping printed as is, else through cJSON. */
+static int tb_string(text_buf *b, const char *str) {
+  int plain = str != NULL;
+  for (const unsigned char *c = (const unsigned char *)str; plain && *c; c++)
+    plain = *c >= 0x20 && *c != '"' && *c != '\\' && *c < 0x7f;
+  if (plain) return tb_printf(b, "\"%s\"", str);
+  char *q = cJSON_PrintUnformatted(&(cJSON){.type = cJSON_String, .valuestring = (char *)str});
+  int rc = q ? tb_printf(b, "%s", q) : -1;
+  free(q);
+  return rc;
+}
+
+/* A header value: numbers (%.17g: the same double back; not finite: null,
+ * as cJSON prints them), booleans, null, plain strings and arrays of these
+ * printed here, without cJSON's number round trip and allocations (a step
+ * header's dt and reach box every step); anything else through cJSON. */
+static int tb_value(text_buf *b, const cJSON *e) {
+  if (cJSON_IsNumber(e))
+    return isfinite(e->valuedouble) ? tb_printf(b, "%.17g", e->valuedouble) : tb_printf(b, "null");
+  if (cJSON_IsBool(e)) return tb_printf(b, "%s", cJSON_IsTrue(e) ? "true" : "false");
+  if (cJSON_IsNull(e)) return tb_printf(b, "null");
+  if (cJSON_IsString(e)) return tb_string(b, e->valuestring);
+  if (cJSON_IsArray(e)) {
+    int rc = tb_printf(b, "[");
+    for (const cJSON *c = e->child; rc == 0 && c; c = c->next) {
+      if (c != e->child) rc = tb_printf(b, ",");
+      if (rc == 0) rc = tb_value(b, c);
+    }
+    return rc == 0 ? tb_printf(b, "]") : rc;
+  }
+  char *q = cJSON_PrintUnformatted(e);
+  int rc = q ? tb_printf(b, "%s", q) : -1;
+  free(q);
+  return rc;
+}
+
 /* The header's fixed fields are printed directly (a cJSON round trip per
  * message was most of the cost of a small exchange); extra fields are
  * spliced in from the cJSON object. Array names are checked plain by
@@ -244,12 +280,10 @@ static char *header_json(const proto_msg *m, const proto_shm *w,
     int skip = announce && strcmp(e->string, PROTO_H_SHM_SEGMENT) == 0;
     for (int k = 0; k < 5; k++) skip |= strcmp(e->string, fixed[k]) == 0;
     if (skip) continue;
-    char *value = cJSON_PrintUnformatted(e);
-    char *key = cJSON_PrintUnformatted(&(cJSON){.type = cJSON_String,
-                                                .valuestring = e->string});
-    rc = value && key ? tb_printf(&b, ",%s:%s", key, value) : -1;
-    free(value);
-    free(key);
+    rc = tb_printf(&b, ",");
+    if (rc == 0) rc = tb_string(&b, e->string);
+    if (rc == 0) rc = tb_printf(&b, ":");
+    if (rc == 0) rc = tb_value(&b, e);
   }
   if (rc == 0) rc = tb_printf(&b, "}");
   if (rc < 0) {

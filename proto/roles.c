@@ -438,37 +438,31 @@ int proto_role_check(proto_role role, proto_msg_kind kind, const proto_msg *m,
   return 0;
 }
 
-/* A node's side of the z test: bit 1 if the low end of its path over the
- * step reaches down to the box's top, bit 2 if the high end reaches up to
- * its bottom. A triangle's box meets the slab iff its nodes' bits together
- * hold both: min_i(lo_i) - r <= top iff some lo_i - r <= top (rounding is
- * monotone), and the same for the max; so per node once, not per corner. */
-enum { REACH_BELOW_TOP = 1, REACH_ABOVE_BOTTOM = 2, REACH_Z = 3, REACH_SENT = 4 };
+/* Per node, one bit per side of the box its swept segment [x, x + v dt]
+ * (grown by the rounding) reaches: bit 2d if its low end reaches down to
+ * the box's top on axis d, bit 2d+1 if its high end reaches up to the
+ * bottom. A triangle's box over the step meets the box iff its nodes' bits
+ * together are all six: min_i(lo_i) - r <= top iff some lo_i - r <= top
+ * (rounding is monotone), and the same for the max. So per node once, then
+ * three byte loads per triangle (it tested x and y per corner). */
+enum { REACH_ALL_SIDES = 63, REACH_SENT = 64 };
 
 int64_t proto_reach_nodes(const double *x, const double *v, double dt, const int32_t *tri,
                           int64_t n_tri, int64_t n, const double box[6], uint8_t *mark,
                           int32_t *index) {
-  /* z first: a bed under gravity is a layer, most of a wheel lies above it */
   for (int64_t a = 0; a < n; a++) {
-    const double p = x[3 * a + 2], q = p + v[3 * a + 2] * dt;
-    const double l = p < q ? p : q, h = p < q ? q : p; /* finite: checked on arrival */
-    mark[a] = (uint8_t)((l - PROTO_REACH_ROUNDING <= box[5] ? REACH_BELOW_TOP : 0) |
-                        (h + PROTO_REACH_ROUNDING >= box[2] ? REACH_ABOVE_BOTTOM : 0));
+    unsigned bits = 0;
+    for (int d = 0; d < 3; d++) {
+      const double p = x[3 * a + d], q = p + v[3 * a + d] * dt;
+      const double l = p < q ? p : q, h = p < q ? q : p; /* finite: checked on arrival */
+      bits |= (l - PROTO_REACH_ROUNDING <= box[3 + d] ? 1u : 0u) << (2 * d);
+      bits |= (h + PROTO_REACH_ROUNDING >= box[d] ? 2u : 0u) << (2 * d);
+    }
+    mark[a] = (uint8_t)bits;
   }
   for (int64_t t = 0; t < n_tri; t++) {
     const int32_t *tn = &tri[3 * t];
-    int meets = ((mark[tn[0]] | mark[tn[1]] | mark[tn[2]]) & REACH_Z) == REACH_Z;
-    for (int d = 1; d >= 0 && meets; d--) {
-      double lo = INFINITY, hi = -INFINITY;
-      for (int a = 0; a < 3; a++) {
-        const double p = x[3 * tn[a] + d], q = p + v[3 * tn[a] + d] * dt;
-        const double l = p < q ? p : q, h = p < q ? q : p;
-        lo = l < lo ? l : lo;
-        hi = h > hi ? h : hi;
-      }
-      meets = lo - PROTO_REACH_ROUNDING <= box[3 + d] && hi + PROTO_REACH_ROUNDING >= box[d];
-    }
-    if (meets)
+    if (((mark[tn[0]] | mark[tn[1]] | mark[tn[2]]) & REACH_ALL_SIDES) == REACH_ALL_SIDES)
       for (int a = 0; a < 3; a++) mark[tn[a]] |= REACH_SENT;
   }
   int64_t k = 0;
