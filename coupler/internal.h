@@ -63,7 +63,9 @@ typedef struct cpl_bus_eps {
  * side, CPL_ZAP_MONITOR for the others), with a ZAP handler of its own. */
 cpl_bus *cpl_bus_start(void *ctx, cpl_bus_eps *eps, int hwm, int snapshot_hwm,
                        const struct cpl_zap *zap, proto_err *err);
-void *cpl_bus_pub(cpl_bus *b); /* the coupler's own publisher */
+/* The coupler's own publisher; NULL while no monitor subscribes to anything
+ * (a message then reaches nobody: PUB drops it), so the loop builds none. */
+void *cpl_bus_pub(cpl_bus *b);
 /* Does any monitor subscribe on the snapshot stream? If not, the loop need
  * not copy its snapshots onto the bus (they would be dropped). */
 int cpl_bus_snapshots_wanted(cpl_bus *b);
