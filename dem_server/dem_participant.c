@@ -355,8 +355,8 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info, const
     const int64_t *l = a->logged, full = r[1] - l[1], wake = r[2] - l[2], checks = r[4] - l[4];
     fprintf(stderr, "dem_server: t = %.6g s: %lld of %d grains active (sleep), %.0f of them at rest outside the "
             "region (mean); list rebuilds since the last output: %lld partial, %lld full, %lld wake; "
-            "mesh lists built %lld times for the surface's moves, kept through %lld moves clear of the "
-            "grains\n", t, (long long)(s->n - s->sleeping), s->n,
+            "mesh lists built for the surface's moves: %lld, kept through moves clear of the grains: "
+            "%lld\n", t, (long long)(s->n - s->sleeping), s->n,
             checks > 0 ? (double)(r[3] - l[3]) / (double)checks : 0.0,
             (long long)(r[0] - l[0] - full - wake), (long long)full, (long long)wake, (long long)(r[5] - l[5]),
             (long long)(r[6] - l[6]));

@@ -10,7 +10,12 @@
  * phase 2 (move1, move2) the sleeping grains, the mean number
  * of awake grains per step (CPU ns per awake grain-step) and the rebuilds by
  * kind. Under valgrind --tool=callgrind each phase is dumped on its own
- * (instruction counts do not depend on the machine's load). */
+ * (instruction counts do not depend on the machine's load).
+ * PLOUGH_MODEL=FILE.json replaces the built-in model (materials, dt, sleep,
+ * walls, ...) by a dem_server section, e.g. a scene's `processes.soil` with
+ * "dt" added (its "particles" is ignored: the grains are BED.h5's; THREADS,
+ * SLEEP and L are then not used): a scene's own laws with a mesh moved
+ * through its bed (bench/tire_soil/plough_tread.py). */
 #include "dem_server/dem_internal.h"
 
 #include <math.h>
@@ -69,6 +74,27 @@ static int read_mesh(const char *path, double *c0, int *nn, double **x, int *nt,
   return 0;
 }
 
+/* A dem_server section from a file, its "particles" replaced by one grain
+ * (the bed's grains replace it; the section must still have one). */
+static cJSON *read_model(const char *path) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  char *text = NULL;
+  long n = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  if (n > 0 && fseek(f, 0, SEEK_SET) == 0 && (text = calloc((size_t)n + 1, 1)) &&
+      fread(text, 1, (size_t)n, f) != (size_t)n) {
+    free(text);
+    text = NULL;
+  }
+  fclose(f);
+  cJSON *j = text ? cJSON_Parse(text) : NULL;
+  free(text);
+  if (!cJSON_IsObject(j)) { cJSON_Delete(j); return NULL; }
+  cJSON_DeleteItemFromObject(j, "particles");
+  cJSON_AddItemToObject(j, "particles", cJSON_Parse("[{\"x\":[0.01,0.01,0.01],\"r\":0.001}]"));
+  return j;
+}
+
 /* Rigid motion: centre c0 + V t (after the descent), turned by φ about y. */
 static void place(int nn, const double *x0, const double *c0, const double *c, double phi, const double *vel,
                   double omega, double *x, double *v) {
@@ -106,8 +132,10 @@ int main(int argc, char **argv) {
   proto_err err;
   dem_model m;
   dem_state s;
-  cJSON *j = cJSON_Parse(json);
-  if (dem_model_from_json(&m, j, "bench", &err) || dem_bed_load(&m, argv[1], &err)) {
+  const char *model_file = getenv("PLOUGH_MODEL");
+  cJSON *j = model_file ? read_model(model_file) : cJSON_Parse(json);
+  if (!j) { fprintf(stderr, "%s: not a JSON object\n", model_file ? model_file : "built-in model"); return 1; }
+  if (dem_model_from_json(&m, j, model_file ? model_file : "bench", &err) || dem_bed_load(&m, argv[1], &err)) {
     fprintf(stderr, "%s\n", err.msg);
     return 1;
   }
