@@ -531,10 +531,10 @@ int dem_mesh_lists(const dem_model *m, dem_state *s, proto_err *err) {
  * only with a build) and before the forces, so a triangle clear now is looked
  * at again before it can touch. Clear: every triangle with a node flagged in
  * mesh_node_moved is (the caller builds the lists when a position is not
- * finite: the health check then names it). The nodes a sparse exchange did not send keep their stale positions,
- * and those coming into the sent set jump from them: without this test every
- * node entering the set rebuilt the lists (5.7x the rebuilds of the dense
- * exchange on the paper scene). */
+ * finite: the health check then names it). The nodes a sparse exchange did
+ * not send keep their stale positions, and those coming into the sent set
+ * jump from them: without this test every node entering the set rebuilt the
+ * lists (5.7x the rebuilds of the dense exchange on the paper scene). */
 static int moved_clear(const dem_model *m, const dem_state *s, int mi) {
   const struct dem_work *w = s->work;
   if (w->n_active == 0) return 0;
