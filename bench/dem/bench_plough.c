@@ -74,24 +74,20 @@ static int read_mesh(const char *path, double *c0, int *nn, double **x, int *nt,
   return 0;
 }
 
-/* A dem_server section from a file, its "particles" replaced by one grain
- * (the bed's grains replace it; the section must still have one). */
-static cJSON *read_model(const char *path) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return NULL;
-  char *text = NULL;
-  long n = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
-  if (n > 0 && fseek(f, 0, SEEK_SET) == 0 && (text = calloc((size_t)n + 1, 1)) &&
-      fread(text, 1, (size_t)n, f) != (size_t)n) {
-    free(text);
-    text = NULL;
+/* A dem_server section from a file (proto_json_load), its "particles"
+ * replaced by one grain (the bed's grains replace it; the section must
+ * still have one). */
+static cJSON *read_model(const char *path, proto_err *err) {
+  cJSON *j = proto_json_load(path, err);
+  if (j && !cJSON_IsObject(j)) {
+    proto_fail(err, "%s: not a JSON object", path);
+    cJSON_Delete(j);
+    return NULL;
   }
-  fclose(f);
-  cJSON *j = text ? cJSON_Parse(text) : NULL;
-  free(text);
-  if (!cJSON_IsObject(j)) { cJSON_Delete(j); return NULL; }
-  cJSON_DeleteItemFromObject(j, "particles");
-  cJSON_AddItemToObject(j, "particles", cJSON_Parse("[{\"x\":[0.01,0.01,0.01],\"r\":0.001}]"));
+  if (j) {
+    cJSON_DeleteItemFromObject(j, "particles");
+    cJSON_AddItemToObject(j, "particles", cJSON_Parse("[{\"x\":[0.01,0.01,0.01],\"r\":0.001}]"));
+  }
   return j;
 }
 
@@ -129,13 +125,12 @@ int main(int argc, char **argv) {
            "\"threads\":%d,\"dt\":5e-5,\"skin\":0.002,\"overlap_tolerance\":0.1,\"sleep\":%s,"
            "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,100],\"open_top\":true}],"
            "\"particles\":[{\"x\":[0.01,0.01,0.01],\"r\":0.001}]}", threads, sleep_json, L, Ly);
-  proto_err err;
+  proto_err err = {{0}};
   dem_model m;
   dem_state s;
   const char *model_file = getenv("PLOUGH_MODEL");
-  cJSON *j = model_file ? read_model(model_file) : cJSON_Parse(json);
-  if (!j) { fprintf(stderr, "%s: not a JSON object\n", model_file ? model_file : "built-in model"); return 1; }
-  if (dem_model_from_json(&m, j, model_file ? model_file : "bench", &err) || dem_bed_load(&m, argv[1], &err)) {
+  cJSON *j = model_file ? read_model(model_file, &err) : cJSON_Parse(json);
+  if (!j || dem_model_from_json(&m, j, model_file ? model_file : "bench", &err) || dem_bed_load(&m, argv[1], &err)) {
     fprintf(stderr, "%s\n", err.msg);
     return 1;
   }

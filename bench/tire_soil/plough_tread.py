@@ -8,7 +8,8 @@ From a coupled run (RUN/results.h5, the scene it ran) writes
                    the two sides, i.e. fem_server's "outer" group, at the
                    first snapshot (inflated, world frame), moved up to the
                    rim's height at t = 0;
-  OUT/model.json   the scene's soil section with the coupling step as "dt";
+  OUT/model.json   the scene's soil section with the coupling step as "dt"
+                   (without its particles: bench_plough adds one);
 and prints the bench_plough command that repeats the run's kinematic rig:
 descent at the rig's sinkage velocity until the run's load first reached
 sinkage_force, then travel at V = omega r (1 - slip) turning at omega.
@@ -77,10 +78,10 @@ def main():
     sink = tr[:, cols.index("sinkage")]
     load = tr[:, cols.index("vertical_load")]
     vs = float(sc["sinkage_velocity"])
-    x = f["tyre/steps/%d/x" % k1][:][used]
     ctr_xy = [float(sc["rim_center"][0]), float(sc["rim_center"][1])]
     i1 = k1 - 1  # the row of step k1 (rows start at step 1)
     x_all = f["tyre/steps/%d/x" % k1][:]
+    x = x_all[used]
     # the rim (inner radius) nodes are rigid on the rim: their mean is its centre
     rim = np.abs(r0 - r0.min()) < 1e-6
     cz1 = float(x_all[rim, 2].mean())
@@ -102,8 +103,7 @@ def main():
             m.write("%d %d %d\n" % tuple(t))
     soil = next(p for p in scene["processes"].values() if p.get("exec") == "dem_server")
     model = {k: v for k, v in soil.items() if k not in ("exec", "notes", "particles")}
-    model["dt"] = dt
-    model["particles"] = [{"x": [0.01, 0.01, 0.01], "r": 0.001}]
+    model["dt"] = dt  # bench_plough puts in the particles (the bed's replace them)
     json.dump(model, open(os.path.join(out, "model.json"), "w"), indent=2)
     bed = sys.argv[4] if len(sys.argv) == 5 else "BED.h5"
     print("tread: %d nodes, %d triangles; rim centre at t = 0 z = %.6f m (rim nodes' mean at step %d + sinkage)"
