@@ -12,17 +12,5 @@ NAME=${3:-paper}
 shift $(( $# < 3 ? $# : 3 ))
 SCENE=${SCENE:-configs/tire_soil_paper.json}
 mkdir -p "$WORK"
-LOCK=${COSIM_BENCH_LOCK:-/tmp/cosim-bench.lock}
-flock "$LOCK" bash -c '
-  scene=$1 build=$2 out=$3; shift 3
-  echo "scene: $scene" > "$out.time"
-  echo "args: $*" >> "$out.time"
-  echo "load_before: $(cut -d" " -f1-3 /proc/loadavg)" >> "$out.time"
-  t0=$(date +%s.%N)
-  rc=0
-  "$build/bin/cosim" run "$scene" --set output.dir="\"$out\"" --overwrite "$@" > "$out.log" 2>&1 || rc=$?
-  t1=$(date +%s.%N)
-  echo "wall_s: $(echo "$t1 - $t0" | bc)" >> "$out.time"
-  echo "load_after: $(cut -d" " -f1-3 /proc/loadavg)" >> "$out.time"
-  echo "rc: $rc" >> "$out.time"
-  exit $rc' _ "$SCENE" "$BUILD" "$WORK/$NAME" "$@"
+bash "$(dirname "$0")/timed.sh" "$WORK/$NAME" "$SCENE" \
+  "$BUILD/bin/cosim" run "$SCENE" --set output.dir="\"$WORK/$NAME\"" --overwrite "$@"

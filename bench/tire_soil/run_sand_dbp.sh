@@ -15,21 +15,9 @@ OUT=${2:?usage: run_sand_dbp.sh BUILD_DIR OUT_DIR [N [cosim sweep args...]]}
 N=${3:-3}
 shift $(( $# < 3 ? $# : 3 ))
 SCENE=${SCENE:-configs/tire_soil_sand.json}
-LOCK=${COSIM_BENCH_LOCK:-/tmp/cosim-bench.lock}
-flock "$LOCK" bash -c '
-  scene=$1 build=$2 out=$3 n=$4; shift 4
-  echo "scene: $scene" > "$out.time"
-  echo "args: --repeat $n $*" >> "$out.time"
-  echo "load_before: $(cut -d" " -f1-3 /proc/loadavg)" >> "$out.time"
-  t0=$(date +%s.%N)
-  rc=0
-  "$build/bin/cosim" sweep "$scene" --values scenario.slip=0.0 \
-      --set scenario.rig=dbp --set scenario.dbp_force_start=-130 \
-      --set scenario.dbp_force_rate=330 --set scenario.dbp_hold=0.15 \
-      --set scenario.dbp_window=0.1 --repeat "$n" --jobs 1 --out "$out" \
-      --reference bench/results/terra_reference_sand_W1000.csv "$@" > "$out.log" 2>&1 || rc=$?
-  t1=$(date +%s.%N)
-  echo "wall_s: $(echo "$t1 - $t0" | bc)" >> "$out.time"
-  echo "load_after: $(cut -d" " -f1-3 /proc/loadavg)" >> "$out.time"
-  echo "rc: $rc" >> "$out.time"
-  exit $rc' _ "$SCENE" "$BUILD" "$OUT" "$N" "$@"
+bash "$(dirname "$0")/timed.sh" "$OUT" "$SCENE" \
+  "$BUILD/bin/cosim" sweep "$SCENE" --values scenario.slip=0.0 \
+  --set scenario.rig=dbp --set scenario.dbp_force_start=-130 \
+  --set scenario.dbp_force_rate=330 --set scenario.dbp_hold=0.15 \
+  --set scenario.dbp_window=0.1 --repeat "$N" --jobs 1 --out "$OUT" \
+  --reference bench/results/terra_reference_sand_W1000.csv "$@"
