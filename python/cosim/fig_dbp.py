@@ -3,6 +3,8 @@
     python3 -m cosim.fig_dbp RUN_DIR [--png PATH] [--csv PATH] [--bin-width W]
                              [--slip-points SLIPS.csv] [--reference REF.csv]
     python3 -m cosim.fig_dbp RUN_DIR RUN_DIR... --out DIR [the same options]
+    python3 -m cosim.fig_dbp --curve CURVE.csv --png PATH [--slip-points SLIPS.csv]
+                             [--check PATH] [--reference REF.csv]
 
 results.h5 (/coupler/traction, /coupler/dbp) -> RUN_DIR/dbp_curve.csv (the
 curve binned by the measured slip, 95 % batch-means intervals:
@@ -17,6 +19,13 @@ curve (a `cosim terra curve` record for the scene's wheel and load: T/r as T_H,
 T/r - DP as |T_R|, DP as T_P, and the band over its packings faint;
 terra/README.md "Files and how to call the reference"); its load must be the
 scene's sinkage_force.
+
+With --slip-points the cross-check is also written as a table
+(cross_check.csv beside the PNG, or --check PATH; cosim.traction.dbp_cross_check:
+per point and quantity the curve interpolated at the point's slip, the
+difference and whether it lies within the combined 95 % half-width) and
+printed. --curve CURVE.csv draws a curve saved earlier (a dbp_curve.csv, one
+run's or across runs) instead of runs, with the same options (needs --png).
 
 Several runs (dbp runs of one scene on different beds, e.g. the runs of a
 `cosim sweep --repeat N`): DIR/dbp_curve.csv is the curve across them
@@ -203,10 +212,45 @@ def write_across(paths, out_dir, bin_width=traction.DBP_BIN_WIDTH, csv_path=None
     return csv_path, png, len(across)
 
 
+def plot_saved(path, curve, name, load, points=None, ref=None):
+    """A saved curve (traction.read_dbp_curve) with its intervals."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7, 4.8))
+    x = np.array([r["slip_mean"] for r in curve])
+    for q in ("T_H", "T_R", "T_P"):
+        sign = -1 if q == "T_R" else 1
+        e = np.array([r[f"{q}_ci95"] for r in curve])
+        ax.errorbar(x, sign * np.array([r[f"{q}_mean"] for r in curve]),
+                    yerr=np.where(np.isnan(e), 0, e), fmt="o-", ms=4, capsize=3,
+                    color=COLORS[q], label=f"{LABELS[q]} ({name}; bars: 95 %)")
+    finish_curve(ax, points, ref, f"dbp curve: load {load:g} N")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def cross_check(curve, points, path, curve_name, points_name):
+    """Writes and prints the cross-check of the slip-controlled points
+    against the curve; returns how many verdicts disagree."""
+    rows = traction.dbp_cross_check(curve, points)
+    traction.write_cross_check(path, rows, curve_name, points_name)
+    bad = 0
+    for r in rows:
+        verdict = {True: "agree", False: "DIFFER", None: "no verdict"}[r["agree"]]
+        bad += r["agree"] is False
+        print(f"cosim.fig_dbp: cross-check slip {r['slip']:.3g} {r['quantity']}: point "
+              f"{r['point_mean']:.4g} +- {r['point_ci95']:.3g}, curve {r['curve_mean']:.4g} +- "
+              f"{r['curve_ci95']:.3g}: difference {r['difference']:.3g} +- {r['ci95']:.3g}: {verdict}")
+    print(f"cosim.fig_dbp: cross-check -> {path}")
+    return bad
+
+
 def main(argv):
     ap = argparse.ArgumentParser(prog="python3 -m cosim.fig_dbp", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("run", nargs="+", help="the run's output dir or its results.h5; several: "
+    ap.add_argument("run", nargs="*", help="the run's output dir or its results.h5; several: "
                     "dbp runs of one scene on different beds, averaged bin by bin (needs --out)")
     ap.add_argument("--out", help="with several runs: the dir of dbp_curve.csv and dbp.png")
     ap.add_argument("--png", help=f"default RUN_DIR/{PLOT_FILE}")
@@ -215,9 +259,31 @@ def main(argv):
     ap.add_argument("--slip-points", help="CSV of slip-controlled runs' means to draw")
     ap.add_argument("--reference", help="a `cosim terra curve` record for the scene's wheel "
                     "and load, drawn dashed")
+    ap.add_argument("--check", help="the cross-check table (with --slip-points; default "
+                    "cross_check.csv beside the PNG)")
+    ap.add_argument("--curve", help="a saved dbp_curve.csv to draw instead of runs (needs --png)")
     a = ap.parse_args(argv)
     if not a.bin_width > 0:
         ap.error(f"--bin-width: must be > 0, got {a.bin_width}")
+    if a.curve:
+        if a.run or not a.png:
+            ap.error("--curve: give --png and no run dirs")
+        try:
+            curve, load = traction.read_dbp_curve(a.curve)
+            points = read_points(a.slip_points) if a.slip_points else None
+            ref = read_reference(a.reference, load) if a.reference else None
+            os.makedirs(os.path.dirname(a.png) or ".", exist_ok=True)
+            plot_saved(a.png, curve, os.path.basename(a.curve), load, points, ref)
+            print(f"cosim.fig_dbp: {len(curve)} slip bins of {a.curve} -> {a.png}")
+            if points:
+                cross_check(curve, points, a.check or os.path.join(os.path.dirname(a.png) or ".",
+                            "cross_check.csv"), a.curve, a.slip_points)
+        except (CosimError, KeyError, OSError, ValueError) as e:
+            print(f"cosim.fig_dbp: {e}", file=sys.stderr)
+            return 1
+        return 0
+    if not a.run:
+        ap.error("give a run dir (or --curve)")
     if len(a.run) > 1:
         if not a.out:
             ap.error(f"--out: needed with several runs ({len(a.run)} given)")
@@ -229,6 +295,14 @@ def main(argv):
             print(f"cosim.fig_dbp: {e}", file=sys.stderr)
             return 1
         print(f"cosim.fig_dbp: {bins} slip bins across {len(a.run)} runs -> {csv_path}, {png}")
+        if points:
+            try:
+                curve, _ = traction.read_dbp_curve(csv_path)
+                cross_check(curve, points, a.check or os.path.join(os.path.dirname(png) or ".",
+                            "cross_check.csv"), csv_path, a.slip_points)
+            except (CosimError, OSError) as e:
+                print(f"cosim.fig_dbp: {e}", file=sys.stderr)
+                return 1
         return 0
     a.run = a.run[0]
     base = a.run if os.path.isdir(a.run) else os.path.dirname(a.run) or "."
@@ -245,6 +319,9 @@ def main(argv):
                    if a.reference else None)
             png = a.png or os.path.join(base, PLOT_FILE)
             plot(png, r, curve, points, ref)
+            if points:
+                cross_check(curve, points, a.check or os.path.join(os.path.dirname(png) or ".",
+                            "cross_check.csv"), csv_path, a.slip_points)
     except (CosimError, KeyError, OSError, ValueError) as e:
         print(f"cosim.fig_dbp: {e}", file=sys.stderr)
         return 1

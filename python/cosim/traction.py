@@ -226,3 +226,105 @@ def write_dbp_curve(path, curve, scene, runs=None):
         for r in curve:
             f.write(",".join(f"{r[c]:.9g}" if isinstance(r[c], float) else str(r[c])
                              for c in cols) + "\n")
+
+
+def read_dbp_curve(path):
+    """A curve written by write_dbp_curve (one run's or across runs): (rows,
+    load in N from its '# ramp:' line). A CosimError naming the file when it
+    is not one."""
+    load, rows = None, []
+    with open(path) as f:
+        lines = f.readlines()
+    for line in lines:
+        if line.startswith("# ramp:") and "; load " in line:
+            try:
+                load = float(line.rsplit("; load ", 1)[1].split()[0])
+            except (IndexError, ValueError):
+                pass
+    body = [line for line in lines if not line.startswith("#")]
+    if load is None or not body:
+        raise CosimError(f"{path}: not a dbp curve (no '# ramp: ... load W N' line or no rows)")
+    header = body[0].strip().split(",")
+    need = ["slip_mean"] + [f"{q}_{st}" for q in ("T_H", "T_R", "T_P") for st in ("mean", "ci95")]
+    missing = [c for c in need if c not in header]
+    if missing:
+        raise CosimError(f"{path}: not a dbp curve (no column {missing[0]})")
+    for n, line in enumerate(body[1:], start=2):
+        vals = line.strip().split(",")
+        if vals == [""]:
+            continue
+        if len(vals) != len(header):
+            raise CosimError(f"{path}: row {n} has {len(vals)} fields, the header {len(header)}")
+        try:
+            rows.append({k: float(v) for k, v in zip(header, vals)})
+        except ValueError as e:
+            raise CosimError(f"{path}: row {n}: {e}") from None
+    return rows, load
+
+
+CROSS_QUANTITIES = ("T_H", "T_R", "T_P")
+
+
+def dbp_cross_check(curve, points, quantities=CROSS_QUANTITIES):
+    """Slip-controlled runs against a dbp curve (issue 22's cross-check).
+
+    For each point (a dict with 'slip' and q_mean, q_ci95: e.g. a `cosim
+    sweep` summary row of the load rig) and quantity: the curve at the
+    point's slip, linearly interpolated between the two bins whose mean slips
+    bracket it (its mean, and its 95 % half-width interpolated the same way:
+    the half-width of the interpolated mean when the two bins' errors are
+    fully correlated, the widest case, since the bins come from the same
+    runs), the difference point - curve and the half-width of the difference,
+    sqrt(h_curve^2 + h_point^2) (independent runs; each h a Student-t 95 %
+    half-width, so this is the normal approximation of the difference's).
+    'agree' is |difference| <= that half-width: the two are the same curve
+    within their intervals. No verdict (nan, agree None) when the slip lies
+    outside the curve's bin means or either half-width is missing."""
+    cs = sorted((c for c in curve if math.isfinite(c.get("slip_mean", math.nan))),
+                key=lambda c: c["slip_mean"])
+    xs = [c["slip_mean"] for c in cs]
+    out = []
+    for p in points:
+        s = float(p["slip"])
+        k = next((i for i in range(1, len(xs)) if xs[i - 1] <= s <= xs[i]), None)
+        for q in quantities:
+            if f"{q}_mean" not in p:
+                continue
+            row = {"slip": s, "quantity": q, "point_mean": float(p[f"{q}_mean"]),
+                   "point_ci95": float(p.get(f"{q}_ci95", math.nan)), "curve_mean": math.nan,
+                   "curve_ci95": math.nan, "difference": math.nan, "ci95": math.nan,
+                   "agree": None}
+            if k is not None:
+                a, b = cs[k - 1], cs[k]
+                w = (s - xs[k - 1]) / (xs[k] - xs[k - 1]) if xs[k] > xs[k - 1] else 0.0
+                row["curve_mean"] = (1 - w) * a[f"{q}_mean"] + w * b[f"{q}_mean"]
+                row["curve_ci95"] = (1 - w) * a[f"{q}_ci95"] + w * b[f"{q}_ci95"]
+                row["difference"] = row["point_mean"] - row["curve_mean"]
+                h = math.hypot(row["curve_ci95"], row["point_ci95"])
+                if math.isfinite(h):
+                    row["ci95"] = h
+                    row["agree"] = bool(abs(row["difference"]) <= h)
+            out.append(row)
+    return out
+
+
+CROSS_COLUMNS = ["slip", "quantity", "point_mean", "point_ci95", "curve_mean", "curve_ci95",
+                 "difference", "ci95", "agree"]
+
+
+def write_cross_check(path, rows, curve_name, points_name):
+    """dbp_cross_check's rows as CSV, # lines saying what was compared."""
+    with open(path, "w") as f:
+        f.write(f"# cosim dbp cross-check: slip-controlled points ({points_name}) against the "
+                f"dbp curve ({curve_name}) at the points' slips\n")
+        f.write("# curve: linear between the two bins bracketing the slip (half-width likewise); "
+                "ci95: sqrt(curve_ci95^2 + point_ci95^2); agree: |difference| <= ci95 "
+                "(yes / no; empty: no verdict)\n")
+        f.write(",".join(CROSS_COLUMNS) + "\n")
+        for r in rows:
+            vals = []
+            for c in CROSS_COLUMNS:
+                v = r[c]
+                vals.append("" if v is None else ("yes" if v else "no") if isinstance(v, bool)
+                            else f"{v:.9g}" if isinstance(v, float) else str(v))
+            f.write(",".join(vals) + "\n")
