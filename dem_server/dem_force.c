@@ -11,8 +11,9 @@
  * whole chunks: no two threads write the same grain, no atomics, no
  * per-thread copies.
  * Speed (bench/results/dem.md): touching pairs and wall contacts are gathered
- * into small structure-of-arrays batches and the contact law runs over a
- * batch as one branch-free loop that the compiler vectorises (AVX2 clone when
+ * into small structure-of-arrays batches and the contact law (then the
+ * rolling torque, from the batch's own ω copies) runs over a batch as one
+ * branch-free loop that the compiler vectorises (AVX2 clone when
  * the CPU has it; same IEEE operations, so the same results); open pairs cost
  * one distance test (no history read unless they touched last step). */
 #include "dem_server/dem_internal.h"
@@ -31,10 +32,12 @@ typedef struct pair_batch {
   double d[3][DEM_BATCH], dv[3][DEM_BATCH], oi[3][DEM_BATCH], oj[3][DEM_BATCH], sh[3][DEM_BATCH];
   double ri[DEM_BATCH], rj[DEM_BATCH], isum[DEM_BATCH]; /* isum = 1/m_i + 1/m_j */
   double Estar[DEM_BATCH], Gstar[DEM_BATCH], damp_n[DEM_BATCH], damp_t[DEM_BATCH], mu[DEM_BATCH];
+  double mu_roll[DEM_BATCH];
   /* out: F on i, (r_i − δ/2) c and (r_j − δ/2) c with c = n × F_t (torques −those
-   * on i and j, eq. 7), F_n, elastic energy, R*, overlap ratio */
+   * on i and j, eq. 7), F_n, elastic energy, R*, overlap ratio, rolling
+   * torque on i (dem_rolling; −it on j; set only when the scene has rolling) */
   double F[3][DEM_BATCH], ci[3][DEM_BATCH], cj[3][DEM_BATCH], Fn[DEM_BATCH], up[DEM_BATCH];
-  double rstar[DEM_BATCH], rr[DEM_BATCH];
+  double rstar[DEM_BATCH], rr[DEM_BATCH], roll[3][DEM_BATCH];
 } pair_batch;
 
 /* Grain i's running sums over its own pairs (list order). */
@@ -45,7 +48,7 @@ typedef struct row_sum {
 
 static void law_set(pair_batch *b, int q, const dem_pair_law *l) {
   b->Estar[q] = l->Estar; b->Gstar[q] = l->Gstar; b->damp_n[q] = l->damp_n; b->damp_t[q] = l->damp_t;
-  b->mu[q] = l->mu;
+  b->mu[q] = l->mu; b->mu_roll[q] = l->mu_roll;
 }
 
 /* Appends the touching pairs among k0..k1 of row i (list order; every pair
@@ -136,7 +139,7 @@ static inline __attribute__((always_inline)) void batch_fill(const dem_model *m,
 /* Pair geometry (eq. 10–18) and contact law of a batch, as one branch-free
  * loop the compiler vectorises (IEEE results as in scalar code). */
 __attribute__((target_clones("avx2", "default")))
-static void batch_hertz(pair_batch *restrict b, double dt, int clamp) {
+static void batch_hertz(pair_batch *restrict b, double dt, int clamp, int rolling) {
   const int nb = b->n;
   for (int q = 0; q < nb; q++) {
     const double d0 = b->d[0][q], d1 = b->d[1][q], d2 = b->d[2][q];
@@ -168,6 +171,14 @@ static void batch_hertz(pair_batch *restrict b, double dt, int clamp) {
     b->rstar[q] = rstar;
     b->rr[q] = delta / (ri < rj ? ri : rj);
   }
+  if (rolling) /* on ω_i − ω_j as batch_fill copied them (an asleep j's are 0, as stored) */
+    for (int q = 0; q < nb; q++) {
+      const dem_pair_law l = {.mu_roll = b->mu_roll[q]};
+      const double wrel[3] = {b->oi[0][q] - b->oj[0][q], b->oi[1][q] - b->oj[1][q], b->oi[2][q] - b->oj[2][q]};
+      double roll[3];
+      dem_rolling(&l, b->Fn[q], b->rstar[q], wrel, roll);
+      b->roll[0][q] = roll[0]; b->roll[1][q] = roll[1]; b->roll[2][q] = roll[2];
+    }
 }
 
 /* Grain i's own-pair sums become its force and torque (rows run in
@@ -202,7 +213,7 @@ static void batch_flush(const dem_model *m, dem_state *s, pair_batch *b, row_sum
   int ci = r->i, cnt = r->cnt;
   double f0 = r->f[0], f1 = r->f[1], f2 = r->f[2], t0 = r->t[0], t1 = r->t[1], t2 = r->t[2];
   double u = r->u, ratio = r->ratio;
-  batch_hertz(b, s->dt, m->limit_force);
+  batch_hertz(b, s->dt, m->limit_force, rolling);
   for (int q = 0; q < b->n; q++) {
     const int i = b->i[q], k = b->k[q], j = b->j[q];
     if (i != ci) {
@@ -216,15 +227,10 @@ static void batch_flush(const dem_model *m, dem_state *s, pair_batch *b, row_sum
     f0 += F0; f1 += F1; f2 += F2;
     t0 -= b->ci[0][q]; t1 -= b->ci[1][q]; t2 -= b->ci[2][q];
     double roll[3] = {0, 0, 0};
-    int rolls = 0;
-    if (rolling) {
-      const dem_pair_law *l = &m->law[s->material[i]][s->material[j]];
-      if ((rolls = l->mu_roll > 0)) {
-        const double *oi = &s->omega[3 * i], *oj = &s->omega[3 * j];
-        const double wrel[3] = {oi[0] - oj[0], oi[1] - oj[1], oi[2] - oj[2]};
-        dem_rolling(l, b->Fn[q], b->rstar[q], wrel, roll);
-        t0 += roll[0]; t1 += roll[1]; t2 += roll[2];
-      }
+    const int rolls = rolling && b->mu_roll[q] > 0;
+    if (rolls) {
+      roll[0] = b->roll[0][q]; roll[1] = b->roll[1][q]; roll[2] = b->roll[2][q];
+      t0 += roll[0]; t1 += roll[1]; t2 += roll[2];
     }
     if (j < hi) {
       double *fj = &force[3 * j], *tj = &torque[3 * j];
