@@ -187,9 +187,10 @@ def plot_across(path, runs, names, curves, across, points=None, ref=None):
 
 
 def write_across(paths, out_dir, bin_width=traction.DBP_BIN_WIDTH, csv_path=None, png=None,
-                 points=None, reference=None):
+                 points=None, reference=None, check=None, points_name="points"):
     """The curve across the dbp runs in paths (their dirs or results.h5):
-    dbp_curve.csv and dbp.png into out_dir (or csv_path, png); returns
+    dbp_curve.csv and dbp.png into out_dir (or csv_path, png), and with
+    points their cross-check (cross_check, into check); returns
     (csv_path, png, bins). A CosimError when the runs are not realisations
     of one curve or one has no ramp."""
     names = [os.path.basename(os.path.normpath(p if os.path.isdir(p) else os.path.dirname(p) or "."))
@@ -209,6 +210,8 @@ def write_across(paths, out_dir, bin_width=traction.DBP_BIN_WIDTH, csv_path=None
         traction.write_dbp_curve(csv_path, across, runs[0].scene, runs=names)
         png = png or os.path.join(out_dir, PLOT_FILE)
         plot_across(png, runs, names, curves, across, points, ref)
+    if points:
+        cross_check(across, points, check, png, csv_path, points_name)
     return csv_path, png, len(across)
 
 
@@ -231,20 +234,18 @@ def plot_saved(path, curve, name, load, points=None, ref=None):
     plt.close(fig)
 
 
-def cross_check(curve, points, path, curve_name, points_name):
-    """Writes and prints the cross-check of the slip-controlled points
-    against the curve; returns how many verdicts disagree."""
+def cross_check(curve, points, path, png, curve_name, points_name):
+    """Writes (to path, default cross_check.csv beside png) and prints the
+    cross-check of the slip-controlled points against the curve."""
+    path = path or os.path.join(os.path.dirname(png) or ".", "cross_check.csv")
     rows = traction.dbp_cross_check(curve, points)
     traction.write_cross_check(path, rows, curve_name, points_name)
-    bad = 0
     for r in rows:
         verdict = {True: "agree", False: "DIFFER", None: "no verdict"}[r["agree"]]
-        bad += r["agree"] is False
         print(f"cosim.fig_dbp: cross-check slip {r['slip']:.3g} {r['quantity']}: point "
               f"{r['point_mean']:.4g} +- {r['point_ci95']:.3g}, curve {r['curve_mean']:.4g} +- "
               f"{r['curve_ci95']:.3g}: difference {r['difference']:.3g} +- {r['ci95']:.3g}: {verdict}")
     print(f"cosim.fig_dbp: cross-check -> {path}")
-    return bad
 
 
 def main(argv):
@@ -276,8 +277,7 @@ def main(argv):
             plot_saved(a.png, curve, os.path.basename(a.curve), load, points, ref)
             print(f"cosim.fig_dbp: {len(curve)} slip bins of {a.curve} -> {a.png}")
             if points:
-                cross_check(curve, points, a.check or os.path.join(os.path.dirname(a.png) or ".",
-                            "cross_check.csv"), a.curve, a.slip_points)
+                cross_check(curve, points, a.check, a.png, a.curve, a.slip_points)
         except (CosimError, KeyError, OSError, ValueError) as e:
             print(f"cosim.fig_dbp: {e}", file=sys.stderr)
             return 1
@@ -290,19 +290,11 @@ def main(argv):
         try:
             points = read_points(a.slip_points) if a.slip_points else None
             csv_path, png, bins = write_across(a.run, a.out, a.bin_width, a.csv, a.png, points,
-                                               a.reference)
+                                               a.reference, a.check, a.slip_points)
         except (CosimError, KeyError, OSError, ValueError) as e:
             print(f"cosim.fig_dbp: {e}", file=sys.stderr)
             return 1
         print(f"cosim.fig_dbp: {bins} slip bins across {len(a.run)} runs -> {csv_path}, {png}")
-        if points:
-            try:
-                curve, _ = traction.read_dbp_curve(csv_path)
-                cross_check(curve, points, a.check or os.path.join(os.path.dirname(png) or ".",
-                            "cross_check.csv"), csv_path, a.slip_points)
-            except (CosimError, OSError) as e:
-                print(f"cosim.fig_dbp: {e}", file=sys.stderr)
-                return 1
         return 0
     a.run = a.run[0]
     base = a.run if os.path.isdir(a.run) else os.path.dirname(a.run) or "."
@@ -320,8 +312,7 @@ def main(argv):
             png = a.png or os.path.join(base, PLOT_FILE)
             plot(png, r, curve, points, ref)
             if points:
-                cross_check(curve, points, a.check or os.path.join(os.path.dirname(png) or ".",
-                            "cross_check.csv"), csv_path, a.slip_points)
+                cross_check(curve, points, a.check, png, csv_path, a.slip_points)
     except (CosimError, KeyError, OSError, ValueError) as e:
         print(f"cosim.fig_dbp: {e}", file=sys.stderr)
         return 1
