@@ -9,15 +9,22 @@
 # before and after, the arguments). The ramp: the carriage held back by -130 N
 # (a push: the curve starts near zero slip) for 0.15 s after the sinkage, then
 # +330 N/s to the end (t = 1.35 s): slip from about 0 to 0.35-0.4 at 1 kN.
+# The beds run at once (JOBS, default N), each dem on one thread: on 2 vCPUs
+# three beds took 61.7 min so, against about 68 for one after the other with
+# two threads each (bench/results/sand_calibration.md "The DEM step on three
+# beds"); JOBS=1 runs them in turn, dem threads "auto".
 set -euo pipefail
 BUILD=${1:?usage: run_sand_dbp.sh BUILD_DIR OUT_DIR [N [cosim sweep args...]]}
 OUT=${2:?usage: run_sand_dbp.sh BUILD_DIR OUT_DIR [N [cosim sweep args...]]}
 N=${3:-3}
 shift $(( $# < 3 ? $# : 3 ))
 SCENE=${SCENE:-configs/tire_soil_sand.json}
+JOBS=${JOBS:-$N}
+THREADS=()
+if [ "$JOBS" -gt 1 ]; then THREADS=(--set processes.soil.threads=1); fi
 bash "$(dirname "$0")/timed.sh" "$OUT" "$SCENE" \
   "$BUILD/bin/cosim" sweep "$SCENE" --values scenario.slip=0.0 \
   --set scenario.rig=dbp --set scenario.dbp_force_start=-130 \
   --set scenario.dbp_force_rate=330 --set scenario.dbp_hold=0.15 \
-  --set scenario.dbp_window=0.1 --repeat "$N" --jobs 1 --out "$OUT" \
+  --set scenario.dbp_window=0.1 --repeat "$N" --jobs "$JOBS" "${THREADS[@]}" --out "$OUT" \
   --reference bench/results/terra_reference_sand_W1000.csv "$@"

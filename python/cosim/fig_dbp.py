@@ -14,7 +14,8 @@ averages of /coupler/dbp as thin lines), right, the carriage speed, the
 resistive force and the slip against time. --slip-points draws slip-controlled
 runs' points for the cross-check (a CSV with columns slip, T_H_mean, T_H_ci95,
 T_R_mean, T_R_ci95, T_P_mean, T_P_ci95: e.g. a `cosim sweep` summary.csv over
-scenario.slip). --reference draws a terramechanics reference dashed beside the
+scenario.slip; or another dbp_curve.csv, whose bins are then the points: two
+curves compared bin by bin, e.g. a step and its refinement). --reference draws a terramechanics reference dashed beside the
 curve (a `cosim terra curve` record for the scene's wheel and load: T/r as T_H,
 T/r - DP as |T_R|, DP as T_P, and the band over its packings faint;
 terra/README.md "Files and how to call the reference"); its load must be the
@@ -56,14 +57,16 @@ LABELS = {"T_H": "T_H", "T_R": "|T_R|", "T_P": "T_P", "resistive_force": "resist
 
 
 def read_points(path):
-    """Slip-controlled points: {slip, q_mean, q_ci95} rows of a CSV (# lines skipped)."""
+    """Slip-controlled points: {slip, q_mean, q_ci95} rows of a CSV (# lines
+    skipped); the slip from the column slip, scenario.slip or, in another
+    dbp_curve.csv, slip_mean (each bin a point: one curve against another)."""
     with open(path) as f:
         rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
     out = []
     for r in rows:
-        slip = r.get("slip", r.get("scenario.slip"))
+        slip = r.get("slip", r.get("scenario.slip", r.get("slip_mean")))
         if slip is None:
-            raise CosimError(f"{path}: no column 'slip' or 'scenario.slip'")
+            raise CosimError(f"{path}: no column 'slip', 'scenario.slip' or 'slip_mean'")
         out.append({k: float(v) for k, v in r.items() if k and v not in (None, "")
                     and k.endswith(("_mean", "_ci95"))} | {"slip": float(slip)})
     return out

@@ -199,6 +199,19 @@ def grid_points(values):
     return [dict(zip(keys, combo)) for combo in itertools.product(*(values[k] for k in keys))]
 
 
+def concurrent_sets(sets, jobs):
+    """``sets`` for runs that share the machine (``jobs`` > 1): coupling.affinity
+    "none" unless the caller set it. "handoff" binds a run's coupler and its
+    participants' main threads to the core its coupler started on
+    (coupler/affinity.c), which suits a run that has the machine; runs started
+    together each pick a core that way, so two may share one while another
+    core idles."""
+    sets = dict(sets or {})
+    if jobs > 1 and "coupling.affinity" not in sets:
+        sets["coupling.affinity"] = "none"
+    return sets
+
+
 def sweep(scene, values, out, set=None, jobs=1, keep_going=False, beds=None, resume=False,
           **run_args):
     """One run per combination of ``values`` ({key.path: [v0, v1, ...]},
@@ -216,9 +229,13 @@ def sweep(scene, values, out, set=None, jobs=1, keep_going=False, beds=None, res
     ``resume``: a point whose results.h5 already reaches time.end is not
     run again (its Results are returned); the others run with --overwrite.
 
+    With ``jobs`` > 1 the runs get ``coupling.affinity`` "none" unless
+    ``set`` gives it (:func:`concurrent_sets`).
+
     This loops over :func:`run`; ``cosim sweep`` (sweep_cli.py) adds the
     summary."""
     points = grid_points(values)
+    set = concurrent_sets(set, jobs)
     shared = None
     if beds:
         shared = Beds(scene, points, set, beds)

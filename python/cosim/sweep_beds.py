@@ -11,7 +11,7 @@ distinct bed once, into ``DIR/beds/``, and every run loads it:
    > 0); the bed's id, a hash of that scene without the keys that cannot
    change a bed (``name``, ``time.end``, ``output``, ``bus``, ``checkpoint``,
    ``security``, ``scenario`` but its ``rim_center``, each bed's
-   ``particles.save``). Same id, same bed: with ``--repeat`` the beds are the
+   ``particles.save``, ``coupling.affinity`` and the processes' ``threads``). Same id, same bed: with ``--repeat`` the beds are the
    seeds.
 2. settle: for each id without its files, a settle-only run
    (:func:`cosim.runner.settle`: the point's scene cut to one coupled step;
@@ -63,6 +63,13 @@ def bed_scene(scene, names):
     """The part of a scene a bed depends on."""
     s = {k: copy.deepcopy(v) for k, v in scene.items() if k not in IGNORED}
     s.get("time", {}).pop("end", None)
+    if isinstance(s.get("coupling"), dict):
+        s["coupling"].pop("affinity", None)  # where the processes run, not what they compute
+        if not s["coupling"]:
+            del s["coupling"]
+    for p in s.get("processes", {}).values():
+        if isinstance(p, dict):
+            p.pop("threads", None)  # dem_server's results do not depend on it (dem_threads.c)
     if "scenario" in s:
         s["scenario"] = {k: v for k, v in s["scenario"].items() if k in KEPT_SCENARIO}
     for n in names:

@@ -22,7 +22,10 @@ only the scenario is swept) is settled once, by a settle-only run into
 ``DIR/beds/``, and every run of it starts from that saved bed, which
 continues the settling bit for bit (cosim/sweep_beds.py; ``--no-bed-reuse``:
 each run settles its own, as before); the realisations are independent, and
-the same seed gives the same run bit for bit either way. ``--resume`` skips
+the same seed gives the same run bit for bit either way. ``--jobs N`` runs N
+at once, each with ``coupling.affinity`` "none" unless ``--set`` gives it
+(cosim.runner.concurrent_sets: "handoff" binds a run to one core, which
+runs that share the machine must not). ``--resume`` skips
 the points whose results.h5 already reaches time.end and reruns the others;
 beds already in ``DIR/beds/`` are never settled again. summary.csv then
 gives per value the mean of the run means and its interval from their
@@ -370,6 +373,9 @@ def main(argv):
     if not args.summary_only:
         check_points(args.scene, sets, key, values, args.cosim)
         run_args = ["--overwrite"] if args.overwrite else []
+        if args.jobs > 1 and "coupling.affinity" not in sets:
+            print(f"cosim sweep: --jobs {args.jobs}: the runs get coupling.affinity \"none\" "
+                  "(they share the cores; --set coupling.affinity=... to choose)", flush=True)
         beds = None if args.no_bed_reuse else os.path.join(args.out, BEDS_DIR)
         done = run_sweep(args.scene, grid, args.out, set=sets, jobs=args.jobs,
                          keep_going=args.keep_going, quiet=True, cosim=args.cosim,

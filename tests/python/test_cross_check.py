@@ -14,6 +14,9 @@ slip-controlled points against a drawbar-pull curve (issue 22's cross-check).
 3. A curve written by write_dbp_curve reads back (rows and load); a file that
    is no curve is refused naming it; fig_dbp --curve draws the PNG and writes
    cross_check.csv with the verdicts, and refuses a bad curve with exit 1.
+4. Another dbp_curve.csv as --slip-points (two curves compared bin by bin):
+   one row per bin and quantity, all agreeing but the one bin shifted by
+   3 x the combined half-width.
 """
 import csv
 import math
@@ -140,6 +143,23 @@ if os.path.exists(xpath):
           f"cross_check.csv: the on-law point agrees, the off-law one differs ({[r['agree'] for r in got]})")
 else:
     check(False, "cross_check.csv written")
+# 4. one curve against another (a step against its refinement): its bins as the points
+other = [dict(r) for r in across]
+shift = 3 * math.hypot(H["T_P"], H["T_P"])
+other[4]["T_P_mean"] += shift
+opath = os.path.join(tmp, "other_curve.csv")
+traction.write_dbp_curve(opath, other, scene, runs=["d", "e", "f"])
+vs = os.path.join(tmp, "curve_vs_curve.csv")
+rc = subprocess.run([sys.executable, "-m", "cosim.fig_dbp", "--curve", cpath, "--png", png,
+                     "--slip-points", opath, "--check", vs], capture_output=True, text=True,
+                    cwd=py, timeout=120)
+with open(vs) as f:
+    got = [r for r in csv.DictReader(line for line in f if not line.startswith("#"))]
+differ = [(round(float(r["slip"]), 3), r["quantity"]) for r in got if r["agree"] == "no"]
+check(rc.returncode == 0 and len(got) == 3 * len(SLIPS) and differ == [(round(SLIPS[4], 3), "T_P")]
+      and all(r["agree"] == "yes" for r in got if (round(float(r["slip"]), 3), r["quantity"]) not in differ),
+      f"a dbp_curve.csv as --slip-points: bin by bin, only the shifted bin differs ({len(got)} rows, "
+      f"differ {differ}; {rc.stderr[-200:]})")
 rc = subprocess.run([sys.executable, "-m", "cosim.fig_dbp", "--curve", bad, "--png", png + "2.png"],
                     capture_output=True, text=True, cwd=py, timeout=120)
 check(rc.returncode == 1 and "bad.csv" in rc.stderr and not os.path.exists(png + "2.png"),

@@ -11,9 +11,11 @@ over it), cut to a few coupled steps; two slips x `--repeat 2` (seeds 1, 2):
 3. a run from the shared bed is the run that settles its own bed, bit for
    bit (slip 0.1, seed 1 run alone with `cosim run`: every dataset of
    results.h5 but wall times);
-4. resumed (`--resume`, one value more): no bed settled again (settle.log
-   and the bed files unchanged), the finished runs not rerun (their
-   results.h5 untouched), the new value's runs load the existing beds.
+4. resumed (`--resume`, one value more, `--jobs 2`): no bed settled again
+   (settle.log and the bed files unchanged: a bed's id leaves out
+   coupling.affinity, which runs at once get "none"), the finished runs not
+   rerun (their results.h5 untouched), the new value's runs load the
+   existing beds and ran with coupling.affinity "none".
 """
 import csv
 import json
@@ -123,7 +125,7 @@ check(not differ, f"the run from the shared bed is the self-settled run bit for 
 # 4. resumed with one more value: nothing settled or rerun that was done
 stamp = {b: os.stat(b).st_mtime_ns for b in bed_of.values()}
 runs_done = {r["dir"]: os.stat(os.path.join(out, r["dir"], "results.h5")).st_mtime_ns for r in rows}
-rows = sweep("scenario.slip=0.05,0.1,0.2", "--resume")
+rows = sweep("scenario.slip=0.05,0.1,0.2", "--resume", "--jobs", "2")
 check(settle_lines() == lines, f"resumed: no bed settled again (settle.log: {len(settle_lines())} lines)")
 check(all(os.stat(b).st_mtime_ns == t for b, t in stamp.items()), "resumed: the bed files untouched")
 check(all(os.stat(os.path.join(out, d, "results.h5")).st_mtime_ns == t for d, t in runs_done.items()),
@@ -133,6 +135,9 @@ for r in rows:
     if json.loads(r["scenario.slip"]) == 0.2:
         with h5py.File(os.path.join(out, r["dir"], "results.h5"), "r") as f:
             used = json.loads(f.attrs["config"])["processes"]["dem"]["particles"]
+            affinity = json.loads(f.attrs["config"]).get("coupling", {}).get("affinity")
         seed = json.loads(r[SEED_KEY])
         check(used == {"file": bed_of[seed]}, f"new value {r['dir']} loaded the bed of seed {seed}")
+        check(affinity == "none", f"new value {r['dir']}: run with --jobs 2, coupling.affinity "
+              f"'none' (got {affinity!r})")
 done()
