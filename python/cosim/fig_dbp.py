@@ -68,7 +68,8 @@ def read_points(path):
         if slip is None:
             raise CosimError(f"{path}: no column 'slip', 'scenario.slip' or 'slip_mean'")
         out.append({k: float(v) for k, v in r.items() if k and v not in (None, "")
-                    and k.endswith(("_mean", "_ci95"))} | {"slip": float(slip)})
+                    and k.endswith(("_mean", "_ci95"))}
+                   | {"slip": float(slip), "from_curve": "slip" not in r and "scenario.slip" not in r})
     return out
 
 
@@ -101,16 +102,24 @@ def draw_points(ax, points):
                             fmt="s", mfc="none", ms=8, capsize=4, color=COLORS[q])
 
 
-def finish_curve(ax, points, ref, title):
-    """The curve's axis: slip-controlled points, the reference dashed, the
-    zero line, labels, title and legend."""
+def points_label(points, path):
+    """What the squares are: slip-controlled runs, or the bins of another
+    curve (read_points of a dbp_curve.csv)."""
+    return f"the bins of {os.path.basename(path)}" if points and points[0].get("from_curve") \
+        else "slip-controlled"
+
+
+def finish_curve(ax, points, ref, title, squares="slip-controlled"):
+    """The curve's axis: slip-controlled points (or another curve's bins:
+    squares says which), the reference dashed, the zero line, labels, title
+    and legend."""
     draw_points(ax, points)
     if ref is not None:
         terra_ref.draw_reference(ax, ref, band=True)
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("slip (measured)")
     ax.set_ylabel("force (N)")
-    ax.set_title(title + ("; squares: slip-controlled" if points else "")
+    ax.set_title(title + (f"; squares: {squares}" if points else "")
                  + ("; dashed: terramechanics" if ref is not None else ""), fontsize=9)
     ax.legend(fontsize=7)
 
@@ -218,7 +227,7 @@ def write_across(paths, out_dir, bin_width=traction.DBP_BIN_WIDTH, csv_path=None
     return csv_path, png, len(across)
 
 
-def plot_saved(path, curve, name, load, points=None, ref=None):
+def plot_saved(path, curve, name, load, points=None, ref=None, squares="slip-controlled"):
     """A saved curve (traction.read_dbp_curve) with its intervals."""
     import matplotlib
     matplotlib.use("Agg")
@@ -231,7 +240,7 @@ def plot_saved(path, curve, name, load, points=None, ref=None):
         ax.errorbar(x, sign * np.array([r[f"{q}_mean"] for r in curve]),
                     yerr=np.where(np.isnan(e), 0, e), fmt="o-", ms=4, capsize=3,
                     color=COLORS[q], label=f"{LABELS[q]} ({name}; bars: 95 %)")
-    finish_curve(ax, points, ref, f"dbp curve: load {load:g} N")
+    finish_curve(ax, points, ref, f"dbp curve: load {load:g} N", squares)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -277,7 +286,8 @@ def main(argv):
             points = read_points(a.slip_points) if a.slip_points else None
             ref = read_reference(a.reference, load) if a.reference else None
             os.makedirs(os.path.dirname(a.png) or ".", exist_ok=True)
-            plot_saved(a.png, curve, os.path.basename(a.curve), load, points, ref)
+            plot_saved(a.png, curve, os.path.basename(a.curve), load, points, ref,
+                       points_label(points, a.slip_points or ""))
             print(f"cosim.fig_dbp: {len(curve)} slip bins of {a.curve} -> {a.png}")
             if points:
                 cross_check(curve, points, a.check, a.png, a.curve, a.slip_points)
