@@ -69,7 +69,7 @@ def read_points(path):
             raise CosimError(f"{path}: no column 'slip', 'scenario.slip' or 'slip_mean'")
         out.append({k: float(v) for k, v in r.items() if k and v not in (None, "")
                     and k.endswith(("_mean", "_ci95"))}
-                   | {"slip": float(slip), "from_curve": "slip" not in r and "scenario.slip" not in r})
+                   | {"slip": float(slip)})
     return out
 
 
@@ -102,11 +102,15 @@ def draw_points(ax, points):
                             fmt="s", mfc="none", ms=8, capsize=4, color=COLORS[q])
 
 
-def points_label(points, path):
-    """What the squares are: slip-controlled runs, or the bins of another
-    curve (read_points of a dbp_curve.csv)."""
-    return f"the bins of {os.path.basename(path)}" if points and points[0].get("from_curve") \
-        else "slip-controlled"
+def points_label(path):
+    """What the squares of the points file at path are: the bins of another
+    curve (a file write_dbp_curve wrote), else slip-controlled runs."""
+    try:
+        with open(path) as f:
+            curve = f.readline().startswith(traction.CURVE_HEADER)
+    except (OSError, TypeError):  # no file (None, or points given as a list)
+        curve = False
+    return f"the bins of {os.path.basename(path)}" if curve else "slip-controlled"
 
 
 def finish_curve(ax, points, ref, title, squares="slip-controlled"):
@@ -124,7 +128,7 @@ def finish_curve(ax, points, ref, title, squares="slip-controlled"):
     ax.legend(fontsize=7)
 
 
-def plot(path, results, curve, points=None, ref=None):
+def plot(path, results, curve, points=None, ref=None, squares="slip-controlled"):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -144,7 +148,7 @@ def plot(path, results, curve, points=None, ref=None):
             ax.plot(d["slip_avg"][ramp], sign * d[avg][ramp], "-", lw=0.7, alpha=0.6,
                     color=COLORS[q])
     finish_curve(ax, points, ref, f"dbp rig: load {sc['sinkage_force']} N; lines: running "
-                 f"averages over {sc.get('dbp_window', 0.1)} s")
+                 f"averages over {sc.get('dbp_window', 0.1)} s", squares)
     travel = d["phase"] > 0
     travel[np.argmax(travel)] = False  # the release step: the carriage not yet driven
     t = d["t"][travel]
@@ -164,7 +168,7 @@ def plot(path, results, curve, points=None, ref=None):
     plt.close(fig)
 
 
-def plot_across(path, runs, names, curves, across, points=None, ref=None):
+def plot_across(path, runs, names, curves, across, points=None, ref=None, squares="slip-controlled"):
     """The curve across runs: the means with their 95 % intervals (across
     the runs' bin means), each run's bins faint; right, each run's slip and
     resistive force against time."""
@@ -184,7 +188,7 @@ def plot_across(path, runs, names, curves, across, points=None, ref=None):
         ax.errorbar(x, y, yerr=np.where(np.isnan(e), 0, e), fmt="o-", ms=4, capsize=3,
                     color=COLORS[q], label=f"{LABELS[q]}: mean of {len(runs)} runs, 95 % "
                     "(dots: each run's bins)")
-    finish_curve(ax, points, ref, f"dbp rig, {len(runs)} runs: load {sc['sinkage_force']} N")
+    finish_curve(ax, points, ref, f"dbp rig, {len(runs)} runs: load {sc['sinkage_force']} N", squares)
     for r, name in zip(runs, names):
         d = traction.dbp_series(r)
         travel = d["phase"] > 0
@@ -221,7 +225,8 @@ def write_across(paths, out_dir, bin_width=traction.DBP_BIN_WIDTH, csv_path=None
         csv_path = csv_path or os.path.join(out_dir, CURVE_FILE)
         traction.write_dbp_curve(csv_path, across, runs[0].scene, runs=names)
         png = png or os.path.join(out_dir, PLOT_FILE)
-        plot_across(png, runs, names, curves, across, points, ref)
+        plot_across(png, runs, names, curves, across, points, ref,
+                    points_label(points_name))
     if points:
         cross_check(across, points, check, png, csv_path, points_name)
     return csv_path, png, len(across)
@@ -287,7 +292,7 @@ def main(argv):
             ref = read_reference(a.reference, load) if a.reference else None
             os.makedirs(os.path.dirname(a.png) or ".", exist_ok=True)
             plot_saved(a.png, curve, os.path.basename(a.curve), load, points, ref,
-                       points_label(points, a.slip_points or ""))
+                       points_label(a.slip_points))
             print(f"cosim.fig_dbp: {len(curve)} slip bins of {a.curve} -> {a.png}")
             if points:
                 cross_check(curve, points, a.check, a.png, a.curve, a.slip_points)
@@ -323,7 +328,7 @@ def main(argv):
             ref = (read_reference(a.reference, r.scene["scenario"]["sinkage_force"])
                    if a.reference else None)
             png = a.png or os.path.join(base, PLOT_FILE)
-            plot(png, r, curve, points, ref)
+            plot(png, r, curve, points, ref, points_label(a.slip_points))
             if points:
                 cross_check(curve, points, a.check, png, csv_path, a.slip_points)
     except (CosimError, KeyError, OSError, ValueError) as e:

@@ -202,6 +202,9 @@ DBP_CURVE_COLUMNS = (["slip_lo", "slip_hi", "rows", "t0_s", "t1_s", "slip_mean"]
                      [f"{q}_W_{st}" for q in ("T_H", "T_R", "T_P") for st in ("mean", "ci95")])
 
 
+CURVE_HEADER = "# cosim dbp curve"  # the first line of a file write_dbp_curve wrote
+
+
 def write_dbp_curve(path, curve, scene, runs=None):
     """The curve as CSV with # lines saying what it is: one run's
     (dbp_curve), or with runs (their names) the curve across them
@@ -209,7 +212,7 @@ def write_dbp_curve(path, curve, scene, runs=None):
     sc = scene["scenario"]
     cols = DBP_ACROSS_COLUMNS if runs else DBP_CURVE_COLUMNS
     with open(path, "w") as f:
-        f.write("# cosim dbp curve: /coupler/traction and /coupler/dbp rows of the ramp "
+        f.write(f"{CURVE_HEADER}: /coupler/traction and /coupler/dbp rows of the ramp "
                 "(phase 2) binned by the measured slip 1 - v / (omega radius)\n")
         f.write(f"# ramp: {sc.get('dbp_force_start', 0)} N held {sc.get('dbp_hold', 0.2)} s, "
                 f"then {sc['dbp_force_rate']} N/s; carriage "
