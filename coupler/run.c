@@ -328,7 +328,8 @@ static int welcome_one(cpl_runner *r, int i) {
 }
 
 /* rim_center [x, y, "auto"]: the lowest tread node auto_gap above the
- * highest bed_top the dem processes report after settling. */
+ * highest bed_top the dem processes report after settling (where the parked
+ * tread, lowered, would first touch one of their grains). */
 static int place_rim(cpl_runner *r) {
   const cpl_scenario *sc = &r->scene->scenario;
   double top = -INFINITY;

@@ -428,8 +428,17 @@ int dem_bed_top_of(const double *x, const double *r, int n, const double lo[2], 
 /* The x-y box [lo, hi] of n points x [n*3]: the coupled surface's footprint
  * the participants take bed_top under; the whole plane when n == 0. */
 void dem_footprint(const double *x, int64_t n, double lo[2], double hi[2]);
-/* The percentile the participant reports as `bed_top` (a few protruding
- * grains must not lift the tyre, the bulk of the top layer must not touch it). */
+/* Where a surface (nodes sx [n_nodes*3], triangles tri [n_tri*3]) lowered
+ * straight down first touches one of ng grains (x [ng*3], r [ng]): the height
+ * its lowest node has then (*low_at_touch; NAN and *count = 0 if no grain
+ * lies under it; *count: the grains under it). Conservative by at most one
+ * grid cell (the largest radius) of surface slope (dem_bed_touch.c). What
+ * the participants report as `bed_top` when the welcome brought a surface. */
+int dem_bed_touch_of(const double *x, const double *r, int ng, const double *sx, int n_nodes,
+                     const int32_t *tri, int n_tri, double *low_at_touch, int *count,
+                     proto_err *err);
+/* The percentile the participant reports as `bed_top` without a surface
+ * (with one, where the lowered surface first touches a grain). */
 #define DEM_BED_TOP_PERCENTILE 95.0
 
 /* Allocates the model's grain arrays for n grains (zeroed). */

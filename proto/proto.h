@@ -114,7 +114,7 @@ typedef enum proto_msg_kind {
 #define PROTO_H_PHASE "phase"         /* heartbeat: "welcome", "init", "step", "idle" */
 #define PROTO_H_PROGRESS "progress"   /* heartbeat: fraction done in [0, 1], or absent */
 #define PROTO_H_WHAT "what"           /* heartbeat: what it is doing ("settling the bed") */
-#define PROTO_H_BED_TOP "bed_top"     /* ready (dem, optional): settled bed's top under the surface, m */
+#define PROTO_H_BED_TOP "bed_top"     /* ready (dem, optional): lowest surface node at first touch, m */
 #define PROTO_H_BED_TOP_GRAINS "bed_top_grains" /* ready (dem): grains it was taken over */
 #define PROTO_H_RESTART_STEP "restart_step" /* welcome run: the checkpoint's step, 0 if none */
 #define PROTO_H_SPARSE "sparse"       /* step: the coupler takes sparse replies (bool);

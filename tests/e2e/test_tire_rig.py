@@ -13,8 +13,11 @@ keys"): rig "load" and rim_center [x, y, "auto"].
    report the bed's top is refused naming the participant.
 3. The small default scene (configs/default.json: dem_server + fem_server)
    placed with rim_center "auto" and run in the load rig: the lowest tread
-   node starts auto_gap above the settled bed's top (95th percentile of the
-   grain tops under the tread, recomputed here from the first snapshot);
+   node starts auto_gap above the height at which the tread, lowered, first
+   touches a grain (recomputed here from the first snapshot and the tread's
+   boundary triangles: between the exact touch of the triangles' x-y boxes
+   and that touch with the boxes grown by one grid cell, dem_bed_touch.c),
+   and no grain touches the tread before it has sunk auto_gap;
    the rim's height follows the rig's discrete equation step by step with
    the load the coupler measured; the mean vertical load during travel is
    within 10 % of sinkage_force."""
@@ -29,6 +32,26 @@ from common import HERE, check, columns, done, h5, no_orphans, run, scene
 
 ROOT = os.path.dirname(os.path.dirname(HERE))
 G = 9.81
+
+
+def touch_height(x, r, xs, cells, grow):
+    """The lowest tread node's height when the tread (nodes xs, tets cells),
+    lowered straight down, first touches a grain (x, r): each boundary
+    triangle's lowest vertex against the tops of the grains whose disk's
+    x-y box (grown by `grow`) meets the triangle's x-y box."""
+    faces = np.sort(np.concatenate([cells[:, [0, 1, 2]], cells[:, [0, 1, 3]],
+                                    cells[:, [0, 2, 3]], cells[:, [1, 2, 3]]]), axis=1)
+    uniq, count = np.unique(faces, axis=0, return_counts=True)
+    tri = xs[uniq[count == 1]]  # [n, 3 vertices, 3]
+    tlo, thi, tz = tri[:, :, :2].min(axis=1), tri[:, :, :2].max(axis=1), tri[:, :, 2].min(axis=1)
+    zlow, best = xs[:, 2].min(), -np.inf
+    for i in range(len(r)):
+        g = r[i] + grow
+        hit = ((tlo[:, 0] <= x[i, 0] + g) & (thi[:, 0] >= x[i, 0] - g) &
+               (tlo[:, 1] <= x[i, 1] + g) & (thi[:, 1] >= x[i, 1] - g))
+        if hit.any():
+            best = max(best, x[i, 2] + r[i] - (tz[hit].min() - zlow))
+    return best
 
 
 def traction(s):
@@ -173,16 +196,23 @@ def scene_part():
     x = f[f"/dem/steps/{k1}/x"][:]
     r = f[f"/dem/steps/{k1}/r"][:]
     xs = f[f"/fem/steps/{k1}/x"][:]
-    under = ((x[:, 0] >= xs[:, 0].min()) & (x[:, 0] <= xs[:, 0].max()) &
-             (x[:, 1] >= xs[:, 1].min()) & (x[:, 1] <= xs[:, 1].max()))
-    tops = np.sort(x[under, 2] + r[under])
-    top_here = tops[int(np.ceil(0.95 * len(tops))) - 1]
+    cells = f["/fem/mesh/cells"][:]
+    # the tread as it stands at step k1 (it sank rigidly by v k1 dt; its
+    # inflation moves the nodes by far less than the tolerance below)
+    exact = touch_height(x, r, xs, cells, 0.0)
+    coarse = touch_height(x, r, xs, cells, r.max())  # one cell: the largest radius
     low = xs[:, 2].min() + sc["sinkage_velocity"] * k1 * dt  # back to t = 0
-    print(f"auto: bed top {top:.6g} m reported, {top_here:.6g} m from the snapshot at step {k1} "
-          f"({under.sum()} grains under the tread); lowest tread node at t = 0: {low:.6g} m")
-    check(abs(top_here - top) < 2e-4, "the reported bed top is the 95th percentile of the "
-          "grain tops under the tread")
+    print(f"auto: bed top {top:.6g} m reported, the first touch from the snapshot at step {k1} "
+          f"{exact:.6g} m (boxes grown by a cell: {coarse:.6g}); the 95th percentile of the grain "
+          f"tops {np.percentile(x[:, 2] + r, 95):.6g} m; lowest tread node at t = 0: {low:.6g} m")
+    check(exact - 2e-4 <= top <= coarse + 2e-4, "the reported bed top is where the lowered "
+          "tread first touches a grain (between the exact touch and one cell coarser)")
     check(abs(low - (top + 0.002)) < 2e-4, "the lowest tread node starts auto_gap above it")
+    tr0 = traction(s)
+    first = int(np.nonzero(tr0["vertical_load"] > 0)[0][0])
+    check(first * dt * sc["sinkage_velocity"] >= 0.002 - 2e-4, f"no grain touches the tread "
+          f"before it has sunk auto_gap (first load at step {first}: "
+          f"{first * dt * sc['sinkage_velocity'] * 1e3:.3g} mm)")
     # the rig's discrete equation, step by step, with the loads the coupler measured
     load, z = tr["vertical_load"], z0 - tr["sinkage"]
     start = int(np.nonzero(load >= sc["sinkage_force"])[0][0])
