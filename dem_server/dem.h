@@ -437,8 +437,13 @@ void dem_footprint(const double *x, int64_t n, double lo[2], double hi[2]);
 int dem_bed_touch_of(const double *x, const double *r, int ng, const double *sx, int n_nodes,
                      const int32_t *tri, int n_tri, double *low_at_touch, int *count,
                      proto_err *err);
-/* The percentile the participant reports as `bed_top` without a surface
- * (with one, where the lowered surface first touches a grain). */
+/* What a dem participant reports as `bed_top` in its ready, one rule for
+ * dem_server and liggghts_dem: with a surface (n_nodes, n_tri > 0) where it
+ * first touches a grain (dem_bed_touch_of), without one the
+ * DEM_BED_TOP_PERCENTILE of all grain tops; NAN and *count = 0 if none. */
+int dem_bed_ready_top(const double *x, const double *r, int ng, const double *sx, int n_nodes,
+                      const int32_t *tri, int n_tri, double *top, int *count, proto_err *err);
+/* The percentile reported as `bed_top` without a surface. */
 #define DEM_BED_TOP_PERCENTILE 95.0
 
 /* Allocates the model's grain arrays for n grains (zeroed). */

@@ -9,7 +9,9 @@
  * holds the lowest vertex height of the triangles whose x-y box meets it; a
  * grain's clearance is its top z + r against the lowest cell under its disk's
  * x-y box. So the answer is never below the exact vertical first touch of
- * the triangles' boxes and at most one cell's worth of surface slope above. */
+ * the triangles' boxes and at most one cell's worth of surface slope above.
+ * dem_bed_ready_top: the one rule both dem participants report by (this
+ * with a surface, the percentile of all grain tops without). */
 #include "dem_server/dem_internal.h"
 
 #include <math.h>
@@ -77,4 +79,13 @@ int dem_bed_touch_of(const double *xs, const double *r, int ng, const double *sx
   *count = n;
   if (n > 0) *low_at_touch = need;
   return 0;
+}
+
+int dem_bed_ready_top(const double *xs, const double *r, int ng, const double *sx, int n_nodes,
+                      const int32_t *tri, int n_tri, double *top, int *count, proto_err *err) {
+  if (n_nodes > 0 && n_tri > 0)
+    return dem_bed_touch_of(xs, r, ng, sx, n_nodes, tri, n_tri, top, count, err);
+  double lo[2], hi[2];
+  dem_footprint(NULL, 0, lo, hi); /* the whole plane */
+  return dem_bed_top_of(xs, r, ng, lo, hi, DEM_BED_TOP_PERCENTILE, top, count, err);
 }

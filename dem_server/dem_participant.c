@@ -127,20 +127,16 @@ static int continue_bed(dem_app *a, proto_err *err) {
 
 /* ready's bed_top: with a coupled surface, the height its lowest node has
  * when the surface (as placed in the welcome), lowered straight down, first
- * touches a grain (dem_bed_touch_of); without one, the 95th percentile of
- * all grain tops. Absent if no grain lies there. */
+ * touches a grain; without one, the 95th percentile of all grain tops
+ * (dem_bed_ready_top). Absent if no grain lies there. */
 static int report_bed_top(dem_app *a, cJSON *h, proto_err *err) {
   const dem_mesh *me = a->surface >= 0 ? &a->model.meshes[a->surface] : NULL;
-  double lo[2], hi[2], top;
+  double top;
   int count;
-  if (me && me->n_tri > 0) {
-    if (dem_bed_touch_of(a->state.x, a->state.radius, a->state.n, me->x0, me->n_nodes, me->tri,
-                         me->n_tri, &top, &count, err) < 0)
-      return -1;
-  } else {
-    dem_footprint(NULL, 0, lo, hi);
-    if (dem_bed_top(&a->state, lo, hi, DEM_BED_TOP_PERCENTILE, &top, &count, err) < 0) return -1;
-  }
+  if (dem_bed_ready_top(a->state.x, a->state.radius, a->state.n, me ? me->x0 : NULL,
+                        me ? me->n_nodes : 0, me ? me->tri : NULL, me ? me->n_tri : 0, &top, &count,
+                        err) < 0)
+    return -1;
   if (count > 0) cJSON_AddNumberToObject(h, PROTO_H_BED_TOP, top);
   cJSON_AddNumberToObject(h, PROTO_H_BED_TOP_GRAINS, count);
   return 0;

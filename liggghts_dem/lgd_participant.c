@@ -57,7 +57,7 @@ typedef struct app {
   double clock[2];                  /* t, coupling step */
   lgd_resume saved;                 /* the last lgd_save (surface: the sim's buffers) */
   double *load_ft;                  /* rank 0, state_load: forces, torques [n_grains*3] each */
-  double bed_top;                   /* rank 0: ready's bed_top (dem_bed_touch_of) */
+  double bed_top;                   /* rank 0: ready's bed_top (dem_bed_ready_top) */
   int bed_top_grains;               /* the grains it was taken over (0: none, no bed_top) */
 } app;
 
@@ -123,13 +123,8 @@ static int do_init(app *a, int64_t n_nodes, const double *x0, int64_t n_tri, con
    * gathered grains */
   if (lgd_gather(a->sim, a->snap_x, a->snap_v, a->snap_w, err)) return -1;
   if (a->rank != 0) return 0;
-  if (n_nodes > 0 && n_tri > 0)
-    return dem_bed_touch_of(a->snap_x, m->radius, m->n_grains, x0, (int)n_nodes, tri, (int)n_tri,
-                            &a->bed_top, &a->bed_top_grains, err);
-  double lo[2], hi[2];
-  dem_footprint(NULL, 0, lo, hi);
-  return dem_bed_top_of(a->snap_x, m->radius, m->n_grains, lo, hi, DEM_BED_TOP_PERCENTILE, &a->bed_top,
-                        &a->bed_top_grains, err);
+  return dem_bed_ready_top(a->snap_x, m->radius, m->n_grains, x0, (int)n_nodes, tri, (int)n_tri,
+                           &a->bed_top, &a->bed_top_grains, err);
 }
 
 static int do_step(app *a, double dt, int output, proto_err *err) {
