@@ -123,6 +123,10 @@ struct dem_work {
   int region_on;          /* a region is set (some mesh moved since the first update) */
   int64_t region_step;    /* step of the last region update */
   double region_rmax;     /* the largest grain radius */
+  uint8_t *occ;           /* [DEM_REGION_OCC_CELLS] the grains' occupancy at the last region update: cell
+                           * occ_dim-indexed, 1 where some grain's sphere box meets it (region_update) */
+  double occ_lo[3], occ_h; /* its grid: origin and cell side (at least the reach) */
+  int occ_dim[3];
   double region_moved;    /* bound on any mesh node's move since the last region update (dem_sleep_guard) */
   double region_budget;   /* the margin's mesh term at that update: the region holds while moved <= it */
   int region_movers;      /* bit mi: mesh mi was moving at that update */
@@ -342,6 +346,11 @@ void dem_push_fold(const dem_model *m, dem_state *s);
 void dem_push_set(const dem_model *m, dem_state *s, int i, int asleep);
 /* Region update interval (steps): the region's margin covers what moves in it. */
 #define DEM_REGION_STEPS 5
+/* Cells of the grains' occupancy grid the region's reach test uses (1 byte
+ * each): cells of the reach's size over a 1 x 1 x 0.5 m bed with a 4 cm
+ * reach are ~8 000; a bed much larger than its reach gets coarser cells
+ * (the test stays conservative, only less local). */
+#define DEM_REGION_OCC_CELLS (1 << 18)
 /* w->compact: grains woke (the asleep block keeps its order), or fell asleep (full rebuild) */
 /* An awake grain wakes its listed asleep neighbours when faster than this
  * many times the sleep velocity: a hysteresis, so that grains at the edge of

@@ -33,7 +33,8 @@
  * at rest).
  *
  * The region (derivation, also dem_server/README.md): the bounding box of the
- * moving meshes' triangles within the reach of the grains' box, grown along
+ * moving meshes' triangles within the reach of a grain (the grains'
+ * occupancy grid, region_update), grown along
  * each axis k by
  *   margin_k = max(distance_k, r_max + 2 skin) + c N dt + v_mesh (N + 1) dt;
  * the reach is the margin with distance 0 (a triangle farther from every
@@ -91,12 +92,13 @@ int dem_sleep_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->near = calloc((size_t)s->n + 1, 1);
   w->rest_x = calloc(3 * (size_t)s->n + 1, sizeof(double));
   w->wake_list = calloc((size_t)s->n + 1, sizeof(int));
+  w->occ = calloc(DEM_REGION_OCC_CELLS, 1);
   int nodes = 1;
   for (int mi = 0; mi < m->n_meshes; mi++) nodes = m->meshes[mi].n_nodes > nodes ? m->meshes[mi].n_nodes : nodes;
   w->jump_pos = malloc(sizeof(int32_t) * (size_t)nodes);
   w->jump_mask = calloc((size_t)nodes, 1);
   if (!w->asleep || !w->wake || !w->rest || !w->near || !w->rest_x || !w->wake_list || !w->jump_pos ||
-      !w->jump_mask)
+      !w->jump_mask || !w->occ)
     return proto_fail(err, "out of memory for the sleep state of %d grains", s->n);
   return 0;
 }
@@ -105,6 +107,7 @@ void dem_sleep_free(struct dem_work *w) {
   free(w->asleep); free(w->wake); free(w->rest); free(w->near); free(w->rest_x); free(w->wake_list); free(w->frz_start);
   free(w->jump_pos);
   free(w->jump_mask);
+  free(w->occ);
 }
 
 void dem_sleep_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
@@ -266,10 +269,68 @@ static void grains_box(const dem_state *s, double *lo, double *hi) {
     }
 }
 
+/* The grains' occupancy (w->occ): a grid of cells of side at least `reach`
+ * over the box of the grains' spheres (centres glo..ghi, radii up to rmax),
+ * a cell marked where some grain's sphere box meets it; every grain, the
+ * asleep ones included (they stand where they fell asleep). */
+static void occupancy_build(const dem_state *s, const double *glo, const double *ghi, double reach) {
+  struct dem_work *w = s->work;
+  const double rmax = w->region_rmax;
+  double ext[3], h = reach;
+  for (int k = 0; k < 3; k++) {
+    w->occ_lo[k] = glo[k] - rmax;
+    ext[k] = ghi[k] + rmax - w->occ_lo[k];
+  }
+  for (;;) { /* cells of side h, fewer than the grid's cap */
+    double cells = 1;
+    for (int k = 0; k < 3; k++) cells *= floor(ext[k] / h) + 1;
+    if (cells <= DEM_REGION_OCC_CELLS) break;
+    h *= 1.25;
+  }
+  w->occ_h = h;
+  for (int k = 0; k < 3; k++) w->occ_dim[k] = (int)floor(ext[k] / h) + 1;
+  memset(w->occ, 0, (size_t)w->occ_dim[0] * w->occ_dim[1] * w->occ_dim[2]);
+  for (int i = 0; i < s->n; i++) {
+    int a[3], b[3];
+    for (int k = 0; k < 3; k++) {
+      a[k] = (int)floor((s->x[3 * i + k] - s->radius[i] - w->occ_lo[k]) / h);
+      b[k] = (int)floor((s->x[3 * i + k] + s->radius[i] - w->occ_lo[k]) / h);
+      a[k] = a[k] < 0 ? 0 : a[k];
+      b[k] = b[k] >= w->occ_dim[k] ? w->occ_dim[k] - 1 : b[k];
+    }
+    for (int z = a[2]; z <= b[2]; z++)
+      for (int y = a[1]; y <= b[1]; y++)
+        for (int x = a[0]; x <= b[0]; x++) w->occ[((size_t)z * w->occ_dim[1] + y) * w->occ_dim[0] + x] = 1;
+  }
+}
+
+/* Whether the box lo..hi meets an occupied cell (box grown by the reach by
+ * the caller). */
+static int occupied(const struct dem_work *w, const double *lo, const double *hi) {
+  int a[3], b[3];
+  for (int k = 0; k < 3; k++) {
+    const double fa = floor((lo[k] - w->occ_lo[k]) / w->occ_h), fb = floor((hi[k] - w->occ_lo[k]) / w->occ_h);
+    if (fb < 0 || fa >= w->occ_dim[k]) return 0;
+    a[k] = fa < 0 ? 0 : (int)fa;
+    b[k] = fb >= w->occ_dim[k] ? w->occ_dim[k] - 1 : (int)fb;
+  }
+  for (int z = a[2]; z <= b[2]; z++)
+    for (int y = a[1]; y <= b[1]; y++)
+      for (int x = a[0]; x <= b[0]; x++)
+        if (w->occ[((size_t)z * w->occ_dim[1] + y) * w->occ_dim[0] + x]) return 1;
+  return 0;
+}
+
 /* The region follows the moving meshes; awake grains in it are near, asleep
- * ones in it wake. Only the triangles whose box comes within the margin of
- * the grains' box count (a wheel's upper half reaches no grain within the
- * next steps). */
+ * ones in it wake. Only the triangles whose box comes within the reach of a
+ * grain count (a wheel's upper half reaches no grain within the next steps):
+ * the box grown by the reach must meet the grains' box and an occupied cell
+ * of the grains' occupancy grid. By cells, not by the grains' box alone: one
+ * grain carried up in a tread's groove, or a heap against a far wall, raised
+ * the box's top, and every triangle of the tyre below it counted (the sand
+ * scene's region grew to 0.84 m of the 1 m bed). The box test stays: the
+ * sparse exchange sends the triangles that pass it (dem_sleep_reach), and the
+ * cells, which overhang the box by up to a cell, must not pick another. */
 static void region_update(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, vmax = 0;
@@ -290,6 +351,7 @@ static void region_update(const dem_model *m, dem_state *s) {
   for (int mi = 0; mi < m->n_meshes; mi++) w->region_movers |= w->mesh_moving[mi] << mi;
   if (moving) {
     grains_box(s, glo, ghi);
+    occupancy_build(s, glo, ghi, reach);
     for (int k = 0; k < 3; k++) { glo[k] -= reach; ghi[k] += reach; }
   }
   for (int mi = 0; mi < m->n_meshes && moving; mi++) {
@@ -307,6 +369,11 @@ static void region_update(const dem_model *m, dem_state *s) {
         tlo[k] = dem_min(a, dem_min(b, c));
         thi[k] = dem_max(a, dem_max(b, c));
         meets &= thi[k] >= glo[k] && tlo[k] <= ghi[k];
+      }
+      if (meets) {
+        double rlo[3], rhi[3];
+        for (int k = 0; k < 3; k++) { rlo[k] = tlo[k] - reach; rhi[k] = thi[k] + reach; }
+        meets = occupied(w, rlo, rhi);
       }
       for (int k = 0; k < 3 && meets; k++) {
         lo[k] = dem_min(lo[k], tlo[k]);

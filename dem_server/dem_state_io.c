@@ -48,13 +48,14 @@ typedef struct io_entry {
   int64_t shape[PROTO_MAX_NDIM];
   void *data;
   int optional; /* may be missing from a state with no grain asleep: then zero */
+  int sleep;    /* the active block's: missing from a state saved with sleep off (then zero: all awake) */
 } io_entry;
 
 static const size_t io_size[] = {[PROTO_F8] = 8, [PROTO_I4] = 4, [PROTO_I8] = 8, [PROTO_U1] = 1};
 
 static void add(io_entry *e, int *n, const char *name, proto_dtype dt, void *data, int ndim,
                 int64_t a, int64_t b, int64_t c) {
-  e[*n] = (io_entry){name, dt, ndim, {a, b, c}, data, 0};
+  e[*n] = (io_entry){name, dt, ndim, {a, b, c}, data, 0, 0};
   (*n)++;
 }
 
@@ -107,6 +108,7 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
     add(e, &c, PROTO_P_STATE "mesh_force", PROTO_F8, w->io_mesh + 6 * nodes, 2, nodes, 3, 0);
     add(e, &c, PROTO_P_STATE "mesh_xref", PROTO_F8, w->io_mesh + 9 * nodes, 2, nodes, 3, 0);
   }
+  const int sleep0 = c;
   if (m->sleep.on) {
     add(e, &c, PROTO_P_STATE "asleep", PROTO_U1, w->asleep, 1, n, 0, 0);
     add(e, &c, PROTO_P_STATE "rest", PROTO_I4, w->rest, 1, n, 0, 0);
@@ -122,6 +124,7 @@ static int layout(const dem_model *m, dem_state *s, int64_t npairs, io_entry *e)
    * rebuild, which the asleep grains are sorted by (owner: the sleep code) ---- */
   if (m->sleep.on) add(e, &c, PROTO_P_STATE "active", PROTO_F8, w->io_active, 1, DEM_IO_ACTIVE, 0, 0);
   /* ---- end of the active block ---- */
+  for (int k = sleep0; k < c; k++) e[k].sleep = 1;
   return c;
 }
 
@@ -186,6 +189,22 @@ static void model_parts(const dem_model *m, int64_t *part) {
 
 static int64_t model_fingerprint(const int64_t *part) {
   return (int64_t)fnv(FNV0, part, sizeof(int64_t) * IO_NPARTS);
+}
+
+/* A state saved with sleep off, into this model with sleep on and nothing
+ * else changed: every grain is awake in it, so the active block's arrays it
+ * lacks are those of a run whose grains never slept (zero: awake, no steps at
+ * rest, the region not yet placed; the next rebuild is a full one). A bed
+ * settled all awake then serves runs with and without the active region.
+ * Not the other way: a state with grains asleep needs the active block. */
+static int sleep_added(const dem_model *m, const int64_t *theirs, const int64_t *mine, int64_t their_print) {
+  const int off = 0;
+  if (!m->sleep.on || theirs[IO_M_SLEEP] != (int64_t)FNV_VAL(FNV0, off) ||
+      their_print != model_fingerprint(theirs))
+    return 0;
+  for (int k = 0; k < IO_NPARTS; k++)
+    if (k != IO_M_SLEEP && theirs[k] != mine[k]) return 0;
+  return 1;
 }
 
 /* "grains, walls" into out: the parts in which two fingerprints differ. */
@@ -330,7 +349,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   const int n = s->n;
   if (n != m->n_grains) return proto_fail(err, "state import: the state does not belong to this model");
   /* the model first: the other shapes mean nothing for another model */
-  const io_entry counters = {PROTO_P_STATE "counters", PROTO_I8, 1, {IO_NCOUNTERS}, NULL, 0};
+  const io_entry counters = {PROTO_P_STATE "counters", PROTO_I8, 1, {IO_NCOUNTERS}, NULL, 0, 0};
   const int64_t *cnt = get(in, &counters, err);
   if (!cnt) return -1;
   if (cnt[IO_C_FORMAT] != IO_FORMAT)
@@ -338,18 +357,21 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
                       (long long)cnt[IO_C_FORMAT], IO_FORMAT);
   int64_t mine[IO_NPARTS];
   model_parts(m, mine);
+  int from_awake = 0; /* a state saved with sleep off, continued with sleep on */
   if (cnt[IO_C_MODEL] != model_fingerprint(mine)) {
-    const io_entry parts = {PROTO_P_STATE "model", PROTO_I8, 1, {IO_NPARTS}, NULL, 0};
+    const io_entry parts = {PROTO_P_STATE "model", PROTO_I8, 1, {IO_NPARTS}, NULL, 0, 0};
     const int64_t *theirs = get(in, &parts, err);
     char what[512];
     if (!theirs) return -1;
+    from_awake = sleep_added(m, theirs, mine, cnt[IO_C_MODEL]);
     parts_differ(theirs, mine, what, sizeof what);
-    return proto_fail(err, "state import: 'state.counters' comes from another model (fingerprint %016llx, "
-                      "this model %016llx): %s differ%s",
-                      (unsigned long long)cnt[IO_C_MODEL], (unsigned long long)model_fingerprint(mine),
-                      what[0] ? what : "'state.model' and 'state.counters'", what[0] ? "" : " (damaged)");
+    if (!from_awake)
+      return proto_fail(err, "state import: 'state.counters' comes from another model (fingerprint %016llx, "
+                        "this model %016llx): %s differ%s",
+                        (unsigned long long)cnt[IO_C_MODEL], (unsigned long long)model_fingerprint(mine),
+                        what[0] ? what : "'state.model' and 'state.counters'", what[0] ? "" : " (damaged)");
   }
-  const io_entry start = {PROTO_P_STATE "nl_start", PROTO_I4, 1, {n + 1}, NULL, 0};
+  const io_entry start = {PROTO_P_STATE "nl_start", PROTO_I4, 1, {n + 1}, NULL, 0, 0};
   const int32_t *st = get(in, &start, err);
   if (!st) return -1;
   const int64_t npairs = st[n];
@@ -360,7 +382,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   const void *src[IO_MAX];
   const int ne = layout(m, s, npairs, e);
   for (int k = 0; k < ne; k++) {
-    if (e[k].optional && !proto_msg_find(in, e[k].name)) {
+    if ((e[k].optional || (from_awake && e[k].sleep)) && !proto_msg_find(in, e[k].name)) {
       if (cnt[IO_C_SLEEPING] != 0)
         return proto_fail(err, "state import: '%s' is missing and %lld grains are asleep (a state of an earlier "
                           "version can continue only with every grain awake)", e[k].name,

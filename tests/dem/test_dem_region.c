@@ -14,7 +14,13 @@
  *    (the plate's path grown by the margin and the hysteresis; grains outside
  *    it fall asleep in batches, dem_sleep.c fall_asleep).
  * 3. `distance` per axis, [d, 0, d]: along x as in 2, but beside the plate
- *    (along y) the region reaches only the reach and its hysteresis. */
+ *    (along y) the region reaches only the reach and its hysteresis.
+ * 4. Within reach of a grain, not of the grains' box: without gravity, one
+ *    more grain floats at rest above the plate's height in the far corner
+ *    (as a grain carried up in a tread's groove, or a heap against a far
+ *    wall): the plate as in 1 is within the reach of the grains' box but of
+ *    no grain, so it holds none awake (by the grains' box alone it did: the
+ *    sand scene's region grew to the whole tyre). */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 #include <string.h>
@@ -27,22 +33,28 @@
 #define DT 5e-5
 #define STEPS 2400     /* 0.12 s: the rest time 0.01 s many times over */
 
-static char *scene_json(double gap, const char *distance) {
+/* lone: without gravity, one more grain at (L - 0.01, 0.01, the plate's
+ * height + 0.005) */
+static char *scene_json_lone(double gap, const char *distance, int lone) {
   static char json[200000];
   const double s = 2 * R + 2e-4, h = sqrt(4 * R * R - 0.5 * s * s), L = NL * s + 0.01;
   const double ztop = R + 1e-5 + h + 1e-5; /* the upper layer's centres */
   const double zp = ztop + gap, x0 = 0.03, y0 = 0.5 * L - 0.5 * PLATE;
   int len = snprintf(json, sizeof json,
       "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.3,\"friction\":0.6}],"
-      "\"dt\":%g,\"sleep\":{\"velocity\":0.005,\"time\":0.01,\"distance\":%s},"
+      "\"dt\":%g,%s\"sleep\":{\"velocity\":0.005,\"time\":0.01,\"distance\":%s},"
       "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,1],\"open_top\":true},"
       "{\"type\":\"mesh\",\"nodes\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
       "[%.17g,%.17g,%.17g]],\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[%g,0,0]}],\"particles\":[",
-      DT, distance, L, L, x0, y0, zp, x0 + PLATE, y0, zp, x0 + PLATE, y0 + PLATE, zp, x0, y0 + PLATE, zp, SPEED);
+      DT, lone ? "\"gravity\":[0,0,0]," : "", distance, L, L, x0, y0, zp, x0 + PLATE, y0, zp, x0 + PLATE, y0 + PLATE, zp, x0, y0 + PLATE, zp, SPEED);
   len = dem_test_two_layers(json, len, sizeof json, NL, R, s, h);
+  if (lone)
+    len += snprintf(json + len, sizeof json - len, ",{\"x\":[%.17g,0.01,%.17g],\"r\":%g}", L - 0.01, zp + 0.005, R);
   snprintf(json + len, sizeof json - len, "]}");
   return json;
 }
+
+static char *scene_json(double gap, const char *distance) { return scene_json_lone(gap, distance, 0); }
 
 /* the reach (region_margin without distance) at the plate's speed */
 static double reach(const dem_model *m, const dem_state *s) {
@@ -123,6 +135,21 @@ int main(void) {
   CHECK(ahead > 10 && ahead_asleep == 0, "%d of %d grains within distance along x sleep", ahead_asleep, ahead);
   CHECK(beside > 20 && beside_held == 0, "the region holds %d of %d grains beside the plate awake", beside_held,
         beside);
+  dem_state_free(&s);
+  dem_model_free(&m);
+
+  /* 4. a lone grain above the plate's height, far from it */
+  scene(scene_json_lone(g1, distance_all, 1), &m, &s);
+  const int lone = s.n - 1; /* the last grain given (ids follow the input) */
+  double gtop = -INFINITY;
+  for (int i = 0; i < s.n; i++) gtop = fmax(gtop, s.x[3 * i + 2] + s.radius[i]);
+  const double zplate = s.mesh_x[0][2];
+  dem_test_steps(&m, &s, STEPS);
+  printf("a lone grain %.4f m above the plate (grains' box top %.4f m): %lld of %d asleep, region %s\n",
+         gtop - zplate, gtop, (long long)s.sleeping, s.n, s.work->region_on ? "on" : "off");
+  CHECK(gtop > zplate && lone > 0, "the lone grain does not lift the grains' box above the plate");
+  CHECK(s.sleeping == s.n && !s.work->region_on, "a plate out of reach of every grain (within the grains' box's) "
+        "held %lld of %d grains awake", (long long)(s.n - s.sleeping), s.n);
   dem_state_free(&s);
   dem_model_free(&m);
   return cosim_test_done("test_dem_region");

@@ -3,7 +3,9 @@
  * every coupling step, with sliding contacts: N steps straight == N/2, export,
  * import into a fresh state (also one with another thread count), N/2 —
  * bitwise. A state of another model, and damaged arrays, are refused with a
- * message naming the array. */
+ * message naming the array. A state saved with sleep off continues with sleep
+ * on (every grain awake, as in a run whose grains never slept: bitwise the
+ * run without sleep while none falls asleep); not the other way. */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 #include <string.h>
@@ -15,7 +17,7 @@ static const char *JSON =
     /* a vertical plate in x = 0 ploughing along +x */
     "{\"type\":\"mesh\",\"nodes\":[[0,0.01,0.015],[0,0.13,0.015],[0,0.13,0.12],[0,0.01,0.12]],"
     "\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[0.4,0,0]}],"
-    "\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":%d}}";
+    "\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":%d}%s}";
 
 /* The coupled "foot": a 4 x 4 grid of squares, 6 cm wide, coming down. */
 #define FOOT_N 4
@@ -35,9 +37,10 @@ static void foot(double t, double *x, double *v) {
     }
 }
 
-static void make(int threads, int seed, dem_model *m, dem_state *s) {
+/* extra: more top-level keys (",\"sleep\":{...}") or "" */
+static void make_with(int threads, int seed, const char *extra, dem_model *m, dem_state *s) {
   char json[2048];
-  snprintf(json, sizeof json, JSON, threads, seed);
+  snprintf(json, sizeof json, JSON, threads, seed, extra);
   proto_err err = {{0}};
   cJSON *j = cJSON_Parse(json);
   int32_t tri[6 * FOOT_N * FOOT_N];
@@ -56,6 +59,8 @@ static void make(int threads, int seed, dem_model *m, dem_state *s) {
   }
   cJSON_Delete(j);
 }
+
+static void make(int threads, int seed, dem_model *m, dem_state *s) { make_with(threads, seed, "", m, s); }
 
 /* Steps k0..k1−1; the coupled nodes are set at each coupling step. */
 static void run(const dem_model *m, dem_state *s, int k0, int k1) {
@@ -178,6 +183,41 @@ int main(void) {
     free(xc);
     dem_state_free(&c);
     dem_model_free(&mc);
+  }
+
+  /* sleep off -> on: accepted, every grain awake; with thresholds no grain
+   * meets (velocity 1e-12 m/s) the run is bitwise the one without sleep */
+  {
+    dem_model ms;
+    dem_state ss;
+    make_with(1, 7, ",\"sleep\":{\"velocity\":1e-12,\"distance\":0.01}", &ms, &ss);
+    CHECK(dem_state_import(&ms, &ss, &cp, &err) == 0, "a sleep-off state into a sleep-on model: %s", err.msg);
+    CHECK(ss.sleeping == 0 && ss.work->n_active == n, "after the import %lld grains asleep, %d awake of %d",
+          (long long)ss.sleeping, ss.work->n_active, n);
+    run(&ms, &ss, H, N);
+    double *xs = malloc(sizeof(double) * 9 * n);
+    dem_gather(&ss, ss.x, 3, xs);
+    dem_gather(&ss, ss.v, 3, xs + 3 * n);
+    dem_gather(&ss, ss.omega, 3, xs + 6 * n);
+    printf("sleep off -> on: KE %.17g (straight %.17g), %lld asleep at the end\n", ss.kinetic_energy,
+           a.kinetic_energy, (long long)ss.sleeping);
+    CHECK(ss.sleeping == 0, "a grain fell asleep at velocity 1e-12 m/s");
+    CHECK(memcmp(xa, xs, sizeof(double) * 9 * n) == 0 && ss.kinetic_energy == a.kinetic_energy,
+          "sleep off -> on, no grain asleep: x, v, omega or KE differ from the run without sleep");
+    /* and back: a sleep-on state into a sleep-off model is refused */
+    proto_msg es = {0};
+    proto_msg_reset(&es, "state", "state", 0, 0);
+    CHECK(dem_state_export(&ms, &ss, &es, &err) == 0, "export with sleep: %s", err.msg);
+    dem_model mo;
+    dem_state so;
+    make(1, 7, &mo, &so);
+    expect_refused(&mo, &so, &es, "sleep-on state, sleep-off model", "sleep (on or off)");
+    dem_state_free(&so);
+    dem_model_free(&mo);
+    proto_msg_free(&es);
+    free(xs);
+    dem_state_free(&ss);
+    dem_model_free(&ms);
   }
 
   /* refusals: another model; damaged arrays (the state stays usable) */
