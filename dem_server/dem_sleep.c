@@ -269,6 +269,22 @@ static void grains_box(const dem_state *s, double *lo, double *hi) {
     }
 }
 
+/* The cells [a, b] (per axis) of the occupancy grid that the box lo..hi
+ * meets, clamped to the grid; 0 if the box lies outside it. */
+static int occ_range(const struct dem_work *w, const double *lo, const double *hi, int *a, int *b) {
+  for (int k = 0; k < 3; k++) {
+    const double fa = floor((lo[k] - w->occ_lo[k]) / w->occ_h), fb = floor((hi[k] - w->occ_lo[k]) / w->occ_h);
+    if (fb < 0 || fa >= w->occ_dim[k]) return 0;
+    a[k] = fa < 0 ? 0 : (int)fa;
+    b[k] = fb >= w->occ_dim[k] ? w->occ_dim[k] - 1 : (int)fb;
+  }
+  return 1;
+}
+
+static size_t occ_cell(const struct dem_work *w, int x, int y, int z) {
+  return ((size_t)z * w->occ_dim[1] + y) * w->occ_dim[0] + x;
+}
+
 /* The grains' occupancy (w->occ): a grid of cells of side at least `reach`
  * over the box of the grains' spheres (centres glo..ghi, radii up to rmax),
  * a cell marked where some grain's sphere box meets it; every grain, the
@@ -289,35 +305,28 @@ static void occupancy_build(const dem_state *s, const double *glo, const double 
   }
   w->occ_h = h;
   for (int k = 0; k < 3; k++) w->occ_dim[k] = (int)floor(ext[k] / h) + 1;
-  memset(w->occ, 0, (size_t)w->occ_dim[0] * w->occ_dim[1] * w->occ_dim[2]);
+  memset(w->occ, 0, occ_cell(w, 0, 0, w->occ_dim[2]));
   for (int i = 0; i < s->n; i++) {
+    const double *x = &s->x[3 * i], r = s->radius[i];
+    const double lo[3] = {x[0] - r, x[1] - r, x[2] - r}, hi[3] = {x[0] + r, x[1] + r, x[2] + r};
     int a[3], b[3];
-    for (int k = 0; k < 3; k++) {
-      a[k] = (int)floor((s->x[3 * i + k] - s->radius[i] - w->occ_lo[k]) / h);
-      b[k] = (int)floor((s->x[3 * i + k] + s->radius[i] - w->occ_lo[k]) / h);
-      a[k] = a[k] < 0 ? 0 : a[k];
-      b[k] = b[k] >= w->occ_dim[k] ? w->occ_dim[k] - 1 : b[k];
-    }
+    if (!occ_range(w, lo, hi, a, b)) continue;
     for (int z = a[2]; z <= b[2]; z++)
       for (int y = a[1]; y <= b[1]; y++)
-        for (int x = a[0]; x <= b[0]; x++) w->occ[((size_t)z * w->occ_dim[1] + y) * w->occ_dim[0] + x] = 1;
+        for (int c = a[0]; c <= b[0]; c++) w->occ[occ_cell(w, c, y, z)] = 1;
   }
 }
 
-/* Whether the box lo..hi meets an occupied cell (box grown by the reach by
- * the caller). */
-static int occupied(const struct dem_work *w, const double *lo, const double *hi) {
+/* Whether the box lo..hi grown by `reach` meets an occupied cell. */
+static int occupied(const struct dem_work *w, const double *lo, const double *hi, double reach) {
+  const double glo[3] = {lo[0] - reach, lo[1] - reach, lo[2] - reach};
+  const double ghi[3] = {hi[0] + reach, hi[1] + reach, hi[2] + reach};
   int a[3], b[3];
-  for (int k = 0; k < 3; k++) {
-    const double fa = floor((lo[k] - w->occ_lo[k]) / w->occ_h), fb = floor((hi[k] - w->occ_lo[k]) / w->occ_h);
-    if (fb < 0 || fa >= w->occ_dim[k]) return 0;
-    a[k] = fa < 0 ? 0 : (int)fa;
-    b[k] = fb >= w->occ_dim[k] ? w->occ_dim[k] - 1 : (int)fb;
-  }
+  if (!occ_range(w, glo, ghi, a, b)) return 0;
   for (int z = a[2]; z <= b[2]; z++)
     for (int y = a[1]; y <= b[1]; y++)
-      for (int x = a[0]; x <= b[0]; x++)
-        if (w->occ[((size_t)z * w->occ_dim[1] + y) * w->occ_dim[0] + x]) return 1;
+      for (int c = a[0]; c <= b[0]; c++)
+        if (w->occ[occ_cell(w, c, y, z)]) return 1;
   return 0;
 }
 
@@ -349,9 +358,12 @@ static void region_update(const dem_model *m, dem_state *s) {
   w->region_budget = moving ? vmax * (DEM_REGION_STEPS + 1) * s->dt : 0;
   w->region_movers = 0;
   for (int mi = 0; mi < m->n_meshes; mi++) w->region_movers |= w->mesh_moving[mi] << mi;
+  double cbox[6]; /* the grains' centre box, for the occupancy grid */
+  int occ_built = 0; /* built when a triangle first passes the box test: a far mesh costs no O(n) */
   if (moving) {
     grains_box(s, glo, ghi);
-    occupancy_build(s, glo, ghi, reach);
+    memcpy(cbox, glo, sizeof glo);
+    memcpy(cbox + 3, ghi, sizeof ghi);
     for (int k = 0; k < 3; k++) { glo[k] -= reach; ghi[k] += reach; }
   }
   for (int mi = 0; mi < m->n_meshes && moving; mi++) {
@@ -370,11 +382,11 @@ static void region_update(const dem_model *m, dem_state *s) {
         thi[k] = dem_max(a, dem_max(b, c));
         meets &= thi[k] >= glo[k] && tlo[k] <= ghi[k];
       }
-      if (meets) {
-        double rlo[3], rhi[3];
-        for (int k = 0; k < 3; k++) { rlo[k] = tlo[k] - reach; rhi[k] = thi[k] + reach; }
-        meets = occupied(w, rlo, rhi);
+      if (meets && !occ_built) {
+        occupancy_build(s, cbox, cbox + 3, reach);
+        occ_built = 1;
       }
+      if (meets) meets = occupied(w, tlo, thi, reach);
       for (int k = 0; k < 3 && meets; k++) {
         lo[k] = dem_min(lo[k], tlo[k]);
         hi[k] = dem_max(hi[k], thi[k]);

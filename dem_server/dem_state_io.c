@@ -145,6 +145,9 @@ static uint64_t fnv(uint64_t h, const void *p, size_t n) {
 #define FNV0 0xcbf29ce484222325ull
 #define FNV_VAL(h, v) fnv((h), &(v), sizeof(v))
 
+/* The fingerprint's sleep part: on (1) or off (0). */
+static int64_t sleep_part(int on) { return (int64_t)FNV_VAL(FNV0, on); }
+
 static void model_parts(const dem_model *m, int64_t *part) {
   const size_t n = (size_t)m->n_grains;
   uint64_t h = FNV_VAL(FNV0, m->n_grains);
@@ -184,7 +187,7 @@ static void model_parts(const dem_model *m, int64_t *part) {
   /* sleep on or off: the set of arrays. Not its thresholds: they decide only
    * which grains fall asleep or wake from now on, as dt and gravity decide
    * only the steps from now on (a saved bed serves runs that differ in them) */
-  part[IO_M_SLEEP] = (int64_t)FNV_VAL(FNV0, m->sleep.on);
+  part[IO_M_SLEEP] = sleep_part(m->sleep.on);
 }
 
 static int64_t model_fingerprint(const int64_t *part) {
@@ -198,8 +201,7 @@ static int64_t model_fingerprint(const int64_t *part) {
  * settled all awake then serves runs with and without the active region.
  * Not the other way: a state with grains asleep needs the active block. */
 static int sleep_added(const dem_model *m, const int64_t *theirs, const int64_t *mine, int64_t their_print) {
-  const int off = 0;
-  if (!m->sleep.on || theirs[IO_M_SLEEP] != (int64_t)FNV_VAL(FNV0, off) ||
+  if (!m->sleep.on || theirs[IO_M_SLEEP] != sleep_part(0) ||
       their_print != model_fingerprint(theirs))
     return 0;
   for (int k = 0; k < IO_NPARTS; k++)
@@ -361,15 +363,16 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   if (cnt[IO_C_MODEL] != model_fingerprint(mine)) {
     const io_entry parts = {PROTO_P_STATE "model", PROTO_I8, 1, {IO_NPARTS}, NULL, 0, 0};
     const int64_t *theirs = get(in, &parts, err);
-    char what[512];
     if (!theirs) return -1;
     from_awake = sleep_added(m, theirs, mine, cnt[IO_C_MODEL]);
-    parts_differ(theirs, mine, what, sizeof what);
-    if (!from_awake)
+    if (!from_awake) {
+      char what[512];
+      parts_differ(theirs, mine, what, sizeof what);
       return proto_fail(err, "state import: 'state.counters' comes from another model (fingerprint %016llx, "
                         "this model %016llx): %s differ%s",
                         (unsigned long long)cnt[IO_C_MODEL], (unsigned long long)model_fingerprint(mine),
                         what[0] ? what : "'state.model' and 'state.counters'", what[0] ? "" : " (damaged)");
+    }
   }
   const io_entry start = {PROTO_P_STATE "nl_start", PROTO_I4, 1, {n + 1}, NULL, 0, 0};
   const int32_t *st = get(in, &start, err);
