@@ -383,7 +383,9 @@ void dem_prep_laws(dem_model *m, const dem_prep *p);
  * laws (dem_prep_laws), then with the scene's (m): the tangential springs
  * stay as they are at the switch and the scene's Coulomb rule limits them
  * at the next step, the rolling torques (no history) start with it; each
- * phase dem_settle_placed up to settle_max_steps to settle_ke_per_grain.
+ * phase up to settle_max_steps to settle_ke_per_grain, the first as
+ * dem_settle_placed, the second without its minimum time (the bed is at
+ * rest when the laws change).
  * Without: one such phase with the scene's laws. Then the clock is reset (t = 0, step
  * 0); *steps (may be NULL) gets the steps settled. */
 int dem_bed_settle(const dem_model *m, dem_state *s, dem_progress_fn progress, void *ctx, int64_t *steps,

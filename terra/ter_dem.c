@@ -165,15 +165,19 @@ static void settle_progress(void *ctx, double fraction, const char *what) {
   fflush(sl->log);
 }
 
-static int settle(const dem_model *m, dem_state *s, double ke, int64_t max_steps, FILE *log,
+/* `placed`: grains placed at rest on the lattice start with no kinetic
+ * energy: the KE test alone stopped a 9 us-step bed after 101 steps, still in
+ * free fall (dem.h DEM_SETTLE_MIN_TIME); a prepared bed settled again with
+ * the scene's laws starts at rest, and the KE test may end it at once: the
+ * rules dem_server's beds settle by (dem_bed_settle) */
+static int settle(const dem_model *m, dem_state *s, double ke, int64_t max_steps, int placed, FILE *log,
                   proto_err *err) {
   double t0 = proto_now();
   int64_t k0 = s->step;
-  /* grains placed at rest on the lattice start with no kinetic energy: the KE
-   * test alone stopped a 9 us-step bed after 101 steps, still in free fall
-   * (dem.h DEM_SETTLE_MIN_TIME, the rule dem_server's beds settle by too) */
   settle_log sl = {log, -1};
-  if (dem_settle_placed(m, s, ke, max_steps, log ? settle_progress : NULL, &sl, err)) return -1;
+  const dem_progress_fn fn = log ? settle_progress : NULL;
+  if (placed ? dem_settle_placed(m, s, ke, max_steps, fn, &sl, err) : dem_settle(m, s, ke, max_steps, fn, &sl, err))
+    return -1;
   if (log)
     fprintf(log, "terra: %d grains settled in %lld steps of %.3g s (%.1f s wall, %.3g grain-steps/s), "
             "KE %.3g J per grain\n", s->n, (long long)(s->step - k0), s->dt, proto_now() - t0,
@@ -339,12 +343,11 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
   prep_saved laws;
   if (prep_check(&m, &sp->prep, err)) goto fail;
   prep_apply(&m, &sp->prep, &laws);
-  rc = settle(&m, &s, sp->settle_ke, sp->settle_max_steps, log, err);
+  rc = settle(&m, &s, sp->settle_ke, sp->settle_max_steps, 1, log, err);
   prep_restore(&m, &laws);
   /* prepared: settled again with the scene's laws, as dem_server settles a
-   * prepared bed and as `bed` does (the tangential springs and rolling
-   * torques build up under gravity before the plate arrives) */
-  if (rc || (sp->prep.on && settle(&m, &s, sp->settle_ke, sp->settle_max_steps, log, err))) goto fail;
+   * prepared bed and as `bed` does (from rest: until the KE test holds) */
+  if (rc || (sp->prep.on && settle(&m, &s, sp->settle_ke, sp->settle_max_steps, 0, log, err))) goto fail;
   double d_top, z_surf = surface_height(&s, c, c, h, &d_top);
   const double rho = grain_density(&m, soil->grain_material);
   double dmax = 0;
@@ -673,7 +676,7 @@ int ter_shear_test(const ter_dem_soil *soil, const ter_shear_spec *sp, FILE *log
   prep_saved laws;
   if (prep_check(&r->m, &sp->prep, err)) goto fail;
   prep_apply(&r->m, &sp->prep, &laws);
-  int rc = settle(&r->m, &r->s, sp->settle_ke, sp->settle_max_steps, log, err) || shear_consolidate(r, err);
+  int rc = settle(&r->m, &r->s, sp->settle_ke, sp->settle_max_steps, 1, log, err) || shear_consolidate(r, err);
   prep_restore(&r->m, &laws);
   /* the scene's friction back: the platen holds sigma_n again before the shear */
   if (rc || (sp->prep.on && shear_hold(r, err))) goto fail;
@@ -729,10 +732,10 @@ int ter_prepare_bed(const ter_dem_soil *soil, const ter_bed_spec *sp, const char
   prep_saved laws;
   if (prep_check(&m, &prep, err)) goto fail;
   prep_apply(&m, &prep, &laws);
-  rc = settle(&m, &s, ke, steps, log, err);
+  rc = settle(&m, &s, ke, steps, 1, log, err);
   prep_restore(&m, &laws);
-  /* the scene's laws: the tangential springs and rolling torques build up */
-  if (rc || (prep.on && settle(&m, &s, ke, steps, log, err))) goto fail;
+  /* the scene's laws, from rest (as dem_server's dem_bed_settle) */
+  if (rc || (prep.on && settle(&m, &s, ke, steps, 0, log, err))) goto fail;
   double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
   for (int i = 0; i < s.n; i++)
     for (int d = 0; d < 2; d++) {

@@ -162,6 +162,35 @@ static void not_in_free_fall(void) {
   printf("stiff bed: dt %.3g s, settled %lld steps (at least %lld)\n", s.dt, (long long)n, (long long)n_min);
   CHECK(n >= n_min, "settling ended after %lld steps, before %g s (%lld steps)", (long long)n, DEM_SETTLE_MIN_TIME,
         (long long)n_min);
+  /* a softer bed (E = 20 MPa, which reaches 1e-7 J per grain well within its
+   * 30 000 steps; the stiff one does not), settled once plain and once
+   * prepared with the scene's own laws: the first settling of the prepared bed is the plain one step for
+   * step and ends by the KE test, at rest; the second starts so, and the KE
+   * test ends it at its first chance (after 102 steps), not
+   * DEM_SETTLE_MIN_TIME later */
+  const char *cut = strstr(J, "\"settle_ke_per_grain\"");
+  int64_t nk[2] = {0, 0};
+  double ke[2] = {0, 0};
+  for (int k = 0; k < 2; k++) {
+    char json[sizeof J + 64];
+    snprintf(json, sizeof json, "%.*s\"settle_ke_per_grain\":1e-7,\"settle_max_steps\":30000%s}}", (int)(cut - J),
+             J, k ? ",\"prepare\":{\"friction\":0.8}" : "");
+    memcpy(strstr(json, "\"E\":2e8"), "\"E\":2e7", 7);
+    dem_model mk;
+    dem_state sk;
+    scene(json, &mk, &sk);
+    CHECK(mk.cfg.prep.on == k, "prepare %s in %s", k ? "not read" : "read", json);
+    OK(dem_bed_settle(&mk, &sk, NULL, NULL, &nk[k], &err));
+    ke[k] = sk.kinetic_energy / sk.n;
+    dem_state_free(&sk);
+    dem_model_free(&mk);
+  }
+  printf("E = 20 MPa, settled to 1e-7 J per grain: %lld steps plain, %lld prepared with the scene's laws (the second "
+         "settling %lld steps), KE %.3g, %.3g J per grain\n", (long long)nk[0], (long long)nk[1],
+         (long long)(nk[1] - nk[0]), ke[0], ke[1]);
+  CHECK(nk[0] >= n_min && nk[0] < 30000 && nk[1] - nk[0] == 102 && ke[1] < 1e-7,
+        "the second settling of a bed at rest took %lld steps (102 expected; the first %lld of at least %lld), KE %.3g J",
+        (long long)(nk[1] - nk[0]), (long long)nk[0], (long long)n_min, ke[1]);
   dem_state_free(&s);
   dem_model_free(&m);
 }
