@@ -20,7 +20,14 @@
  *    (as a grain carried up in a tread's groove, or a heap against a far
  *    wall): the plate as in 1 is within the reach of the grains' box but of
  *    no grain, so it holds none awake (by the grains' box alone it did: the
- *    sand scene's region grew to the whole tyre). */
+ *    sand scene's region grew to the whole tyre).
+ * 5. Within reach of a fast grain only: the plate as in 1, and without
+ *    gravity one more grain just under the plate, moving with it (as a grain
+ *    the tread carries): faster than wake_velocity it is awake whatever the
+ *    region and wakes what it approaches, so the plate holds nothing awake
+ *    for it: the bed falls asleep, the grain itself stays awake (counted, it
+ *    held the bed under the plate awake: the sand scene's region reached
+ *    back to the grains carried behind the tyre). */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 #include <string.h>
@@ -33,8 +40,10 @@
 #define DT 5e-5
 #define STEPS 2400     /* 0.12 s: the rest time 0.01 s many times over */
 
-/* lone: without gravity, one more grain at (L - 0.01, 0.01, the plate's
- * height + 0.005) */
+/* lone: without gravity, one more grain: 1 at (L - 0.01, 0.01, the plate's
+ * height + 0.005), at rest; 2 under the plate's centre, its top 1 mm below
+ * the plate, moving with the plate (faster than wake_velocity, 0.01 m/s here
+ * instead of the default 4 x 0.005) */
 static char *scene_json_lone(double gap, const char *distance, int lone) {
   static char json[200000];
   const double s = 2 * R + 2e-4, h = sqrt(4 * R * R - 0.5 * s * s), L = NL * s + 0.01;
@@ -42,14 +51,17 @@ static char *scene_json_lone(double gap, const char *distance, int lone) {
   const double zp = ztop + gap, x0 = 0.03, y0 = 0.5 * L - 0.5 * PLATE;
   int len = snprintf(json, sizeof json,
       "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.3,\"friction\":0.6}],"
-      "\"dt\":%g,%s\"sleep\":{\"velocity\":0.005,\"time\":0.01,\"distance\":%s},"
+      "\"dt\":%g,%s\"sleep\":{\"velocity\":0.005,%s\"time\":0.01,\"distance\":%s},"
       "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,1],\"open_top\":true},"
       "{\"type\":\"mesh\",\"nodes\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
       "[%.17g,%.17g,%.17g]],\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[%g,0,0]}],\"particles\":[",
-      DT, lone ? "\"gravity\":[0,0,0]," : "", distance, L, L, x0, y0, zp, x0 + PLATE, y0, zp, x0 + PLATE, y0 + PLATE, zp, x0, y0 + PLATE, zp, SPEED);
+      DT, lone ? "\"gravity\":[0,0,0]," : "", lone == 2 ? "\"wake_velocity\":0.01," : "", distance, L, L, x0, y0, zp, x0 + PLATE, y0, zp, x0 + PLATE, y0 + PLATE, zp, x0, y0 + PLATE, zp, SPEED);
   len = dem_test_two_layers(json, len, sizeof json, NL, R, s, h);
-  if (lone)
+  if (lone == 1)
     len += snprintf(json + len, sizeof json - len, ",{\"x\":[%.17g,0.01,%.17g],\"r\":%g}", L - 0.01, zp + 0.005, R);
+  if (lone == 2)
+    len += snprintf(json + len, sizeof json - len, ",{\"x\":[%.17g,%.17g,%.17g],\"r\":%g,\"v\":[%g,0,0]}",
+                    x0 + 0.5 * PLATE, y0 + 0.5 * PLATE, zp - R - 0.001, R, SPEED);
   snprintf(json + len, sizeof json - len, "]}");
   return json;
 }
@@ -150,6 +162,23 @@ int main(void) {
   CHECK(gtop > zplate && lone > 0, "the lone grain does not lift the grains' box above the plate");
   CHECK(s.sleeping == s.n && !s.work->region_on, "a plate out of reach of every grain (within the grains' box's) "
         "held %lld of %d grains awake", (long long)(s.n - s.sleeping), s.n);
+  dem_state_free(&s);
+  dem_model_free(&m);
+
+  /* 5. a fast grain within reach of the plate, the bed out of it */
+  scene(scene_json_lone(g1, distance_all, 2), &m, &s);
+  const double vw = m.sleep.wake_velocity;
+  CHECK(SPEED > vw, "the carried grain's %g m/s is not above wake_velocity %g m/s", SPEED, vw);
+  dem_test_steps(&m, &s, STEPS);
+  int carried = -1;
+  for (int i = 0; i < s.n; i++)
+    if (s.id[i] == s.n - 1) carried = i;
+  printf("a grain moving under the plate at %g m/s (wake_velocity %g): %lld of %d asleep, it %s, region %s\n", SPEED,
+         vw, (long long)s.sleeping, s.n, carried >= 0 && !s.work->asleep[carried] ? "awake" : "ASLEEP",
+         s.work->region_on ? "on" : "off");
+  CHECK(carried >= 0 && !s.work->asleep[carried] && s.sleeping == s.n - 1,
+        "a plate within reach of one fast grain only held %lld of %d grains awake (the fast one %s)",
+        (long long)(s.n - s.sleeping), s.n, carried >= 0 && !s.work->asleep[carried] ? "awake" : "asleep");
   dem_state_free(&s);
   dem_model_free(&m);
   return cosim_test_done("test_dem_region");
