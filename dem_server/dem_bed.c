@@ -140,12 +140,13 @@ static int settle_awake(const dem_model *m, dem_state *s, dem_progress_fn progre
     if (rc) return proto_wrap(err, "%s.particles.prepare (friction %g, rolling friction %g)", m->key_path,
                               c->prep.friction, c->prep.rolling);
   }
-  /* the scene's laws: its tangential springs and rolling torques build up.
-   * After the preparation the bed is at rest (its KE below the threshold):
-   * no minimum time, the KE test ends this phase once the new laws leave it
-   * so. (The 0.1 s it ran before were a quarter of the sand scene's settling
-   * and took the bed's KE some 70x below the threshold: a quieter bed is a
-   * lower settle_ke_per_grain; bench/results/sand_calibration.md) */
+  /* the scene's laws (the springs kept; its Coulomb rule and rolling torques
+   * from the next step). After the preparation the bed is at rest (its KE
+   * below the threshold): no minimum time, the KE test ends this phase once
+   * the new laws leave it so. (The 0.1 s it ran before were a quarter of
+   * the sand scene's settling and took the bed's KE from just below the
+   * threshold to 25-70x below it: a quieter bed is a lower settle_ke_per_grain;
+   * bench/results/sand_calibration.md) */
   if (settle_placed(m, s, c->settle_ke, max_steps, progress, ctx,
                     c->prep.on ? "settling the bed with the scene's laws (2 of 2)" : NULL, !c->prep.on, err))
     return -1;
