@@ -315,7 +315,7 @@ static void occupancy_build(const dem_state *s, const double *glo, const double 
   const double vf2 = vfast * vfast;
   for (int i = 0; i < s->n; i++) {
     const double *x = &s->x[3 * i], r = s->radius[i];
-    if (i < w->n_active && dem_dot(&s->v[3 * i], &s->v[3 * i]) > vf2) continue;
+    if (i < w->n_active && dem_dot(&s->v[3 * i], &s->v[3 * i]) > vf2) continue; /* asleep: v = 0, not read */
     const double lo[3] = {x[0] - r, x[1] - r, x[2] - r}, hi[3] = {x[0] + r, x[1] + r, x[2] + r};
     int a[3], b[3];
     if (!occ_range(w, lo, hi, a, b)) continue;

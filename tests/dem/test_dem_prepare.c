@@ -146,12 +146,17 @@ static void keys(void) {
 /* A stiff bed (E = 200 MPa, as the sand scene's: dt about 6.5 us) placed at
  * rest has almost no kinetic energy for its first steps: the KE test must
  * not end its settling before DEM_SETTLE_MIN_TIME (it did at step 101). */
+/* a small bed of grains of Young's modulus E (a JSON number), settled to
+ * 1e-7 J per grain in at most 30 000 steps, with `prepare` (JSON text: "" or
+ * ,"prepare":{...}) */
+#define SETTLE_BED(E, prepare)                                                                              \
+  "{\"materials\":[{\"density\":2600,\"E\":" E ",\"nu\":0.3,\"restitution\":0.5,\"friction\":0.8}],"     \
+  "\"threads\":1,\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[0.1414213562,0.1414213562,1],"           \
+  "\"open_top\":true}],\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":1,"                       \
+  "\"settle_ke_per_grain\":1e-7,\"settle_max_steps\":30000" prepare "}}"
+
 static void not_in_free_fall(void) {
-  static const char J[] =
-      "{\"materials\":[{\"density\":2600,\"E\":2e8,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.8}],"
-      "\"threads\":1,\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[0.1414213562,0.1414213562,1],"
-      "\"open_top\":true}],\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":1,"
-      "\"settle_ke_per_grain\":1e-7,\"settle_max_steps\":30000}}";
+  static const char J[] = SETTLE_BED("2e8", "");
   dem_model m;
   dem_state s;
   proto_err err;
@@ -164,22 +169,18 @@ static void not_in_free_fall(void) {
         (long long)n_min);
   /* a softer bed (E = 20 MPa, which reaches 1e-7 J per grain well within its
    * 30 000 steps; the stiff one does not), settled once plain and once
-   * prepared with the scene's own laws: the first settling of the prepared bed is the plain one step for
-   * step and ends by the KE test, at rest; the second starts so, and the KE
-   * test ends it at its first chance (after 102 steps), not
-   * DEM_SETTLE_MIN_TIME later */
-  const char *cut = strstr(J, "\"settle_ke_per_grain\"");
+   * prepared with the scene's own laws: the first settling of the prepared
+   * bed is the plain one step for step and ends by the KE test, at rest; the
+   * second starts so, and the KE test ends it at its first chance (after 102
+   * steps), not DEM_SETTLE_MIN_TIME later */
+  static const char *const soft[2] = {SETTLE_BED("2e7", ""), SETTLE_BED("2e7", ",\"prepare\":{\"friction\":0.8}")};
   int64_t nk[2] = {0, 0};
   double ke[2] = {0, 0};
   for (int k = 0; k < 2; k++) {
-    char json[sizeof J + 64];
-    snprintf(json, sizeof json, "%.*s\"settle_ke_per_grain\":1e-7,\"settle_max_steps\":30000%s}}", (int)(cut - J),
-             J, k ? ",\"prepare\":{\"friction\":0.8}" : "");
-    memcpy(strstr(json, "\"E\":2e8"), "\"E\":2e7", 7);
     dem_model mk;
     dem_state sk;
-    scene(json, &mk, &sk);
-    CHECK(mk.cfg.prep.on == k, "prepare %s in %s", k ? "not read" : "read", json);
+    scene(soft[k], &mk, &sk);
+    CHECK(mk.cfg.prep.on == k, "prepare %s in %s", k ? "not read" : "read", soft[k]);
     OK(dem_bed_settle(&mk, &sk, NULL, NULL, &nk[k], &err));
     ke[k] = sk.kinetic_energy / sk.n;
     dem_state_free(&sk);

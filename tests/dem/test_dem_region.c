@@ -55,7 +55,8 @@ static char *scene_json_lone(double gap, const char *distance, int lone) {
       "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[%.17g,%.17g,1],\"open_top\":true},"
       "{\"type\":\"mesh\",\"nodes\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
       "[%.17g,%.17g,%.17g]],\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[%g,0,0]}],\"particles\":[",
-      DT, lone ? "\"gravity\":[0,0,0]," : "", lone == 2 ? "\"wake_velocity\":0.01," : "", distance, L, L, x0, y0, zp, x0 + PLATE, y0, zp, x0 + PLATE, y0 + PLATE, zp, x0, y0 + PLATE, zp, SPEED);
+      DT, lone ? "\"gravity\":[0,0,0]," : "", lone == 2 ? "\"wake_velocity\":0.01," : "", distance, L, L,
+      x0, y0, zp, x0 + PLATE, y0, zp, x0 + PLATE, y0 + PLATE, zp, x0, y0 + PLATE, zp, SPEED);
   len = dem_test_two_layers(json, len, sizeof json, NL, R, s, h);
   if (lone == 1)
     len += snprintf(json + len, sizeof json - len, ",{\"x\":[%.17g,0.01,%.17g],\"r\":%g}", L - 0.01, zp + 0.005, R);
