@@ -9,7 +9,7 @@ distinct bed once, into ``DIR/beds/``, and every run loads it:
    point applied); its dem processes that generate and settle a bed
    (``exec`` dem_server, ``particles.generate`` "bed", ``settle_max_steps``
    > 0); the bed's id, a hash of that scene without the keys that cannot
-   change a bed (``name``, ``time.end``, ``output``, ``bus``, ``checkpoint``,
+   change a bed (``name``, ``notes``, ``time.end``, ``output``, ``bus``, ``checkpoint``,
    ``security``, ``scenario`` but its ``rim_center``, each bed's
    ``particles.save``, ``coupling.affinity`` and the processes' ``threads``). Same id, same bed: with ``--repeat`` the beds are the
    seeds.
@@ -39,8 +39,9 @@ from .scene_sets import apply_sets
 BEDS_DIR = "beds"
 LOG_FILE = "settle.log"
 # scene keys that a bed does not depend on (those a checkpoint restart may
-# change, coupler/checkpoint.c, and the scenario, which acts from step 1)
-IGNORED = ("name", "output", "bus", "checkpoint", "security")
+# change, coupler/checkpoint.c, the scene's prose, and the scenario, which
+# acts from step 1): an edit of the notes once gave every bed a new id
+IGNORED = ("name", "notes", "output", "bus", "checkpoint", "security")
 KEPT_SCENARIO = ("rim_center",)  # the tread's place while the bed settles
 SETTLED_RE = re.compile(r"dem_server: bed of (\d+) grains settled in (\d+) steps \(([0-9.]+) s\)")
 ID_LEN = 12

@@ -15,7 +15,9 @@ over it), cut to a few coupled steps; two slips x `--repeat 2` (seeds 1, 2):
    (settle.log and the bed files unchanged: a bed's id leaves out
    coupling.affinity, which runs at once get "none"), the finished runs not
    rerun (their results.h5 untouched), the new value's runs load the
-   existing beds and ran with coupling.affinity "none".
+   existing beds and ran with coupling.affinity "none";
+5. a bed's id leaves out the scene's prose (`notes`: an edit of them gave
+   every bed of the sand scene a new id) and keeps what settles it.
 """
 import csv
 import json
@@ -140,4 +142,15 @@ for r in rows:
         check(used == {"file": bed_of[seed]}, f"new value {r['dir']} loaded the bed of seed {seed}")
         check(affinity == "none", f"new value {r['dir']}: run with --jobs 2, coupling.affinity "
               f"'none' (got {affinity!r})")
+
+# 5. the id: not the notes, but what the bed is settled with
+from cosim.sweep_beds import bed_id, settled_beds  # noqa: E402
+with open(SCENE) as f:
+    base = json.load(f)
+names = settled_beds(base)
+edited = dict(base, notes=str(base.get("notes", "")) + " (edited)")
+check(bed_id(edited, names) == bed_id(base, names), "a bed's id leaves out the scene's notes")
+stiffer = json.loads(json.dumps(base))
+stiffer["processes"]["dem"]["materials"][0]["E"] *= 2
+check(bed_id(stiffer, names) != bed_id(base, names), "a bed's id changes with the grains' E")
 done()
