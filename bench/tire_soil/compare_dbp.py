@@ -1,0 +1,138 @@
+"""Two dbp sweeps of the sand scene side by side: one row of the convergence
+table (bench/results/sand_calibration.md).
+
+    PYTHONPATH=python /usr/bin/python3 bench/tire_soil/compare_dbp.py A B
+        [--paired] [--bin-width 0.05] [--slip-min 0] [--slip-max 0.40] [--out CSV] [--title TEXT]
+
+A, B: `cosim sweep` output dirs (their runs.csv lists the runs; a = the
+reference setting, b = the changed one). Per slip bin (edges at multiples of
+the width, from --slip-min to --slip-max) and quantity (T_H, T_R, T_P, vertical load),
+each run's bin mean (cosim.traction.dbp_curve), then:
+
+- --paired (the same beds on both sides: runs matched by
+  processes.soil.particles.seed): the per-bed differences b - a, their mean
+  +- the 95 % half-width of Student t on n - 1 dof (cosim.stats.across_runs);
+  "within" when |mean| <= half-width;
+- otherwise (different beds): each side's mean across its runs +- its 95 %
+  half-width, and "within" when |b - a| <= sqrt(half_a^2 + half_b^2), the
+  combined half-width the earlier rows used (wider than a Welch interval for
+  equal spreads: it errs towards "within", so the count of bins outside is
+  the figure to read, beside the differences themselves).
+
+Prints the count of T_H / T_R / T_P comparisons within and the largest |b - a|
+against the load W (scenario.sinkage_force); --out writes the table as CSV
+with a comment line that says which is which."""
+import argparse
+import csv
+import math
+import os
+import sys
+
+from cosim import Results, stats, traction
+
+QUANTITIES = ("T_H", "T_R", "T_P", "vertical_load")
+SEED_KEY = "processes.soil.particles.seed"
+
+
+def sweep_runs(sweep_dir):
+    """[(seed, run dir)] of a sweep, in runs.csv order."""
+    path = os.path.join(sweep_dir, "runs.csv")
+    if not os.path.exists(path):
+        sys.exit(f"compare_dbp: {path} does not exist: is '{sweep_dir}' a cosim sweep output dir?")
+    with open(path) as f:
+        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    if not rows or "dir" not in rows[0]:
+        sys.exit(f"compare_dbp: {path} lists no runs (no 'dir' column)")
+    out = []
+    for r in rows:
+        d = r["dir"] if os.path.isabs(r["dir"]) else os.path.join(sweep_dir, r["dir"])
+        out.append((r.get(SEED_KEY, ""), d))
+    return out
+
+
+def bin_means(run_dir, width):
+    """{bin index: {quantity: mean}} of one run, and its load W."""
+    res = Results(run_dir)
+    curve = traction.dbp_curve(res, width)
+    if not curve:
+        sys.exit(f"compare_dbp: {run_dir} has no dbp ramp rows (not a dbp run?)")
+    load = float(res.scene["scenario"]["sinkage_force"])
+    return {round(r["slip_lo"] / width): {q: r[f"{q}_mean"] for q in QUANTITIES} for r in curve}, load
+
+
+def compare(a_dir, b_dir, paired, width, slip_min, slip_max):
+    ra, rb = sweep_runs(a_dir), sweep_runs(b_dir)
+    if paired:
+        seeds_b = {s: d for s, d in rb}
+        common = [(s, d) for s, d in ra if s in seeds_b]
+        if len(common) < 2:
+            sys.exit("compare_dbp: --paired needs at least two seeds run in both sweeps "
+                     f"(a: {[s for s, _ in ra]}, b: {[s for s, _ in rb]})")
+        ra, rb = common, [(s, seeds_b[s]) for s, _ in common]
+    ma = [bin_means(d, width) for _, d in ra]
+    mb = [bin_means(d, width) for _, d in rb]
+    loads = {w for _, w in ma + mb}
+    if len(loads) != 1:
+        sys.exit(f"compare_dbp: the runs differ in scenario.sinkage_force {sorted(loads)}: not one curve")
+    load = loads.pop()
+    kmin, kmax = math.ceil(slip_min / width - 1e-9), math.floor(slip_max / width + 1e-9)
+    keys = sorted(k for k in set.intersection(*[set(m) for m, _ in ma + mb]) if kmin <= k < kmax)
+    rows = []
+    for k in keys:
+        for q in QUANTITIES:
+            va = [m[k][q] for m, _ in ma]
+            vb = [m[k][q] for m, _ in mb]
+            a, b = stats.across_runs(va), stats.across_runs(vb)
+            if paired:
+                d = stats.across_runs([y - x for x, y in zip(va, vb)])
+                diff, half = d["mean"], d["half"]
+            else:
+                diff, half = b["mean"] - a["mean"], math.hypot(a["half"], b["half"])
+            rows.append({"slip_lo": k * width, "quantity": q, "a_mean": a["mean"], "a_ci95": a["half"],
+                         "b_mean": b["mean"], "b_ci95": b["half"], "diff": diff, "diff_ci95": half,
+                         "within": "yes" if abs(diff) <= half else "NO"})
+    return rows, load, len(ra), len(rb)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("a", help="the reference sweep's output dir")
+    ap.add_argument("b", help="the changed sweep's output dir")
+    ap.add_argument("--paired", action="store_true", help="the same beds: pair the runs by seed")
+    ap.add_argument("--bin-width", type=float, default=0.05)
+    ap.add_argument("--slip-min", type=float, default=0.0)
+    ap.add_argument("--slip-max", type=float, default=0.40)
+    ap.add_argument("--out", help="CSV to write")
+    ap.add_argument("--title", default="", help="the CSV's comment line (what a and b are)")
+    o = ap.parse_args()
+    if not (o.bin_width > 0) or not (o.slip_max > o.slip_min):
+        sys.exit("compare_dbp: --bin-width must be positive and --slip-max above --slip-min")
+    rows, load, na, nb = compare(o.a, o.b, o.paired, o.bin_width, o.slip_min, o.slip_max)
+    if not rows:
+        sys.exit("compare_dbp: no slip bin from --slip-min to --slip-max is filled in every run")
+    forces = [r for r in rows if r["quantity"] != "vertical_load"]
+    within = sum(r["within"] == "yes" for r in forces)
+    worst = max(forces, key=lambda r: abs(r["diff"]))
+    how = "paired by seed" if o.paired else "unpaired"
+    print(f"{how}: a {na} runs, b {nb} runs; T_H/T_R/T_P within: {within} of {len(forces)}; "
+          f"largest |b - a| {abs(worst['diff']):.1f} N = {abs(worst['diff']) / load:.3f} W "
+          f"({worst['quantity']} at {worst['slip_lo']:.2f})")
+    for r in rows:
+        print(f"  {r['slip_lo']:5.2f} {r['quantity']:>13}  a {r['a_mean']:8.1f} +- {r['a_ci95']:6.1f}  "
+              f"b {r['b_mean']:8.1f} +- {r['b_ci95']:6.1f}  b-a {r['diff']:7.1f} +- {r['diff_ci95']:6.1f}  "
+              f"{r['within']}")
+    if o.out:
+        tmp = o.out + ".tmp"
+        with open(tmp, "w", newline="") as f:
+            f.write(f"# {o.title or 'a = ' + o.a + ', b = ' + o.b}; {how}; bins of {o.bin_width:g} in slip; "
+                    f"W = {load:g} N; within: |diff| <= diff_ci95 "
+                    f"({'Student t on the per-bed differences' if o.paired else 'sqrt(a_ci95^2 + b_ci95^2)'})\n")
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: (f"{v:.2f}" if isinstance(v, float) else v) for k, v in r.items()})
+        os.replace(tmp, o.out)
+
+
+if __name__ == "__main__":
+    main()
