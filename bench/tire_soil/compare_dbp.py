@@ -6,7 +6,8 @@ table (bench/results/sand_calibration.md).
 
 A, B: `cosim sweep` output dirs (their runs.csv lists the runs; a = the
 reference setting, b = the changed one). Per slip bin (edges at multiples of
-the width, from --slip-min to --slip-max) and quantity (T_H, T_R, T_P, vertical load),
+the width, from --slip-min to --slip-max) and quantity (T_H, T_R, T_P, vertical load in N,
+sinkage in mm),
 each run's bin mean (cosim.traction.dbp_curve), then:
 
 - --paired (the same beds on both sides: runs matched by
@@ -30,7 +31,8 @@ import sys
 
 from cosim import Results, stats, traction
 
-QUANTITIES = ("T_H", "T_R", "T_P", "vertical_load")
+QUANTITIES = ("T_H", "T_R", "T_P", "vertical_load", "sinkage")
+SCALE = {"sinkage": 1e3}  # m -> mm; the forces in N
 SEED_KEY = "processes.soil.particles.seed"
 
 
@@ -57,7 +59,8 @@ def bin_means(run_dir, width):
     if not curve:
         sys.exit(f"compare_dbp: {run_dir} has no dbp ramp rows (not a dbp run?)")
     load = float(res.scene["scenario"]["sinkage_force"])
-    return {round(r["slip_lo"] / width): {q: r[f"{q}_mean"] for q in QUANTITIES} for r in curve}, load
+    return {round(r["slip_lo"] / width): {q: r[f"{q}_mean"] * SCALE.get(q, 1.0) for q in QUANTITIES}
+            for r in curve}, load
 
 
 def compare(a_dir, b_dir, paired, width, slip_min, slip_max):
@@ -110,7 +113,7 @@ def main():
     rows, load, na, nb = compare(o.a, o.b, o.paired, o.bin_width, o.slip_min, o.slip_max)
     if not rows:
         sys.exit("compare_dbp: no slip bin from --slip-min to --slip-max is filled in every run")
-    forces = [r for r in rows if r["quantity"] != "vertical_load"]
+    forces = [r for r in rows if r["quantity"] in ("T_H", "T_R", "T_P")]
     within = sum(r["within"] == "yes" for r in forces)
     worst = max(forces, key=lambda r: abs(r["diff"]))
     how = "paired by seed" if o.paired else "unpaired"
@@ -125,7 +128,7 @@ def main():
         tmp = o.out + ".tmp"
         with open(tmp, "w", newline="") as f:
             f.write(f"# {o.title or 'a = ' + o.a + ', b = ' + o.b}; {how}; bins of {o.bin_width:g} in slip; "
-                    f"W = {load:g} N; within: |diff| <= diff_ci95 "
+                    f"W = {load:g} N; forces in N, sinkage in mm; within: |diff| <= diff_ci95 "
                     f"({'Student t on the per-bed differences' if o.paired else 'sqrt(a_ci95^2 + b_ci95^2)'})\n")
             w = csv.DictWriter(f, fieldnames=list(rows[0]))
             w.writeheader()

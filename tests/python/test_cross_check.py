@@ -104,7 +104,7 @@ scene = {"scenario": {"dbp_force_start": -130, "dbp_hold": 0.15, "dbp_force_rate
                       "sinkage_force": LOAD}}
 across = curve()
 for r in across:  # the columns write_dbp_curve writes for a curve across runs
-    for q in ("vertical_load", "resistive_force"):
+    for q in ("vertical_load", "resistive_force", "sinkage"):
         r[f"{q}_mean"], r[f"{q}_ci95"] = 0.0, 0.0
     for q in traction.DBP_QUANTITIES:
         r[f"{q}_min"] = r[f"{q}_max"] = r[f"{q}_mean"]
