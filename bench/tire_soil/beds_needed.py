@@ -6,22 +6,21 @@ the run means, sd = half-width * 2 / t(0.975, 3), pooled over the sweeps (6 dof)
 by simulation, an N-bed sweep's 24 half-widths t(0.975, N-1) * s / sqrt(N), each s drawn
 as sd * sqrt(chi2(N-1) / (N-1)) (normal run means; the 24 taken as independent, the pooled
 sd as the truth: both approximations, stated where the numbers are quoted).
-    /usr/bin/python3 bench/tire_soil/beds_needed.py [CURVE_A.csv CURVE_B.csv [LOAD_N]]"""
-import csv
+    PYTHONPATH=python /usr/bin/python3 bench/tire_soil/beds_needed.py [CURVE_A.csv CURVE_B.csv [LOAD_N]]"""
 import sys
 
 import numpy as np
 from scipy import stats
+
+from cosim.traction import read_dbp_curve
 
 QUANTITIES = ("T_H", "T_R", "T_P")
 BIN = 0.05
 
 
 def half_widths(path):
-    rows = [r for r in csv.reader(line for line in open(path) if not line.startswith("#"))]
-    ix = {k: i for i, k in enumerate(rows[0])}
-    return {round(float(r[ix["slip_lo"]]) / BIN): {q: float(r[ix[q + "_ci95"]]) for q in QUANTITIES}
-            for r in rows[1:]}
+    rows, _ = read_dbp_curve(path)
+    return {round(r["slip_lo"] / BIN): {q: r[q + "_ci95"] for q in QUANTITIES} for r in rows}
 
 
 def main():

@@ -29,7 +29,7 @@ import math
 import os
 import sys
 
-from cosim import Results, stats, traction
+from cosim import Results, read_summary, stats, traction
 
 QUANTITIES = ("T_H", "T_R", "T_P", "vertical_load", "sinkage")
 SCALE = {"sinkage": 1e3}  # m -> mm; the forces in N
@@ -37,19 +37,14 @@ SEED_KEY = "processes.soil.particles.seed"
 
 
 def sweep_runs(sweep_dir):
-    """[(seed, run dir)] of a sweep, in runs.csv order."""
+    """[(seed, run dir)] of a sweep, in runs.csv order (cosim.read_summary)."""
     path = os.path.join(sweep_dir, "runs.csv")
     if not os.path.exists(path):
         sys.exit(f"compare_dbp: {path} does not exist: is '{sweep_dir}' a cosim sweep output dir?")
-    with open(path) as f:
-        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    rows = read_summary(path)
     if not rows or "dir" not in rows[0]:
         sys.exit(f"compare_dbp: {path} lists no runs (no 'dir' column)")
-    out = []
-    for r in rows:
-        d = r["dir"] if os.path.isabs(r["dir"]) else os.path.join(sweep_dir, r["dir"])
-        out.append((r.get(SEED_KEY, ""), d))
-    return out
+    return [(r.get(SEED_KEY), os.path.join(sweep_dir, str(r["dir"]))) for r in rows]
 
 
 def bin_means(run_dir, width):

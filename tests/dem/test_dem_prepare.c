@@ -143,9 +143,6 @@ static void keys(void) {
   }
 }
 
-/* A stiff bed (E = 200 MPa, as the sand scene's: dt about 6.5 us) placed at
- * rest has almost no kinetic energy for its first steps: the KE test must
- * not end its settling before DEM_SETTLE_MIN_TIME (it did at step 101). */
 /* a small bed of grains of Young's modulus E (a JSON number), settled to
  * 1e-7 J per grain in at most 30 000 steps, with `prepare` (JSON text: "" or
  * ,"prepare":{...}) */
@@ -155,6 +152,9 @@ static void keys(void) {
   "\"open_top\":true}],\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":1,"                       \
   "\"settle_ke_per_grain\":1e-7,\"settle_max_steps\":30000" prepare "}}"
 
+/* A stiff bed (E = 200 MPa, as the sand scene's: dt about 6.5 us) placed at
+ * rest has almost no kinetic energy for its first steps: the KE test must
+ * not end its settling before DEM_SETTLE_MIN_TIME (it did at step 101). */
 static void not_in_free_fall(void) {
   static const char J[] = SETTLE_BED("2e8", "");
   dem_model m;
