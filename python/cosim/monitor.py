@@ -24,10 +24,13 @@ EP_SNAPSHOTS = "bus_snapshots"        # the snapshot stream, when the run has on
 EP_KEY_FILE = "monitor_key_file"      # with security.curve: the monitors' CURVE keys
 POLL_MS = 100
 END_GRACE_S = 0.5  # after the last step: what participants publish still arrives
-# Given a bus endpoint (no run to watch), the run is taken as ended when its
-# coupler.progress, published about twice a second while it steps, has not
-# come for this long: a subscriber that misses the last one (dropped at the
-# high-water mark, or sent as the bus closed) does not wait for ever.
+# Given a bus endpoint (no run to watch), the run is taken as ended when the
+# bus, whose coupler.progress comes about twice a second while the run steps,
+# has been silent for this long after a message came: a subscriber that misses
+# the last progress (dropped at the high-water mark, or sent as the bus
+# closed) does not wait for ever. Any message, not only a progress, starts
+# the clock: one that joins a short run after its last periodic progress
+# (a stub run of a second or two on a loaded machine) sees only rows.
 PROGRESS_LOST_S = 20.0
 DEFAULT_HWM = 10000
 
@@ -82,12 +85,13 @@ class Monitor:
     hwm      messages this monitor queues before the bus drops for it
     key_file the monitors' CURVE key file of a run with security.curve (from
              an output dir's endpoints.json it is found by itself)
-    progress_lost  given an endpoint: seconds without coupler.progress, once
-             it came, that end the iteration (default PROGRESS_LOST_S)
+    progress_lost  given an endpoint: seconds without a message (progress or
+             a wanted topic), once one came, that end the iteration
+             (default PROGRESS_LOST_S)
 
     The iteration also ends after the run's last step (its final
     ``coupler.progress``), once the bus has been quiet for a moment; given an
-    endpoint, also when progress that had come stops for ``progress_lost`` s.
+    endpoint, also when the bus, once heard, is silent for ``progress_lost`` s.
     """
 
     def __init__(self, source, topics=None, timeout=None, hwm=DEFAULT_HWM, wait=10.0,
@@ -104,7 +108,7 @@ class Monitor:
         self.timeout = timeout
         self.malformed = 0  # messages that broke the framing (skipped)
         self._ended = None  # when the end of the run was seen
-        self._progress = None  # when the last coupler.progress came
+        self._heard = None  # when the last message (of any topic) came
         self._lost = progress_lost
         self._ctx = zmq.Context()
         self._sub = self._ctx.socket(zmq.SUB)
@@ -126,8 +130,8 @@ class Monitor:
     def _run_over(self):
         if self._ended is None and self.pid is not None and not _alive(int(self.pid)):
             self._ended = time.monotonic()
-        if (self._ended is None and self.pid is None and self._progress is not None and
-                time.monotonic() - self._progress > self._lost):
+        if (self._ended is None and self.pid is None and self._heard is not None and
+                time.monotonic() - self._heard > self._lost):
             self._ended = time.monotonic() - END_GRACE_S
         return self._ended is not None and time.monotonic() - self._ended > END_GRACE_S
 
@@ -149,8 +153,8 @@ class Monitor:
                 self.malformed += 1
                 warnings.warn(f"cosim.Monitor: skipped a malformed message: {e}")
                 continue
+            self._heard = time.monotonic()
             if m.topic == P.TOPIC_PROGRESS:
-                self._progress = time.monotonic()
                 n = m.header.get(P.H_N_STEPS)
                 if isinstance(n, (int, float)) and m.step >= n:
                     self._ended = time.monotonic()
