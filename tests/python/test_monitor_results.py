@@ -60,7 +60,12 @@ with cosim.Monitor(outdir, topics=list(SERIES), timeout=60) as mon:
     for msg in mon:
         got[msg.topic].append(msg)
 runner.join()
-tool_out, tool_err = tool.communicate(timeout=30 + cosim.monitor.PROGRESS_LOST_S)
+try:
+    tool_out, tool_err = tool.communicate(timeout=30 + cosim.monitor.PROGRESS_LOST_S)
+except subprocess.TimeoutExpired:
+    tool.kill()  # not left behind when the suite moves on
+    tool_out, tool_err = tool.communicate()
+    check(False, f"tools/monitor.py ended by itself after the run: {tool_err[-300:]}")
 r = ran.get("r")
 check(r is not None, "the run finished")
 no_orphans(s, "monitored run")
