@@ -3,9 +3,13 @@ table (bench/results/sand_calibration.md).
 
     PYTHONPATH=python /usr/bin/python3 bench/tire_soil/compare_dbp.py A B
         [--paired] [--bin-width 0.05] [--slip-min 0] [--slip-max 0.40] [--out CSV] [--title TEXT]
+        [--save-a A_RUNS.csv] [--save-b B_RUNS.csv]
 
 A, B: `cosim sweep` output dirs (their runs.csv lists the runs; a = the
-reference setting, b = the changed one). Per slip bin (edges at multiples of
+reference setting, b = the changed one), or a side's per-run bin means saved
+earlier with --save-a/--save-b (a CSV: seed, slip_lo and the quantities, one
+row per run and bin): a row's reference need not be run again in a later
+sitting once its runs are gone (the values, not the wall time, carry over). Per slip bin (edges at multiples of
 the width, from --slip-min to --slip-max) and quantity (T_H, T_R, T_P, vertical load in N,
 sinkage in mm),
 each run's bin mean (cosim.traction.dbp_curve), then:
@@ -58,17 +62,59 @@ def bin_means(run_dir, width):
             for r in curve}, load
 
 
-def compare(a_dir, b_dir, paired, width, slip_min, slip_max):
-    ra, rb = sweep_runs(a_dir), sweep_runs(b_dir)
+BINS_HEAD = "# cosim dbp per-run bin means (compare_dbp.py): bin width "
+
+
+def saved_bins(path, width):
+    """[(seed, {bin index: {quantity: mean}}, load)] from a --save-a/--save-b CSV."""
+    with open(path) as f:
+        head = f.readline()
+        if not head.startswith(BINS_HEAD):
+            sys.exit(f"compare_dbp: {path} is not a file of per-run bin means (--save-a/--save-b)")
+        saved = float(head[len(BINS_HEAD):].split()[0])
+        if abs(saved - width) > 1e-12:
+            sys.exit(f"compare_dbp: {path} has bins of {saved:g}, not --bin-width {width:g}")
+        runs = {}
+        for r in csv.DictReader(f):
+            try:
+                seed, load = r["seed"], float(r["load"])
+                k = round(float(r["slip_lo"]) / width)
+                runs.setdefault(seed, ({}, load))[0][k] = {q: float(r[q]) for q in QUANTITIES}
+            except (KeyError, TypeError, ValueError) as e:
+                sys.exit(f"compare_dbp: {path}: a row without a number for {e}: {r}")
+    return [(s, m, w) for s, (m, w) in runs.items()]
+
+
+def side_bins(src, width):
+    """A side's runs: [(seed, bins, load)], from a sweep dir or a saved CSV."""
+    if os.path.isfile(src):
+        return saved_bins(src, width)
+    return [(str(s), *bin_means(d, width)) for s, d in sweep_runs(src)]
+
+
+def save_bins(path, side, width):
+    tmp = path + ".tmp"
+    with open(tmp, "w", newline="") as f:
+        f.write(f"{BINS_HEAD}{width:g} (slip); forces in N, sinkage in mm, load in N\n")
+        w = csv.writer(f)
+        w.writerow(["seed", "slip_lo", *QUANTITIES, "load"])
+        for seed, bins, load in side:
+            for k in sorted(bins):
+                w.writerow([seed, f"{k * width:.4f}", *(repr(bins[k][q]) for q in QUANTITIES), repr(load)])
+    os.replace(tmp, path)
+
+
+def compare(sa, sb, paired, width, slip_min, slip_max):
+    """sa, sb: each side's [(seed, bins, load)] (side_bins)."""
     if paired:
-        seeds_b = {s: d for s, d in rb}
-        common = [(s, d) for s, d in ra if s in seeds_b]
+        seeds_b = {s: (m, w) for s, m, w in sb}
+        common = [(s, m, w) for s, m, w in sa if s in seeds_b]
         if len(common) < 2:
             sys.exit("compare_dbp: --paired needs at least two seeds run in both sweeps "
-                     f"(a: {[s for s, _ in ra]}, b: {[s for s, _ in rb]})")
-        ra, rb = common, [(s, seeds_b[s]) for s, _ in common]
-    ma = [bin_means(d, width) for _, d in ra]
-    mb = [bin_means(d, width) for _, d in rb]
+                     f"(a: {[s for s, _, _ in sa]}, b: {[s for s, _, _ in sb]})")
+        sa, sb = common, [(s, *seeds_b[s]) for s, _, _ in common]
+    ma = [(m, w) for _, m, w in sa]
+    mb = [(m, w) for _, m, w in sb]
     loads = {w for _, w in ma + mb}
     if len(loads) != 1:
         sys.exit(f"compare_dbp: the runs differ in scenario.sinkage_force {sorted(loads)}: not one curve")
@@ -89,7 +135,7 @@ def compare(a_dir, b_dir, paired, width, slip_min, slip_max):
             rows.append({"slip_lo": k * width, "quantity": q, "a_mean": a["mean"], "a_ci95": a["half"],
                          "b_mean": b["mean"], "b_ci95": b["half"], "diff": diff, "diff_ci95": half,
                          "within": "yes" if abs(diff) <= half else "NO"})
-    return rows, load, len(ra), len(rb)
+    return rows, load, len(sa), len(sb)
 
 
 def main():
@@ -102,10 +148,16 @@ def main():
     ap.add_argument("--slip-max", type=float, default=0.40)
     ap.add_argument("--out", help="CSV to write")
     ap.add_argument("--title", default="", help="the CSV's comment line (what a and b are)")
+    ap.add_argument("--save-a", help="write a's per-run bin means to this CSV (to compare with later)")
+    ap.add_argument("--save-b", help="write b's per-run bin means to this CSV")
     o = ap.parse_args()
     if not (o.bin_width > 0) or not (o.slip_max > o.slip_min):
         sys.exit("compare_dbp: --bin-width must be positive and --slip-max above --slip-min")
-    rows, load, na, nb = compare(o.a, o.b, o.paired, o.bin_width, o.slip_min, o.slip_max)
+    sa, sb = side_bins(o.a, o.bin_width), side_bins(o.b, o.bin_width)
+    for path, side in ((o.save_a, sa), (o.save_b, sb)):
+        if path:
+            save_bins(path, side, o.bin_width)
+    rows, load, na, nb = compare(sa, sb, o.paired, o.bin_width, o.slip_min, o.slip_max)
     if not rows:
         sys.exit("compare_dbp: no slip bin from --slip-min to --slip-max is filled in every run")
     forces = [r for r in rows if r["quantity"] in ("T_H", "T_R", "T_P")]
