@@ -9,9 +9,9 @@ A, B: `cosim sweep` output dirs (their runs.csv lists the runs; a = the
 reference setting, b = the changed one), or a side's per-run bin means saved
 earlier with --save-a/--save-b (a CSV: seed, slip_lo and the quantities, one
 row per run and bin): a row's reference need not be run again in a later
-sitting once its runs are gone (the values, not the wall time, carry over). Per slip bin (edges at multiples of
-the width, from --slip-min to --slip-max) and quantity (T_H, T_R, T_P, vertical load in N,
-sinkage in mm),
+sitting once its runs are gone (the values, not the wall time, carry over).
+Per slip bin (edges at multiples of the width, from --slip-min to
+--slip-max) and quantity (T_H, T_R, T_P, vertical load in N, sinkage in mm),
 each run's bin mean (cosim.traction.dbp_curve), then:
 
 - --paired (the same beds on both sides: runs matched by
@@ -164,14 +164,7 @@ def main():
     within = sum(r["within"] == "yes" for r in forces)
     worst = max(forces, key=lambda r: abs(r["diff"]))
     how = "paired by seed" if o.paired else "unpaired"
-    print(f"{how}: a {na} runs, b {nb} runs; T_H/T_R/T_P within: {within} of {len(forces)}; "
-          f"largest |b - a| {abs(worst['diff']):.1f} N = {abs(worst['diff']) / load:.3f} W "
-          f"({worst['quantity']} at {worst['slip_lo']:.2f})")
-    for r in rows:
-        print(f"  {r['slip_lo']:5.2f} {r['quantity']:>13}  a {r['a_mean']:8.1f} +- {r['a_ci95']:6.1f}  "
-              f"b {r['b_mean']:8.1f} +- {r['b_ci95']:6.1f}  b-a {r['diff']:7.1f} +- {r['diff_ci95']:6.1f}  "
-              f"{r['within']}")
-    if o.out:
+    if o.out:  # before the printout: a reader that closes the pipe early loses nothing
         tmp = o.out + ".tmp"
         with open(tmp, "w", newline="") as f:
             f.write(f"# {o.title or 'a = ' + o.a + ', b = ' + o.b}; {how}; bins of {o.bin_width:g} in slip; "
@@ -182,6 +175,13 @@ def main():
             for r in rows:
                 w.writerow({k: (f"{v:.2f}" if isinstance(v, float) else v) for k, v in r.items()})
         os.replace(tmp, o.out)
+    print(f"{how}: a {na} runs, b {nb} runs; T_H/T_R/T_P within: {within} of {len(forces)}; "
+          f"largest |b - a| {abs(worst['diff']):.1f} N = {abs(worst['diff']) / load:.3f} W "
+          f"({worst['quantity']} at {worst['slip_lo']:.2f})")
+    for r in rows:
+        print(f"  {r['slip_lo']:5.2f} {r['quantity']:>13}  a {r['a_mean']:8.1f} +- {r['a_ci95']:6.1f}  "
+              f"b {r['b_mean']:8.1f} +- {r['b_ci95']:6.1f}  b-a {r['diff']:7.1f} +- {r['diff_ci95']:6.1f}  "
+              f"{r['within']}")
 
 
 if __name__ == "__main__":
