@@ -35,7 +35,8 @@ import sys
 
 from cosim import Results, read_summary, stats, traction
 
-QUANTITIES = ("T_H", "T_R", "T_P", "vertical_load", "sinkage")
+# the dbp curve's quantities but the rig's own resistive force
+QUANTITIES = tuple(q for q in traction.DBP_QUANTITIES if q != "resistive_force")
 SCALE = {"sinkage": 1e3}  # m -> mm; the forces in N
 SEED_KEY = "processes.soil.particles.seed"
 
@@ -53,11 +54,11 @@ def sweep_runs(sweep_dir):
 
 def bin_means(run_dir, width):
     """{bin index: {quantity: mean}} of one run, and its load W."""
-    res = Results(run_dir)
-    curve = traction.dbp_curve(res, width)
+    with Results(run_dir) as res:
+        curve = traction.dbp_curve(res, width)
+        load = float(res.scene["scenario"]["sinkage_force"])
     if not curve:
         sys.exit(f"compare_dbp: {run_dir} has no dbp ramp rows (not a dbp run?)")
-    load = float(res.scene["scenario"]["sinkage_force"])
     return {round(r["slip_lo"] / width): {q: r[f"{q}_mean"] * SCALE.get(q, 1.0) for q in QUANTITIES}
             for r in curve}, load
 
@@ -68,20 +69,20 @@ BINS_HEAD = "# cosim dbp per-run bin means (compare_dbp.py): bin width "
 def saved_bins(path, width):
     """[(seed, {bin index: {quantity: mean}}, load)] from a --save-a/--save-b CSV."""
     with open(path) as f:
-        head = f.readline()
-        if not head.startswith(BINS_HEAD):
-            sys.exit(f"compare_dbp: {path} is not a file of per-run bin means (--save-a/--save-b)")
-        saved = float(head[len(BINS_HEAD):].split()[0])
-        if abs(saved - width) > 1e-12:
-            sys.exit(f"compare_dbp: {path} has bins of {saved:g}, not --bin-width {width:g}")
-        runs = {}
-        for r in csv.DictReader(f):
-            try:
-                seed, load = r["seed"], float(r["load"])
-                k = round(float(r["slip_lo"]) / width)
-                runs.setdefault(seed, ({}, load))[0][k] = {q: float(r[q]) for q in QUANTITIES}
-            except (KeyError, TypeError, ValueError) as e:
-                sys.exit(f"compare_dbp: {path}: a row without a number for {e}: {r}")
+        head = f.readline()  # BINS_HEAD and the width
+    if not head.startswith(BINS_HEAD):
+        sys.exit(f"compare_dbp: {path} is not a file of per-run bin means (--save-a/--save-b)")
+    saved = float(head[len(BINS_HEAD):].split()[0])
+    if abs(saved - width) > 1e-12:
+        sys.exit(f"compare_dbp: {path} has bins of {saved:g}, not --bin-width {width:g}")
+    runs = {}
+    for r in read_summary(path):
+        try:
+            bins = {q: float(r[q]) for q in QUANTITIES}
+            k = round(float(r["slip_lo"]) / width)
+            runs.setdefault(str(r["seed"]), ({}, float(r["load"])))[0][k] = bins
+        except (KeyError, TypeError, ValueError) as e:
+            sys.exit(f"compare_dbp: {path}: a row without a number for {e}: {r}")
     return [(s, m, w) for s, (m, w) in runs.items()]
 
 
