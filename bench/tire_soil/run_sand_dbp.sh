@@ -16,7 +16,11 @@
 # the same curve (paired: 24 of 24 T_H/T_R/T_P bins and 8 of 8 sinkage bins
 # within their intervals; bench/results/sand_calibration.md "The rig's
 # transient cut"). A faster ramp (500 N/s) was not kept: 0.62x, but T_P at
-# 0.15-0.20 outside and every bed noisier.
+# 0.15-0.20 outside and every bed noisier. The averaging window (stop 54) is
+# one lug passage, 2 pi / (32 lugs x 1.8 rad/s) = 0.10908 s: the curve bins
+# the rows by their slip averaged over it, each force averaged alike
+# (cosim.traction.dbp_curve), so a bin holds whole lug passages (until stop 54:
+# 0.1 s, and the rows binned unaveraged).
 # The beds run at once (JOBS, default N), each dem on one thread: on 2 vCPUs
 # three beds took 61.7 min so, against about 68 for one after the other with
 # two threads each (bench/results/sand_calibration.md "The DEM step on three
@@ -35,5 +39,5 @@ bash "$(dirname "$0")/timed.sh" "$OUT" "$SCENE" \
   --set scenario.rig=dbp --set scenario.sinkage_velocity=0.2 \
   --set scenario.dbp_force_start=-100 --set scenario.dbp_hold=0.1 \
   --set scenario.dbp_force_rate=330 \
-  --set scenario.dbp_window=0.1 --set time.end=1.10 --repeat "$N" --jobs "$JOBS" "${THREADS[@]}" --out "$OUT" \
+  --set scenario.dbp_window=0.10908 --set time.end=1.10 --repeat "$N" --jobs "$JOBS" "${THREADS[@]}" --out "$OUT" \
   --reference bench/results/terra_reference_sand_W1000.csv "$@"
