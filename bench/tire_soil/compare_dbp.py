@@ -2,8 +2,8 @@
 table (bench/results/sand_calibration.md).
 
     PYTHONPATH=python /usr/bin/python3 bench/tire_soil/compare_dbp.py A B
-        [--paired] [--bin-width 0.05] [--slip-min 0] [--slip-max 0.40] [--out CSV] [--title TEXT]
-        [--save-a A_RUNS.csv] [--save-b B_RUNS.csv]
+        [--paired] [--bin-width 0.05] [--window S] [--slip-min 0] [--slip-max 0.40] [--out CSV]
+        [--title TEXT] [--save-a A_RUNS.csv] [--save-b B_RUNS.csv]
 
 A, B: `cosim sweep` output dirs (their runs.csv lists the runs; a = the
 reference setting, b = the changed one), or a side's per-run bin means saved
@@ -12,7 +12,9 @@ row per run and bin): a row's reference need not be run again in a later
 sitting once its runs are gone (the values, not the wall time, carry over).
 Per slip bin (edges at multiples of the width, from --slip-min to
 --slip-max) and quantity (T_H, T_R, T_P, vertical load in N, sinkage in mm),
-each run's bin mean (cosim.traction.dbp_curve), then:
+each run's bin mean (cosim.traction.dbp_curve: the rows averaged over --window
+s, default each run's scenario.dbp_window, 0 for none; both sides must have
+the same window, a saved side says its own), then:
 
 - --paired (the same beds on both sides: runs matched by
   processes.soil.particles.seed): the per-bed differences b - a, their mean
@@ -52,26 +54,34 @@ def sweep_runs(sweep_dir):
     return [(r.get(SEED_KEY), os.path.join(sweep_dir, str(r["dir"]))) for r in rows]
 
 
-def bin_means(run_dir, width):
-    """{bin index: {quantity: mean}} of one run, and its load W."""
+def bin_means(run_dir, width, window):
+    """{bin index: {quantity: mean}} of one run, its load W and the window
+    (s) its rows were averaged over."""
     with Results(run_dir) as res:
-        curve = traction.dbp_curve(res, width)
+        curve = traction.dbp_curve(res, width, window=window)
         load = float(res.scene["scenario"]["sinkage_force"])
+        n = traction.window_rows(res.scene, window)
+        window_s = n * float(res.scene["time"]["dt"]) if n > 1 else 0.0
     if not curve:
         sys.exit(f"compare_dbp: {run_dir} has no dbp ramp rows (not a dbp run?)")
     return {round(r["slip_lo"] / width): {q: r[f"{q}_mean"] * SCALE.get(q, 1.0) for q in QUANTITIES}
-            for r in curve}, load
+            for r in curve}, load, window_s
 
 
 BINS_HEAD = "# cosim dbp per-run bin means (compare_dbp.py): bin width "
 
 
+WINDOW_WORD = "; rows averaged over "  # the saved window, s; a file without it: unaveraged
+
+
 def saved_bins(path, width):
-    """[(seed, {bin index: {quantity: mean}}, load)] from a --save-a/--save-b CSV."""
+    """([(seed, {bin index: {quantity: mean}}, load)], window s) from a
+    --save-a/--save-b CSV."""
     with open(path) as f:
-        head = f.readline()  # BINS_HEAD and the width
+        head = f.readline()  # BINS_HEAD, the width, the window
     if not head.startswith(BINS_HEAD):
         sys.exit(f"compare_dbp: {path} is not a file of per-run bin means (--save-a/--save-b)")
+    window_s = float(head.split(WINDOW_WORD)[1].split()[0]) if WINDOW_WORD in head else 0.0
     saved = float(head[len(BINS_HEAD):].split()[0])
     if abs(saved - width) > 1e-12:
         sys.exit(f"compare_dbp: {path} has bins of {saved:g}, not --bin-width {width:g}")
@@ -83,20 +93,30 @@ def saved_bins(path, width):
             runs.setdefault(str(r["seed"]), ({}, float(r["load"])))[0][k] = bins
         except (KeyError, TypeError, ValueError) as e:
             sys.exit(f"compare_dbp: {path}: a row without a number for {e}: {r}")
-    return [(s, m, w) for s, (m, w) in runs.items()]
+    return [(s, m, w) for s, (m, w) in runs.items()], window_s
 
 
-def side_bins(src, width):
-    """A side's runs: [(seed, bins, load)], from a sweep dir or a saved CSV."""
+def side_bins(src, width, window):
+    """A side's runs, [(seed, bins, load)], and the window (s) of their rows'
+    averages (a window of one row, unaveraged, is 0), from a sweep dir or a
+    saved CSV."""
     if os.path.isfile(src):
         return saved_bins(src, width)
-    return [(str(s), *bin_means(d, width)) for s, d in sweep_runs(src)]
+    runs, windows = [], set()
+    for s, d in sweep_runs(src):
+        bins, load, window_s = bin_means(d, width, window)
+        runs.append((str(s), bins, load))
+        windows.add(window_s)
+    if len(windows) != 1:
+        sys.exit(f"compare_dbp: {src}: its runs' windows differ ({sorted(windows)} s)")
+    return runs, windows.pop()
 
 
-def save_bins(path, side, width):
+def save_bins(path, side, width, window_s):
     tmp = path + ".tmp"
     with open(tmp, "w", newline="") as f:
-        f.write(f"{BINS_HEAD}{width:g} (slip); forces in N, sinkage in mm, load in N\n")
+        f.write(f"{BINS_HEAD}{width:g} (slip){WINDOW_WORD}{window_s:.6g} s (centred; 0: "
+                "unaveraged); forces in N, sinkage in mm, load in N\n")
         w = csv.writer(f)
         w.writerow(["seed", "slip_lo", *QUANTITIES, "load"])
         for seed, bins, load in side:
@@ -145,6 +165,8 @@ def main():
     ap.add_argument("b", help="the changed sweep's output dir")
     ap.add_argument("--paired", action="store_true", help="the same beds: pair the runs by seed")
     ap.add_argument("--bin-width", type=float, default=0.05)
+    ap.add_argument("--window", type=float, help="average each row over this many s first "
+                    "(default each run's scenario.dbp_window; 0: none)")
     ap.add_argument("--slip-min", type=float, default=0.0)
     ap.add_argument("--slip-max", type=float, default=0.40)
     ap.add_argument("--out", help="CSV to write")
@@ -154,10 +176,15 @@ def main():
     o = ap.parse_args()
     if not (o.bin_width > 0) or not (o.slip_max > o.slip_min):
         sys.exit("compare_dbp: --bin-width must be positive and --slip-max above --slip-min")
-    sa, sb = side_bins(o.a, o.bin_width), side_bins(o.b, o.bin_width)
+    if o.window is not None and not (o.window >= 0 and math.isfinite(o.window)):
+        sys.exit(f"compare_dbp: --window must be >= 0 s, got {o.window}")
+    (sa, wa), (sb, wb) = side_bins(o.a, o.bin_width, o.window), side_bins(o.b, o.bin_width, o.window)
+    if abs(wa - wb) > 1e-9:
+        sys.exit(f"compare_dbp: a's rows are averaged over {wa:g} s, b's over {wb:g} s: give "
+                 "--window (a saved side keeps the window it was saved with)")
     for path, side in ((o.save_a, sa), (o.save_b, sb)):
         if path:
-            save_bins(path, side, o.bin_width)
+            save_bins(path, side, o.bin_width, wa)
     rows, load, na, nb = compare(sa, sb, o.paired, o.bin_width, o.slip_min, o.slip_max)
     if not rows:
         sys.exit("compare_dbp: no slip bin from --slip-min to --slip-max is filled in every run")
@@ -168,7 +195,8 @@ def main():
     if o.out:  # before the printout: a reader that closes the pipe early loses nothing
         tmp = o.out + ".tmp"
         with open(tmp, "w", newline="") as f:
-            f.write(f"# {o.title or 'a = ' + o.a + ', b = ' + o.b}; {how}; bins of {o.bin_width:g} in slip; "
+            f.write(f"# {o.title or 'a = ' + o.a + ', b = ' + o.b}; {how}; bins of {o.bin_width:g} in slip, "
+                    f"rows averaged over {wa:.6g} s; "
                     f"W = {load:g} N; forces in N, sinkage in mm; within: |diff| <= diff_ci95 "
                     f"({'Student t on the per-bed differences' if o.paired else 'sqrt(a_ci95^2 + b_ci95^2)'})\n")
             w = csv.DictWriter(f, fieldnames=list(rows[0]))

@@ -1,14 +1,15 @@
 """The figure and table of a dbp-rig run (scenario.rig = "dbp", coupler/README.md).
 
     python3 -m cosim.fig_dbp RUN_DIR [--png PATH] [--csv PATH] [--bin-width W]
-                             [--slip-points SLIPS.csv] [--reference REF.csv]
+                             [--window S] [--slip-points SLIPS.csv] [--reference REF.csv]
     python3 -m cosim.fig_dbp RUN_DIR RUN_DIR... --out DIR [the same options]
     python3 -m cosim.fig_dbp --curve CURVE.csv --png PATH [--slip-points SLIPS.csv]
                              [--check PATH] [--reference REF.csv]
 
 results.h5 (/coupler/traction, /coupler/dbp) -> RUN_DIR/dbp_curve.csv (the
-curve binned by the measured slip, 95 % batch-means intervals:
-cosim.traction.dbp_curve) and RUN_DIR/dbp.png: left, T_H, |T_R|, T_P and the
+curve binned by the measured slip, each row's slip and forces averaged over
+the window centred on it, --window S or the scene's scenario.dbp_window, 0 for
+none; 95 % batch-means intervals: cosim.traction.dbp_curve) and RUN_DIR/dbp.png: left, T_H, |T_R|, T_P and the
 resistive force against the slip (the bins with their intervals; the running
 averages of /coupler/dbp as thin lines), right, the carriage speed, the
 resistive force and the slip against time. --slip-points draws slip-controlled
@@ -203,18 +204,18 @@ def plot_across(path, runs, names, curves, across, points=None, ref=None, square
 
 
 def write_across(paths, out_dir, bin_width=traction.DBP_BIN_WIDTH, csv_path=None, png=None,
-                 points=None, reference=None, check=None, points_name="points"):
+                 points=None, reference=None, check=None, points_name="points", window=None):
     """The curve across the dbp runs in paths (their dirs or results.h5):
     dbp_curve.csv and dbp.png into out_dir (or csv_path, png), and with
     points their cross-check (cross_check, into check); returns
     (csv_path, png, bins). A CosimError when the runs are not realisations
-    of one curve or one has no ramp."""
+    of one curve or one has no ramp. window: traction.dbp_curve's."""
     names = [os.path.basename(os.path.normpath(p if os.path.isdir(p) else os.path.dirname(p) or "."))
              for p in paths]
     with contextlib.ExitStack() as stack:
         runs = [stack.enter_context(Results(p)) for p in paths]
         traction.dbp_same_ramp([r.scene for r in runs], list(paths))
-        curves = [traction.dbp_curve(r, bin_width) for r in runs]
+        curves = [traction.dbp_curve(r, bin_width, window=window) for r in runs]
         for p, c in zip(paths, curves):
             if not c:
                 raise CosimError(f"{p}: no rows in the ramp (phase 2)")
@@ -223,7 +224,7 @@ def write_across(paths, out_dir, bin_width=traction.DBP_BIN_WIDTH, csv_path=None
         ref = read_reference(reference, load) if reference else None
         os.makedirs(out_dir, exist_ok=True)
         csv_path = csv_path or os.path.join(out_dir, CURVE_FILE)
-        traction.write_dbp_curve(csv_path, across, runs[0].scene, runs=names)
+        traction.write_dbp_curve(csv_path, across, runs[0].scene, runs=names, window=window)
         png = png or os.path.join(out_dir, PLOT_FILE)
         plot_across(png, runs, names, curves, across, points, ref,
                     points_label(points_name))
@@ -274,6 +275,8 @@ def main(argv):
     ap.add_argument("--png", help=f"default RUN_DIR/{PLOT_FILE}")
     ap.add_argument("--csv", help=f"default RUN_DIR/{CURVE_FILE}")
     ap.add_argument("--bin-width", type=float, default=traction.DBP_BIN_WIDTH)
+    ap.add_argument("--window", type=float, help="average each row's slip and forces over "
+                    "this many s first (default the scene's scenario.dbp_window; 0: none)")
     ap.add_argument("--slip-points", help="CSV of slip-controlled runs' means to draw")
     ap.add_argument("--reference", help="a `cosim terra curve` record for the scene's wheel "
                     "and load, drawn dashed")
@@ -283,6 +286,8 @@ def main(argv):
     a = ap.parse_args(argv)
     if not a.bin_width > 0:
         ap.error(f"--bin-width: must be > 0, got {a.bin_width}")
+    if a.window is not None and not (a.window >= 0 and math.isfinite(a.window)):
+        ap.error(f"--window: must be >= 0 s, got {a.window}")
     if a.curve:
         if a.run or not a.png:
             ap.error("--curve: give --png and no run dirs")
@@ -308,7 +313,7 @@ def main(argv):
         try:
             points = read_points(a.slip_points) if a.slip_points else None
             csv_path, png, bins = write_across(a.run, a.out, a.bin_width, a.csv, a.png, points,
-                                               a.reference, a.check, a.slip_points)
+                                               a.reference, a.check, a.slip_points, a.window)
         except (CosimError, KeyError, OSError, ValueError) as e:
             print(f"cosim.fig_dbp: {e}", file=sys.stderr)
             return 1
@@ -318,12 +323,12 @@ def main(argv):
     base = a.run if os.path.isdir(a.run) else os.path.dirname(a.run) or "."
     try:
         with Results(a.run) as r:
-            curve = traction.dbp_curve(r, a.bin_width)
+            curve = traction.dbp_curve(r, a.bin_width, window=a.window)
             if not curve:
                 raise CosimError(f"{a.run}: no rows in the ramp (phase 2): the run ended in "
                                  "the hold or before the travel")
             csv_path = a.csv or os.path.join(base, CURVE_FILE)
-            traction.write_dbp_curve(csv_path, curve, r.scene)
+            traction.write_dbp_curve(csv_path, curve, r.scene, window=a.window)
             points = read_points(a.slip_points) if a.slip_points else None
             ref = (read_reference(a.reference, r.scene["scenario"]["sinkage_force"])
                    if a.reference else None)

@@ -131,11 +131,12 @@ class Results:
         scenario.dbp_window or 0.1 s: cosim.stats.interval), min and max."""
         return traction.summarise_run(self, skip_travel, batch_time)
 
-    def dbp_curve(self, bin_width=traction.DBP_BIN_WIDTH):
+    def dbp_curve(self, bin_width=traction.DBP_BIN_WIDTH, window=None):
         """A dbp-rig run's traction-slip curve: per slip bin the means of
-        T_H, T_R, T_P, the load and the resistive force with 95 % intervals
-        (cosim.traction.dbp_curve)."""
-        return traction.dbp_curve(self, bin_width)
+        T_H, T_R, T_P, the load and the resistive force with 95 % intervals,
+        the rows averaged over window s first (default scenario.dbp_window;
+        0: unaveraged; cosim.traction.dbp_curve)."""
+        return traction.dbp_curve(self, bin_width, window=window)
 
     @property
     def timing(self):

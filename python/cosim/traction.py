@@ -90,28 +90,67 @@ def dbp_series(results):
     return out
 
 
-def dbp_curve(results, bin_width=DBP_BIN_WIDTH, phases=(DBP_PHASE_RAMP,)):
-    """The traction-slip curve of one dbp run: the rows of the given phases
-    (default the ramp) binned by their measured slip into bins of bin_width
-    (edges at multiples of it). Per bin: slip_lo, slip_hi, rows, t0_s, t1_s
+def window_means(x, n, valid=None):
+    """The centred running mean of x over n rows (n >= 1): row k holds the
+    mean of rows k - n // 2 .. k - n // 2 + n - 1, nan where that window
+    leaves the series (its first n // 2 and last n - 1 - n // 2 rows) or,
+    given valid (a bool per row), holds a row that is not."""
+    x = np.asarray(x, dtype=float)
+    out = np.full(len(x), math.nan)
+    ok = np.ones(len(x), bool) if valid is None else np.asarray(valid, bool)
+    if n <= 1:
+        return np.where(ok, x, math.nan)
+    if len(x) < n:
+        return out
+    c = np.concatenate(([0.0], np.cumsum(np.where(ok, x, 0.0))))
+    k = np.concatenate(([0], np.cumsum(ok)))
+    h = n // 2
+    full = (k[n:] - k[:-n]) == n
+    out[h:len(x) - (n - 1 - h)] = np.where(full, (c[n:] - c[:-n]) / n, math.nan)
+    return out
+
+
+def window_rows(scene, window=None):
+    """The curve's averaging window in rows of the series (one per step):
+    window s, else scenario.dbp_window (batch_time); 0 gives 1 row, the
+    rows unaveraged."""
+    w = batch_time(scene, window)
+    return max(1, int(round(w / float(scene["time"]["dt"]))))
+
+
+def dbp_curve(results, bin_width=DBP_BIN_WIDTH, phases=(DBP_PHASE_RAMP,), window=None):
+    """The traction-slip curve of one dbp run: each row's slip and forces
+    averaged over the window centred on it (window s, default
+    scenario.dbp_window, the scene's averaging time: one lug passage for a
+    lugged tyre, so every average holds whole passages), the rows of the
+    given phases (default the ramp) binned by that averaged slip into bins
+    of bin_width (edges at multiples of it); rows whose window leaves the
+    series or reaches back before the travel are dropped. Why averaged: a lug's passage makes the pull, and so
+    the carriage's speed and the slip, oscillate; rows binned by their
+    instantaneous slip sort the passage's phases into different bins, and a
+    bin the ramp crosses in less than a passage holds part of one (window=0:
+    the rows unaveraged, the curve until stop 54). A linear trend of slip
+    and force over the window is kept; the window blurs the curve over the
+    slip the ramp moves in it. Per bin: slip_lo, slip_hi, rows, t0_s, t1_s
     (its first and last row's time), slip_mean, and per quantity of
     DBP_QUANTITIES and their ratio to the load (T_H/W, T_R/W, T_P/W with
     W = scenario.sinkage_force) the mean and its 95 % half-width
-    (``_ci95``) by batch means over the bin's rows in time order, each
-    batch at least scenario.dbp_window long (the scene's averaging time,
-    which should cover the force's correlation time, e.g. a lug's passage),
-    so a bin needs stats.MIN_BATCHES windows of rows for an interval
-    (stats.batch_means: nan for a bin too short to say, and nan when its
-    fewest batches are still correlated, lag-1 above stats.BATCH_LAG1_MAX:
-    a bin short against a lug's passage). The ramp moves the
+    (``_ci95``) by batch means over the bin's averaged rows in time order,
+    each batch at least scenario.dbp_window long, so a bin needs
+    stats.MIN_BATCHES windows of rows for an interval (stats.batch_means:
+    nan for a bin too short to say, and nan when its fewest batches are
+    still correlated, lag-1 above stats.BATCH_LAG1_MAX). The ramp moves the
     curve within a bin, so a bin's mean is the curve's average over it, and
     the trend inflates the batch spread (the interval errs wide)."""
     d = dbp_series(results)
     sc = results.scene["scenario"]
     load = float(sc["sinkage_force"])
     min_rows = batch_rows(results.scene)
-    mask = np.isin(d["phase"], phases)
-    slip = d["slip"][mask]
+    n = window_rows(results.scene, window)
+    travel = d["phase"] >= 1  # before it the rows are zeros (no carriage yet)
+    avg = {q: window_means(d[q], n, travel) for q in ("slip",) + tuple(DBP_QUANTITIES)}
+    mask = np.isin(d["phase"], phases) & np.isfinite(avg["slip"])
+    slip = avg["slip"][mask]
     if not len(slip):
         return []
     lo = math.floor(slip.min() / bin_width)
@@ -128,7 +167,7 @@ def dbp_curve(results, bin_width=DBP_BIN_WIDTH, phases=(DBP_PHASE_RAMP,)):
                "slip_mean": float(slip[sel].mean())}
         for q in DBP_QUANTITIES:
             # batches of at least one window; none when still correlated
-            bm = stats.interval(d[q][mask][sel], min_rows)
+            bm = stats.interval(avg[q][mask][sel], min_rows)
             row[f"{q}_mean"], row[f"{q}_ci95"] = bm["mean"], bm["half"]
         for q in ("T_H", "T_R", "T_P"):
             row[f"{q}_W_mean"] = row[f"{q}_mean"] / load if load > 0 else math.nan
@@ -208,15 +247,22 @@ DBP_CURVE_COLUMNS = (["slip_lo", "slip_hi", "rows", "t0_s", "t1_s", "slip_mean"]
 CURVE_HEADER = "# cosim dbp curve"  # the first line of a file write_dbp_curve wrote
 
 
-def write_dbp_curve(path, curve, scene, runs=None):
+def write_dbp_curve(path, curve, scene, runs=None, window=None):
     """The curve as CSV with # lines saying what it is: one run's
     (dbp_curve), or with runs (their names) the curve across them
-    (dbp_curve_across)."""
+    (dbp_curve_across); window: the one dbp_curve averaged over."""
     sc = scene["scenario"]
     cols = DBP_ACROSS_COLUMNS if runs else DBP_CURVE_COLUMNS
+    if "dt" not in scene.get("time", {}):
+        avg = ""  # a scene of the curve alone: its window is not known here
+    elif window_rows(scene, window) > 1:
+        avg = (f", each row's slip and forces averaged over the "
+               f"{window_rows(scene, window) * float(scene['time']['dt']):.6g} s centred on it")
+    else:
+        avg = ", the rows unaveraged"
     with open(path, "w") as f:
         f.write(f"{CURVE_HEADER}: /coupler/traction and /coupler/dbp rows of the ramp "
-                "(phase 2) binned by the measured slip 1 - v / (omega radius)\n")
+                f"(phase 2) binned by the measured slip 1 - v / (omega radius){avg}\n")
         f.write(f"# ramp: {sc.get('dbp_force_start', 0)} N held {sc.get('dbp_hold', 0.2)} s, "
                 f"then {sc['dbp_force_rate']} N/s; carriage "
                 f"{sc.get('carriage_mass', 'rig_mass')} kg; load {sc['sinkage_force']} N\n")

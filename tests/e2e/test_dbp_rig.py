@@ -127,6 +127,11 @@ def stub_part():
         python_part(s)
 
 
+def r_curve_raw(d):
+    with cosim.Results(d) as r:
+        return r.dbp_curve(window=0)
+
+
 def python_part(s):
     """The summary and the figure carry the curve."""
     d = s["output"]["dir"]
@@ -137,8 +142,15 @@ def python_part(s):
           f"traction_summary of a dbp run carries the curve ({len(curve)} bins)")
     db = table(s, "dbp")
     ramp = db["phase"] == traction.DBP_PHASE_RAMP
-    check(sum(c["rows"] for c in curve) == int(ramp.sum()),
-          "the curve's bins hold every ramp row once")
+    # rows averaged over the window centred on them: the last n - 1 - n // 2 rows have none
+    # (the hold before the ramp is longer than half a window)
+    n = round(WINDOW / s["time"]["dt"])
+    check(sum(c["rows"] for c in curve) == int(ramp.sum()) - (n - 1 - n // 2),
+          f"the curve's bins hold every ramp row once but the last {n - 1 - n // 2} (their "
+          f"window of {n} rows leaves the run)")
+    raw = r_curve_raw(d)
+    check(sum(c["rows"] for c in raw) == int(ramp.sum()),
+          "unaveraged (window 0), every ramp row once")
     widths = {round(c["slip_hi"] - c["slip_lo"], 12) for c in curve}
     check(widths == {traction.DBP_BIN_WIDTH}, f"bins of {traction.DBP_BIN_WIDTH} in slip")
     batch = round(WINDOW / s["time"]["dt"])  # rows per batch: one dbp_window

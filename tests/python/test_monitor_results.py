@@ -56,7 +56,10 @@ SERIES = {"dem.series": "/dem/series", "fem.series": "/fem/series",
           "coupler.series": "/coupler/series", "coupler.traction": "/coupler/traction",
           "coupler.timing": "/coupler/timing"}
 got = {t: [] for t in SERIES}
-with cosim.Monitor(outdir, topics=list(SERIES), timeout=60) as mon:
+# the monitor queues every message of the run (5 topics x N_STEPS): a monitor that falls
+# behind on a loaded machine loses none (with the default 10 000 it lost a third at -j2
+# beside a benchmark; a monitor never slows the run, so the bus drops for a full queue)
+with cosim.Monitor(outdir, topics=list(SERIES), timeout=60, hwm=2 * len(SERIES) * N_STEPS) as mon:
     for msg in mon:
         got[msg.topic].append(msg)
 runner.join()
