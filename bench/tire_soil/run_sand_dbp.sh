@@ -4,6 +4,10 @@
 # (N beds from the generator's seeds 1..N, each settled once into OUT/beds/,
 # then one dbp run per bed), timed under the shared benchmark lock.
 #   bash bench/tire_soil/run_sand_dbp.sh BUILD_DIR OUT_DIR [N [cosim sweep args...]]
+# N defaults to 5, the headline (stop 54: five beds at once in 55.9 min with the
+# settling, every 95 % half-width from 0 to 40 % slip <= 0.038 of the load, the
+# paper scene 252-258 s in that sitting; bench/results/sand_calibration.md
+# "The curve averaged over a lug passage").
 # writes OUT_DIR/ (the sweep: OUT_DIR/dbp/dbp_curve.csv and dbp.png are the
 # curve across the beds with 95 % intervals) and OUT_DIR.time (wall time, load
 # before and after, the arguments). The rig (stop 53): the tyre sinks at
@@ -28,7 +32,7 @@
 set -euo pipefail
 BUILD=${1:?usage: run_sand_dbp.sh BUILD_DIR OUT_DIR [N [cosim sweep args...]]}
 OUT=${2:?usage: run_sand_dbp.sh BUILD_DIR OUT_DIR [N [cosim sweep args...]]}
-N=${3:-3}
+N=${3:-5}
 shift $(( $# < 3 ? $# : 3 ))
 SCENE=${SCENE:-configs/tire_soil_sand.json}
 JOBS=${JOBS:-$N}
