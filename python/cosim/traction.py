@@ -115,6 +115,9 @@ def window_rows(scene, window=None):
     window s, else scenario.dbp_window (batch_time); 0 gives 1 row, the
     rows unaveraged."""
     w = batch_time(scene, window)
+    if not (w >= 0 and math.isfinite(w)):
+        raise CosimError(f"the dbp curve's window: {w!r} s (scenario.dbp_window or window=) "
+                         "is not a time >= 0")
     return max(1, int(round(w / float(scene["time"]["dt"]))))
 
 
@@ -125,11 +128,12 @@ def dbp_curve(results, bin_width=DBP_BIN_WIDTH, phases=(DBP_PHASE_RAMP,), window
     lugged tyre, so every average holds whole passages), the rows of the
     given phases (default the ramp) binned by that averaged slip into bins
     of bin_width (edges at multiples of it); rows whose window leaves the
-    series or reaches back before the travel are dropped. Why averaged: a lug's passage makes the pull, and so
-    the carriage's speed and the slip, oscillate; rows binned by their
-    instantaneous slip sort the passage's phases into different bins, and a
-    bin the ramp crosses in less than a passage holds part of one (window=0:
-    the rows unaveraged, the curve until stop 54). A linear trend of slip
+    series or reaches back before the travel are dropped. Why averaged: a
+    lug's passage makes the pull, and so the carriage's speed and the slip,
+    oscillate; rows binned by their instantaneous slip sort the passage's
+    phases into different bins, and a bin the ramp crosses in less than a
+    passage holds part of one (window=0: the rows unaveraged, the curve
+    until stop 54). A linear trend of slip
     and force over the window is kept; the window blurs the curve over the
     slip the ramp moves in it. Per bin: slip_lo, slip_hi, rows, t0_s, t1_s
     (its first and last row's time), slip_mean, and per quantity of

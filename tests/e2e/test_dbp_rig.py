@@ -127,7 +127,7 @@ def stub_part():
         python_part(s)
 
 
-def r_curve_raw(d):
+def curve_unaveraged(d):
     with cosim.Results(d) as r:
         return r.dbp_curve(window=0)
 
@@ -148,7 +148,7 @@ def python_part(s):
     check(sum(c["rows"] for c in curve) == int(ramp.sum()) - (n - 1 - n // 2),
           f"the curve's bins hold every ramp row once but the last {n - 1 - n // 2} (their "
           f"window of {n} rows leaves the run)")
-    raw = r_curve_raw(d)
+    raw = curve_unaveraged(d)
     check(sum(c["rows"] for c in raw) == int(ramp.sum()),
           "unaveraged (window 0), every ramp row once")
     widths = {round(c["slip_hi"] - c["slip_lo"], 12) for c in curve}

@@ -18,6 +18,7 @@ whole passages.
 4. Rows before the travel (phase 0: /coupler/dbp holds zeros there, the
    slip too, while the forces are the sinkage's) are not averaged into the ramp's: the ramp starting right after them, its first
    half window of rows is dropped and the law holds as before.
+5. A window below 0 or nan is refused, naming it.
 """
 import math
 import os
@@ -29,6 +30,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "e2e"))
 from common import check, done  # noqa: E402
 from cosim import traction  # noqa: E402
+from cosim.errors import CosimError  # noqa: E402
 
 DT, P = 1e-4, 0.05            # s: the step, the lug passage (500 rows)
 B, A, TH0 = 400.0, 30.0, 100.0  # N per unit slip, the passage's amplitude, T_H at zero slip (N)
@@ -133,8 +135,18 @@ def part_before_travel():
     check(min(c["t0_s"] for c in raw) >= start - DT / 2, "unaveraged: the ramp's rows only")
 
 
+def part_bad_window():
+    for w in (-0.01, math.nan):
+        try:
+            traction.dbp_curve(FakeRun(P), 0.02, window=w)
+            check(False, f"window {w}: refused")
+        except CosimError as e:
+            check("window" in str(e), f"window {w}: refused, naming it ({e})")
+
+
 part_window_means()
 part_law()
 part_other_windows()
 part_before_travel()
+part_bad_window()
 done()
