@@ -84,7 +84,10 @@ def saved_bins(path, width):
         head = f.readline()  # BINS_HEAD, the width, the window
     if not head.startswith(BINS_HEAD):
         sys.exit(f"compare_dbp: {path} is not a file of per-run bin means (--save-a/--save-b)")
-    window_s = float(head.split(WINDOW_WORD)[1].split()[0]) if WINDOW_WORD in head else 0.0
+    try:
+        window_s = float(head.split(WINDOW_WORD)[1].split()[0]) if WINDOW_WORD in head else 0.0
+    except (IndexError, ValueError):
+        sys.exit(f"compare_dbp: {path}: no number after '{WINDOW_WORD.strip('; ')}' in its first line")
     saved = float(head[len(BINS_HEAD):].split()[0])
     if abs(saved - width) > 1e-12:
         sys.exit(f"compare_dbp: {path} has bins of {saved:g}, not --bin-width {width:g}")
@@ -185,9 +188,9 @@ def main():
     if abs(wa - wb) > WINDOW_REL_TOL * max(wa, wb):  # whole rows of each side's step
         sys.exit(f"compare_dbp: a's rows are averaged over {wa:g} s, b's over {wb:g} s: give "
                  "--window (a saved side keeps the window it was saved with)")
-    for path, side in ((o.save_a, sa), (o.save_b, sb)):
+    for path, side, window_s in ((o.save_a, sa, wa), (o.save_b, sb, wb)):
         if path:
-            save_bins(path, side, o.bin_width, wa)
+            save_bins(path, side, o.bin_width, window_s)
     rows, load, na, nb = compare(sa, sb, o.paired, o.bin_width, o.slip_min, o.slip_max)
     if not rows:
         sys.exit("compare_dbp: no slip bin from --slip-min to --slip-max is filled in every run")
