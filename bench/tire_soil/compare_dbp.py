@@ -60,8 +60,7 @@ def bin_means(run_dir, width, window):
     with Results(run_dir) as res:
         curve = traction.dbp_curve(res, width, window=window)
         load = float(res.scene["scenario"]["sinkage_force"])
-        n = traction.window_rows(res.scene, window)
-        window_s = n * float(res.scene["time"]["dt"]) if n > 1 else 0.0
+        window_s = traction.window_seconds(res.scene, window)
     if not curve:
         sys.exit(f"compare_dbp: {run_dir} has no dbp ramp rows (not a dbp run?)")
     return {round(r["slip_lo"] / width): {q: r[f"{q}_mean"] * SCALE.get(q, 1.0) for q in QUANTITIES}
@@ -69,8 +68,6 @@ def bin_means(run_dir, width, window):
 
 
 BINS_HEAD = "# cosim dbp per-run bin means (compare_dbp.py): bin width "
-
-
 WINDOW_WORD = "; rows averaged over "  # the saved window, s; a file without it: unaveraged
 # two sides' windows are one when they differ by less than this (relative): each is a whole
 # number of its run's steps (0.10908 s is 0.109075 s at 12.5 us and 0.10908 at 6.25 us)

@@ -10,9 +10,10 @@ results.h5 (/coupler/traction, /coupler/dbp) -> RUN_DIR/dbp_curve.csv (the
 curve binned by the measured slip, each row's slip and forces averaged over
 the window centred on it, --window S or the scene's scenario.dbp_window, 0 for
 none; 95 % batch-means intervals: cosim.traction.dbp_curve) and
-RUN_DIR/dbp.png: left, T_H, |T_R|, T_P and the resistive force against the slip (the bins with their intervals; the running
-averages of /coupler/dbp as thin lines), right, the carriage speed, the
-resistive force and the slip against time. --slip-points draws slip-controlled
+RUN_DIR/dbp.png: left, T_H, |T_R|, T_P and the resistive force against the
+slip (the bins with their intervals; the running averages of /coupler/dbp
+as thin lines), right, the carriage speed, the resistive force and the slip
+against time. --slip-points draws slip-controlled
 runs' points for the cross-check (a CSV with columns slip, T_H_mean, T_H_ci95,
 T_R_mean, T_R_ci95, T_P_mean, T_P_ci95: e.g. a `cosim sweep` summary.csv over
 scenario.slip; or another dbp_curve.csv, whose bins are then the points: two

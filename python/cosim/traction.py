@@ -121,6 +121,12 @@ def window_rows(scene, window=None):
     return max(1, int(round(w / float(scene["time"]["dt"]))))
 
 
+def window_seconds(scene, window=None):
+    """The window window_rows averages over, in s: 0 when it is one row."""
+    n = window_rows(scene, window)
+    return n * float(scene["time"]["dt"]) if n > 1 else 0.0
+
+
 def dbp_curve(results, bin_width=DBP_BIN_WIDTH, phases=(DBP_PHASE_RAMP,), window=None):
     """The traction-slip curve of one dbp run: each row's slip and forces
     averaged over the window centred on it (window s, default
@@ -133,9 +139,8 @@ def dbp_curve(results, bin_width=DBP_BIN_WIDTH, phases=(DBP_PHASE_RAMP,), window
     oscillate; rows binned by their instantaneous slip sort the passage's
     phases into different bins, and a bin the ramp crosses in less than a
     passage holds part of one (window=0: the rows unaveraged, the curve
-    until stop 54). A linear trend of slip
-    and force over the window is kept; the window blurs the curve over the
-    slip the ramp moves in it. Per bin: slip_lo, slip_hi, rows, t0_s, t1_s
+    until stop 54). A linear trend of slip and force over the window is
+    kept; the window blurs the curve over the slip the ramp moves in it. Per bin: slip_lo, slip_hi, rows, t0_s, t1_s
     (its first and last row's time), slip_mean, and per quantity of
     DBP_QUANTITIES and their ratio to the load (T_H/W, T_R/W, T_P/W with
     W = scenario.sinkage_force) the mean and its 95 % half-width
@@ -257,13 +262,10 @@ def write_dbp_curve(path, curve, scene, runs=None, window=None):
     (dbp_curve_across); window: the one dbp_curve averaged over."""
     sc = scene["scenario"]
     cols = DBP_ACROSS_COLUMNS if runs else DBP_CURVE_COLUMNS
-    if "dt" not in scene.get("time", {}):
-        avg = ""  # a scene of the curve alone: its window is not known here
-    elif window_rows(scene, window) > 1:
-        avg = (f", each row's slip and forces averaged over the "
-               f"{window_rows(scene, window) * float(scene['time']['dt']):.6g} s centred on it")
-    else:
-        avg = ", the rows unaveraged"
+    w = window_seconds(scene, window) if "dt" in scene.get("time", {}) else None
+    avg = ("" if w is None  # a scene of the curve alone: its window is not known here
+           else f", each row's slip and forces averaged over the {w:.6g} s centred on it" if w
+           else ", the rows unaveraged")
     with open(path, "w") as f:
         f.write(f"{CURVE_HEADER}: /coupler/traction and /coupler/dbp rows of the ramp "
                 f"(phase 2) binned by the measured slip 1 - v / (omega radius){avg}\n")
