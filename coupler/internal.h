@@ -10,10 +10,12 @@
 typedef struct cpl_affinity {
   int core;         /* the hand-off core, or -1: nothing bound */
   char places[512]; /* OMP_PLACES for the children: "{core},{c1},..." */
-  char why[288];    /* what was done or why not (the schedule printout) */
+  char why[384];    /* what was done or why not (the schedule printout) */
 } cpl_affinity;
-/* Decides from the scene, the CPUs the coupler may use and the environment
- * (a user's OMP_PLACES / OMP_PROC_BIND is kept); before the children start. */
+/* Decides from the scene, the CPUs the coupler may use, the threads already
+ * bound to one of them alone (the hand-off core is the least taken) and the
+ * environment (a user's OMP_PLACES / OMP_PROC_BIND is kept); before the
+ * children start. */
 void cpl_affinity_plan(const cpl_scene *s, int attach, cpl_affinity *a);
 /* In a child between fork and exec (a core only): OMP_PLACES, OMP_PROC_BIND, a
  * short GOMP_SPINCOUNT (unless the user chose the waits), SCHED_BATCH; 1 when

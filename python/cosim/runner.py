@@ -202,10 +202,11 @@ def grid_points(values):
 def concurrent_sets(sets, jobs):
     """``sets`` for runs that share the machine (``jobs`` > 1): coupling.affinity
     "none" unless the caller set it. "handoff" binds a run's coupler and its
-    participants' main threads to the core its coupler started on
-    (coupler/affinity.c), which suits a run that has the machine; runs started
-    together each pick a core that way, so two may share one while another
-    core idles."""
+    participants' main threads to one core, the allowed core with the fewest
+    threads bound to it alone when the run starts (coupler/affinity.c), which
+    suits a run that has the machine; runs started at the same moment each
+    read the bindings before the others have bound, so two may still share a
+    core while another idles."""
     sets = dict(sets or {})
     if jobs > 1 and "coupling.affinity" not in sets:
         sets["coupling.affinity"] = "none"

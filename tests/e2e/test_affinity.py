@@ -10,11 +10,13 @@ SCHED_BATCH, and nothing else changes:
   core first), OMP_PROC_BIND=close and GOMP_SPINCOUNT=10000 (not the passive
   waits of other runs), run as SCHED_BATCH, and the coupler's main thread is
   bound to the hand-off core alone;
+- the hand-off core is the allowed CPU with the fewest threads bound to it
+  alone: with sleepers bound to every other CPU a run takes the free one;
 - with the parallel scheme (every process at once) nothing is bound, an
   unknown value is refused naming the key, a user's OMP_PLACES is kept; the
   printout says which.
 
-Usage: test_affinity.py [scenes|live|refuse ...] (default: all)."""
+Usage: test_affinity.py [scenes|live|crowded|refuse ...] (default: all)."""
 import os
 import re
 import signal
@@ -129,6 +131,36 @@ def live():
     no_orphans({"name": name}, "after the interrupt")
 
 
+def crowded():
+    """The hand-off core is the allowed CPU with the fewest threads bound to it
+    alone: with sleepers bound to every other CPU, a run takes the free one,
+    whichever CPU that is (before, each run took the core its coupler started
+    on, and runs started side by side piled onto one)."""
+    cpus = allowed_cpus()
+    if len(cpus) < 2 or len(cpus) > 16:
+        print(f"crowded: {len(cpus)} CPUs allowed: skipped (2-16 needed)")
+        return
+    for free in cpus[:2]:
+        sleepers = [subprocess.Popen(["taskset", "-c", str(c), "sleep", "600"])
+                    for c in cpus if c != free for _ in range(SLEEPERS_PER_CPU)]
+        try:
+            _, text = run("stub_tire.json", "handoff", f"crowded_{free}", ["--set", "time.end=0.001"])
+        finally:
+            for p in sleepers:
+                p.kill()
+                p.wait()
+        core = handoff_core(text, f"crowded_{free}")
+        check(core == free, f"with {SLEEPERS_PER_CPU} sleepers bound to each other CPU the "
+              f"hand-off core is the free CPU {free} (got {core})")
+        check(f"main thread on CPU {free} (0 threads bound to it alone before this run)" in text,
+              f"crowded_{free}: the printout counts the threads bound to the chosen core")
+
+
+# more threads bound to each other CPU than other tests' hand-off runs bind to
+# one (a coupler loop and two participants' main threads each)
+SLEEPERS_PER_CPU = 8
+
+
 def refuse():
     scene = os.path.join(ROOT, "configs", "default.json")
     _, text = run("stub_tire.json", "handoff", "parallel", ["--set", "time.end=0.01", "--set",
@@ -146,7 +178,7 @@ def refuse():
 
 
 if __name__ == "__main__":
-    parts = sys.argv[1:] or ["scenes", "live", "refuse"]
+    parts = sys.argv[1:] or ["scenes", "live", "crowded", "refuse"]
     for part in parts:
-        {"scenes": scenes, "live": live, "refuse": refuse}[part]()
+        {"scenes": scenes, "live": live, "crowded": crowded, "refuse": refuse}[part]()
     done()
