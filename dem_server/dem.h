@@ -326,7 +326,10 @@ int dem_ready_declare(const dem_model *m, proto_msg *ready, proto_err *err);
  * from the same model; stepping on is then bitwise identical to never having
  * stopped. It checks every array (name, dtype, shape, contents that index
  * other arrays) and the model fingerprint before changing anything, and fails
- * with a message naming the array. */
+ * with a message naming the array. Two differences of the model are accepted:
+ * sleep off in the state and on in the model; other meshes when no grain
+ * touches a mesh in the state (the grains continue, the meshes stay where
+ * this state has them, without contacts). */
 int dem_state_export(const dem_model *m, const dem_state *s, proto_msg *out, proto_err *err);
 int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, proto_err *err);
 
@@ -415,6 +418,7 @@ typedef struct dem_bed_info {
   int has_state;          /* the file has one */
   double dt, gravity[3];  /* of the run that saved it (NAN if not recorded) */
   char friction[256];     /* the pairs whose saved friction differs ("0-1: friction 0.3 -> 1.2"), or "" */
+  int other_meshes;       /* continued with other meshes than the saving run's (no grain touched one) */
 } dem_bed_info;
 int dem_bed_continue(const dem_model *m, dem_state *s, dem_bed_info *info, proto_err *err);
 

@@ -369,7 +369,7 @@ static int same_positions(const dem_model *m, const dem_state *s, const char *pa
 
 int dem_bed_continue(const dem_model *m, dem_state *s, dem_bed_info *info, proto_err *err) {
   const char *path = m->cfg.bed_file;
-  *info = (dem_bed_info){0, 0, NAN, {NAN, NAN, NAN}, {0}};
+  *info = (dem_bed_info){0, 0, NAN, {NAN, NAN, NAN}, {0}, 0};
   proto_h5in *f = proto_h5in_open(path, err);
   if (!f) return -1;
   info->has_state = proto_h5in_exists(f, DEM_BED_STATE);
@@ -402,6 +402,7 @@ int dem_bed_continue(const dem_model *m, dem_state *s, dem_bed_info *info, proto
                     "\"positions\" to start from the grains' positions only)", path, why);
   }
   if (!rc) rc = same_positions(m, s, path, err);
+  if (!rc) info->other_meshes = dem_state_other_meshes(m, &msg);
   const int n = msg.narrays;
   msg.narrays = 0; /* the arrays are ours */
   proto_msg_free(&msg);

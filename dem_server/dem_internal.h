@@ -392,6 +392,10 @@ void dem_neigh_reverse(dem_state *s);
 /* dem_state.c: the largest overlap (fraction of the smaller radius; walls:
  * of the radius) over the neighbour list and the planes. */
 double dem_worst_overlap(const dem_model *m, const dem_state *s);
+/* dem_state_io.c: 1 when a state's fingerprint (state.model) gives other
+ * meshes than this model's (dem_state_import accepts that only when no grain
+ * touches a mesh in it); 0 otherwise or when it has none. */
+int dem_state_other_meshes(const dem_model *m, const proto_msg *in);
 /* dem_state.c: slot i holds model grain g: radius, mass, inertia, material. */
 void dem_grain_constants(const dem_model *m, dem_state *s, int i, int g);
 /* dem_mesh.c */

@@ -118,6 +118,10 @@ static int continue_bed(dem_app *a, proto_err *err) {
             "dt = %.6g s, gravity (%g, %g, %g): it continues, but not bit for bit the run that saved "
             "it\n", f, b.dt, b.gravity[0], b.gravity[1], b.gravity[2], s->dt, m->gravity[0],
             m->gravity[1], m->gravity[2]);
+  if (b.other_meshes)
+    fprintf(stderr, "dem_server: bed %s was saved with other meshes (node and triangle counts, "
+            "triangles or material; no grain touched one): the grains' state continues, the meshes "
+            "start as this scene's, without contacts\n", f);
   if (b.friction[0])
     fprintf(stderr, "dem_server: bed %s was saved with other friction (pair %s): %s from the first step "
             "on, capped by this scene's friction\n", f, b.friction,

@@ -12,7 +12,8 @@
  * (dem_state_set_dt). A saved bed (dem_bed.c) holds the same arrays: a run
  * from it continues the run that settled it. `state.model` holds the model's
  * fingerprint by part (grains, materials, walls, meshes, skin, sleep), so a
- * refusal names what differs. */
+ * refusal names what differs, and two differences are let through (sleep
+ * added; other meshes that no grain touches: `tolerated`). */
 #include "dem_server/dem_internal.h"
 
 #include <limits.h>
@@ -194,19 +195,61 @@ static int64_t model_fingerprint(const int64_t *part) {
   return (int64_t)fnv(FNV0, part, sizeof(int64_t) * IO_NPARTS);
 }
 
-/* A state saved with sleep off, into this model with sleep on and nothing
- * else changed: every grain is awake in it, so the active block's arrays it
- * lacks are those of a run whose grains never slept (zero: awake, no steps at
- * rest, the region not yet placed; the next rebuild is a full one). A bed
- * settled all awake then serves runs with and without the active region.
- * Not the other way: a state with grains asleep needs the active block. */
-static int sleep_added(const dem_model *m, const int64_t *theirs, const int64_t *mine, int64_t their_print) {
-  if (!m->sleep.on || theirs[IO_M_SLEEP] != sleep_part(0) ||
-      their_print != model_fingerprint(theirs))
-    return 0;
-  for (int k = 0; k < IO_NPARTS; k++)
-    if (k != IO_M_SLEEP && theirs[k] != mine[k]) return 0;
+/* The two differences a state may carry into another model; 0 if any other
+ * part differs (or the parts do not give the fingerprint: damaged).
+ * - sleep off -> on (*from_awake): every grain is awake in the state, so the
+ *   active block's arrays it lacks are those of a run whose grains never
+ *   slept (zero: awake, no steps at rest, the region not yet placed; the next
+ *   rebuild is a full one). A bed settled all awake then serves runs with and
+ *   without the active region. Not the other way: a state with grains asleep
+ *   needs the active block.
+ * - other meshes (*new_meshes): allowed only when no grain touches a mesh in
+ *   the state (the caller checks 'state.mc_key'), so that no spring belongs to
+ *   a triangle of the old meshes; the grains' state does not depend on a mesh
+ *   they do not touch, and the meshes start where this model puts them. A bed
+ *   settled under one tread then serves runs with another tread mesh (a mesh
+ *   refinement study). */
+static int tolerated(const dem_model *m, const int64_t *theirs, const int64_t *mine, int64_t their_print,
+                     int *from_awake, int *new_meshes) {
+  *from_awake = *new_meshes = 0;
+  if (their_print != model_fingerprint(theirs)) return 0;
+  for (int k = 0; k < IO_NPARTS; k++) {
+    if (theirs[k] == mine[k]) continue;
+    if (k == IO_M_SLEEP && m->sleep.on && theirs[k] == sleep_part(0)) *from_awake = 1;
+    else if (k == IO_M_MESHES) *new_meshes = 1;
+    else return 0;
+  }
   return 1;
+}
+
+/* The grains touching a mesh in a state: its nonzero 'state.mc_key' entries
+ * (none when it has no meshes); -1 if the array is not i8. */
+static int64_t mesh_contacts(const proto_msg *in) {
+  const proto_array *a = proto_msg_find(in, PROTO_P_STATE "mc_key");
+  if (!a) return 0;
+  if (a->dtype != PROTO_I8) return -1;
+  int64_t n = 0;
+  for (size_t k = 0; k < a->nbytes / sizeof(int64_t); k++) {
+    int64_t key;
+    memcpy(&key, (const char *)a->data + k * sizeof key, sizeof key);
+    n += key != 0;
+  }
+  return n;
+}
+
+int dem_state_other_meshes(const dem_model *m, const proto_msg *in) {
+  const proto_array *a = proto_msg_find(in, PROTO_P_STATE "model");
+  if (!a || a->dtype != PROTO_I8 || a->nbytes != sizeof(int64_t) * IO_NPARTS) return 0;
+  int64_t mine[IO_NPARTS], theirs[IO_NPARTS];
+  model_parts(m, mine);
+  memcpy(theirs, a->data, sizeof theirs);
+  return theirs[IO_M_MESHES] != mine[IO_M_MESHES];
+}
+
+/* An array of the meshes' part of a state ("state.mc_*", "state.mesh_*"). */
+static int mesh_array(const char *name) {
+  return !strncmp(name, PROTO_P_STATE "mc_", strlen(PROTO_P_STATE "mc_")) ||
+         !strncmp(name, PROTO_P_STATE "mesh_", strlen(PROTO_P_STATE "mesh_"));
 }
 
 /* "grains, walls" into out: the parts in which two fingerprints differ. */
@@ -360,12 +403,12 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   int64_t mine[IO_NPARTS];
   model_parts(m, mine);
   int from_awake = 0; /* a state saved with sleep off, continued with sleep on */
+  int new_meshes = 0; /* a state without mesh contacts, continued with other meshes */
   if (cnt[IO_C_MODEL] != model_fingerprint(mine)) {
     const io_entry parts = {PROTO_P_STATE "model", PROTO_I8, 1, {IO_NPARTS}, NULL, 0, 0};
     const int64_t *theirs = get(in, &parts, err);
     if (!theirs) return -1;
-    from_awake = sleep_added(m, theirs, mine, cnt[IO_C_MODEL]);
-    if (!from_awake) {
+    if (!tolerated(m, theirs, mine, cnt[IO_C_MODEL], &from_awake, &new_meshes)) {
       char what[512];
       parts_differ(theirs, mine, what, sizeof what);
       return proto_fail(err, "state import: 'state.counters' comes from another model (fingerprint %016llx, "
@@ -373,6 +416,14 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
                         (unsigned long long)cnt[IO_C_MODEL], (unsigned long long)model_fingerprint(mine),
                         what[0] ? what : "'state.model' and 'state.counters'", what[0] ? "" : " (damaged)");
     }
+    const int64_t touching = new_meshes ? mesh_contacts(in) : 0;
+    if (touching < 0)
+      return proto_fail(err, "state import: 'state.mc_key' is not i8");
+    if (touching > 0)
+      return proto_fail(err, "state import: the meshes (node and triangle counts, triangles, material; the "
+                        "coupled surface included) differ from the state's, and %lld grain-mesh contacts of "
+                        "the state hold springs on the old triangles (a state serves other meshes only when "
+                        "no grain touches a mesh)", (long long)touching);
   }
   const io_entry start = {PROTO_P_STATE "nl_start", PROTO_I4, 1, {n + 1}, NULL, 0, 0};
   const int32_t *st = get(in, &start, err);
@@ -385,6 +436,10 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   const void *src[IO_MAX];
   const int ne = layout(m, s, npairs, e);
   for (int k = 0; k < ne; k++) {
+    if (new_meshes && mesh_array(e[k].name)) { /* this model's meshes, no contact on them */
+      src[k] = NULL;
+      continue;
+    }
     if ((e[k].optional || (from_awake && e[k].sleep)) && !proto_msg_find(in, e[k].name)) {
       if (cnt[IO_C_SLEEPING] != 0)
         return proto_fail(err, "state import: '%s' is missing and %lld grains are asleep (a state of an earlier "
@@ -397,7 +452,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   }
   for (int a = 0; a < in->narrays; a++) {
     const char *nm = in->arrays[a].name;
-    int known = strncmp(nm, PROTO_P_STATE, strlen(PROTO_P_STATE)) != 0;
+    int known = strncmp(nm, PROTO_P_STATE, strlen(PROTO_P_STATE)) != 0 || (new_meshes && mesh_array(nm));
     for (int k = 0; k < ne && !known; k++) known = !strcmp(nm, e[k].name);
     if (!known) return proto_fail(err, "state import: unexpected array '%s' (not part of this model's state)", nm);
   }
@@ -406,7 +461,7 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   if (dem_neigh_reserve(m, s, (int)npairs, err)) return -1;
   layout(m, s, npairs, e);
   for (int k = 0; k < ne; k++) /* empty entries (no pairs yet) may have no buffer */
-    if (entry_bytes(&e[k])) {
+    if (entry_bytes(&e[k])) { /* with new meshes: the mesh contacts zero, the nodes' scratch unused */
       if (src[k]) memcpy(e[k].data, src[k], entry_bytes(&e[k]));
       else memset(e[k].data, 0, entry_bytes(&e[k]));
     }
@@ -429,6 +484,17 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   dem_push_import(m, s); /* the force rule's book */
   if (dem_sleep_partners(m, s, err)) return -1;
   w->have_old = 1;
+  if (new_meshes) { /* the nodes where this state has them (dem_state_init: the model's), no force */
+    for (int mi = 0; mi < m->n_meshes; mi++) {
+      const dem_mesh *me = &m->meshes[mi];
+      memset(s->mesh_force[mi], 0, sizeof(double) * 3 * (size_t)me->n_nodes);
+      if (dem_bvh_build(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri))
+        return proto_fail(err, "state import: out of memory for the BVH of mesh %d", mi);
+    }
+    if (m->n_meshes > 0 && dem_mesh_lists(m, s, err)) return -1;
+    w->lists_dirty = 1; /* and again at the next step, with the sleep flags ("near") */
+    return 0;
+  }
   const int64_t nodes = total_nodes(m);
   int64_t off = 0;
   for (int mi = 0; mi < m->n_meshes; mi++) {

@@ -5,7 +5,10 @@
  * bitwise. A state of another model, and damaged arrays, are refused with a
  * message naming the array. A state saved with sleep off continues with sleep
  * on (every grain awake, as in a run whose grains never slept: bitwise the
- * run without sleep while none falls asleep); not the other way. */
+ * run without sleep while none falls asleep); not the other way. A state in
+ * which no grain touches a mesh continues under other meshes (a coupled
+ * surface of 4 x 4 squares held above the bed, continued under 8 x 8: bitwise
+ * the run under its own); a state with mesh contacts is refused by them. */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 #include <string.h>
@@ -123,6 +126,125 @@ static proto_array *find(proto_msg *m, const char *name) {
   exit(2);
 }
 
+/* Without the plate (plough: true for the plate), the coupled surface a flat
+ * sheet of n x n squares at z (above the bed: out of reach; low: on it). */
+static const char *JSON_NO_PLATE =
+    "{\"materials\":[{\"density\":2600,\"E\":5e6,\"nu\":0.3,\"restitution\":0.5,\"friction\":0.6}],"
+    "\"threads\":1,\"dt\":5e-5,"
+    "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[0.1414213562,0.1414213562,1],\"open_top\":true}%s],"
+    "\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":7}}";
+static const char *PLATE =
+    ",{\"type\":\"mesh\",\"nodes\":[[0,0.01,0.015],[0,0.13,0.015],[0,0.13,0.12],[0,0.01,0.12]],"
+    "\"triangles\":[[0,1,2],[0,2,3]],\"velocity\":[0.4,0,0]}";
+static void make_sheet(int plate, int n, double z, dem_model *m, dem_state *s) {
+  char json[2048];
+  snprintf(json, sizeof json, JSON_NO_PLATE, plate ? PLATE : "");
+  proto_err err = {{0}};
+  cJSON *j = cJSON_Parse(json);
+  const int nodes = (n + 1) * (n + 1);
+  int32_t *tri = malloc(sizeof(int32_t) * 6 * (size_t)(n * n));
+  double *x = malloc(sizeof(double) * 3 * (size_t)nodes);
+  for (int b = 0; b <= n; b++)
+    for (int a = 0; a <= n; a++) {
+      double *p = &x[3 * (b * (n + 1) + a)];
+      p[0] = 0.04 + 0.06 * a / n;
+      p[1] = 0.04 + 0.06 * b / n;
+      p[2] = z;
+    }
+  for (int b = 0; b < n; b++)
+    for (int a = 0; a < n; a++) {
+      int32_t *t = &tri[6 * (b * n + a)], n0 = b * (n + 1) + a;
+      t[0] = n0; t[1] = n0 + 1; t[2] = n0 + n + 2;
+      t[3] = n0; t[4] = n0 + n + 2; t[5] = n0 + n + 1;
+    }
+  if (!j || dem_model_from_json(m, j, "processes.dem", &err) ||
+      dem_model_set_surface(m, nodes, x, 2 * n * n, tri, &err) || dem_state_init(m, s, 0, &err)) {
+    fprintf(stderr, "setup: %s\n", err.msg);
+    exit(2);
+  }
+  cJSON_Delete(j);
+  free(tri);
+  free(x);
+}
+
+static void steps(const dem_model *m, dem_state *s, int k) {
+  proto_err err;
+  for (int i = 0; i < k; i++)
+    if (dem_step(m, s, &err)) { fprintf(stderr, "step: %s\n", err.msg); exit(1); }
+}
+
+/* Other meshes: accepted when no grain touches one (bitwise the run under its
+ * own meshes), refused by the contacts otherwise. cp: the plough's state. */
+static void other_meshes(const proto_msg *cp) {
+  const int S = 1500, M = 1000;
+  const double HIGH = 0.5; /* the bed's top is below 0.06 m */
+  dem_model ma, mb;
+  dem_state a, b;
+  make_sheet(0, 4, HIGH, &ma, &a);
+  steps(&ma, &a, S);
+  int slide, plane, mesh;
+  count_contacts(&ma, &a, &slide, &plane, &mesh);
+  CHECK(mesh == 0 && a.contacts > 100, "the sheet above the bed: %d mesh contacts, %lld contacts", mesh,
+        (long long)a.contacts);
+  proto_err err = {{0}};
+  proto_msg ex = {0}, st = {0};
+  void *bufs[PROTO_MAX_ARRAYS];
+  proto_msg_reset(&ex, "state", "state", 0, 0);
+  CHECK(dem_state_export(&ma, &a, &ex, &err) == 0, "export: %s", err.msg);
+  copy_msg(&ex, &st, bufs);
+  proto_msg_free(&ex);
+  make_sheet(0, 8, HIGH, &mb, &b);
+  CHECK(ma.meshes[0].n_tri != mb.meshes[0].n_tri, "the two sheets differ");
+  CHECK(dem_state_import(&mb, &b, &st, &err) == 0, "a state without mesh contacts under other meshes: %s",
+        err.msg);
+  CHECK(dem_state_other_meshes(&mb, &st) == 1 && dem_state_other_meshes(&ma, &st) == 0,
+        "dem_state_other_meshes tells the two models apart");
+  steps(&ma, &a, M);
+  steps(&mb, &b, M);
+  const int n = ma.n_grains;
+  double *xa = malloc(sizeof(double) * 9 * (size_t)n), *xb = malloc(sizeof(double) * 9 * (size_t)n);
+  dem_gather(&a, a.x, 3, xa);
+  dem_gather(&a, a.v, 3, xa + 3 * n);
+  dem_gather(&a, a.omega, 3, xa + 6 * n);
+  dem_gather(&b, b.x, 3, xb);
+  dem_gather(&b, b.v, 3, xb + 3 * n);
+  dem_gather(&b, b.omega, 3, xb + 6 * n);
+  printf("other meshes (4 x 4 -> 8 x 8 squares, %d -> %d triangles, above the bed): KE %.17g (own %.17g), "
+         "%lld contacts (own %lld)\n", ma.meshes[0].n_tri, mb.meshes[0].n_tri, b.kinetic_energy,
+         a.kinetic_energy, (long long)b.contacts, (long long)a.contacts);
+  CHECK(a.kinetic_energy > 0 && memcmp(xa, xb, sizeof(double) * 9 * (size_t)n) == 0 &&
+            a.kinetic_energy == b.kinetic_energy && a.contacts == b.contacts && a.step == b.step,
+        "continued under other meshes out of reach: x, v, omega, KE, contacts or step differ");
+  CHECK(memcmp(b.mesh_x[0], mb.meshes[0].x0, sizeof(double) * 3 * (size_t)mb.meshes[0].n_nodes) == 0,
+        "the new meshes' nodes are where the model puts them");
+  /* the plough's state, with mesh springs, under a finer sheet: refused by the contacts */
+  dem_model mc;
+  dem_state c;
+  make_sheet(1, 8, FOOT_Z0, &mc, &c);
+  expect_refused(&mc, &c, cp, "mesh contacts, other meshes", "grain-mesh contacts of the state");
+  /* and a state of other grains under other meshes: refused by the grains */
+  dem_model md;
+  dem_state d;
+  make_sheet(1, 8, FOOT_Z0, &md, &d);
+  proto_array *model = NULL;
+  for (int k = 0; k < st.narrays; k++)
+    if (!strcmp(st.arrays[k].name, "state.model")) model = &st.arrays[k];
+  ((int64_t *)model->data)[0] ^= 1; /* IO_M_GRAINS, and the fingerprint no longer matches it */
+  expect_refused(&md, &d, &st, "other grains and meshes", "another model");
+  for (int k = 0; k < st.narrays; k++) free(bufs[k]);
+  proto_msg_free(&st);
+  free(xa);
+  free(xb);
+  dem_state_free(&a);
+  dem_state_free(&b);
+  dem_state_free(&c);
+  dem_state_free(&d);
+  dem_model_free(&ma);
+  dem_model_free(&mb);
+  dem_model_free(&mc);
+  dem_model_free(&md);
+}
+
 int main(void) {
   const int N = 3000, H = N / 2;
   dem_model m;
@@ -219,6 +341,8 @@ int main(void) {
     dem_state_free(&ss);
     dem_model_free(&ms);
   }
+
+  other_meshes(&cp);
 
   /* refusals: another model; damaged arrays (the state stays usable) */
   {
