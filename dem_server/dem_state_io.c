@@ -484,31 +484,29 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
   dem_push_import(m, s); /* the force rule's book */
   if (dem_sleep_partners(m, s, err)) return -1;
   w->have_old = 1;
-  if (new_meshes) { /* the nodes where this state has them (dem_state_init: the model's), no force */
-    for (int mi = 0; mi < m->n_meshes; mi++) {
-      const dem_mesh *me = &m->meshes[mi];
-      memset(s->mesh_force[mi], 0, sizeof(double) * 3 * (size_t)me->n_nodes);
-      if (dem_bvh_build(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri))
-        return proto_fail(err, "state import: out of memory for the BVH of mesh %d", mi);
-    }
-    if (m->n_meshes > 0 && dem_mesh_lists(m, s, err)) return -1;
-    w->lists_dirty = 1; /* and again at the next step, with the sleep flags ("near") */
-    return 0;
-  }
   const int64_t nodes = total_nodes(m);
   int64_t off = 0;
   for (int mi = 0; mi < m->n_meshes; mi++) {
     const dem_mesh *me = &m->meshes[mi];
     const size_t b = sizeof(double) * 3 * (size_t)me->n_nodes;
-    memcpy(s->mesh_x[mi], w->io_mesh + 3 * off, b);
-    memcpy(s->mesh_v[mi], w->io_mesh + 3 * (nodes + off), b);
-    memcpy(s->mesh_force[mi], w->io_mesh + 3 * (2 * nodes + off), b);
-    memcpy(w->mesh_xref[mi], w->io_mesh + 3 * (3 * nodes + off), b);
-    off += me->n_nodes;
-    dem_mesh_velocities_changed(m, s, mi);
-    w->mesh_set[mi] = (uint8_t)(cnt[IO_C_MESH_FLAGS] >> mi & 1);
+    if (new_meshes) { /* the nodes where this state has them (dem_state_init: the model's), no force */
+      memset(s->mesh_force[mi], 0, b);
+    } else {
+      memcpy(s->mesh_x[mi], w->io_mesh + 3 * off, b);
+      memcpy(s->mesh_v[mi], w->io_mesh + 3 * (nodes + off), b);
+      memcpy(s->mesh_force[mi], w->io_mesh + 3 * (2 * nodes + off), b);
+      memcpy(w->mesh_xref[mi], w->io_mesh + 3 * (3 * nodes + off), b);
+      off += me->n_nodes;
+      dem_mesh_velocities_changed(m, s, mi);
+      w->mesh_set[mi] = (uint8_t)(cnt[IO_C_MESH_FLAGS] >> mi & 1);
+    }
     if (dem_bvh_build(&w->bvh[mi], s->mesh_x[mi], me->tri, me->n_tri))
       return proto_fail(err, "state import: out of memory for the BVH of mesh %d", mi);
+  }
+  if (new_meshes) { /* lists and schedule anew; again at the next step, with the sleep flags ("near") */
+    if (m->n_meshes > 0 && dem_mesh_lists(m, s, err)) return -1;
+    w->lists_dirty = 1;
+    return 0;
   }
   w->lists_dirty = (int)(cnt[IO_C_MESH_FLAGS] >> DEM_MAX_MESHES & 1);
   /* the candidate lists from the current positions (a superset until the

@@ -126,6 +126,14 @@ static proto_array *find(proto_msg *m, const char *name) {
   exit(2);
 }
 
+/* x, v, omega of every grain in model order into out [9 n] (slot order
+ * differs between states). */
+static void gather_xvw(const dem_state *s, double *out) {
+  dem_gather(s, s->x, 3, out);
+  dem_gather(s, s->v, 3, out + 3 * (size_t)s->n);
+  dem_gather(s, s->omega, 3, out + 6 * (size_t)s->n);
+}
+
 /* Without the plate (plough: true for the plate), the coupled surface a flat
  * sheet of n x n squares at z (above the bed: out of reach; low: on it). */
 static const char *JSON_NO_PLATE =
@@ -203,12 +211,8 @@ static void other_meshes(const proto_msg *cp) {
   steps(&mb, &b, M);
   const int n = ma.n_grains;
   double *xa = malloc(sizeof(double) * 9 * (size_t)n), *xb = malloc(sizeof(double) * 9 * (size_t)n);
-  dem_gather(&a, a.x, 3, xa);
-  dem_gather(&a, a.v, 3, xa + 3 * n);
-  dem_gather(&a, a.omega, 3, xa + 6 * n);
-  dem_gather(&b, b.x, 3, xb);
-  dem_gather(&b, b.v, 3, xb + 3 * n);
-  dem_gather(&b, b.omega, 3, xb + 6 * n);
+  gather_xvw(&a, xa);
+  gather_xvw(&b, xb);
   printf("other meshes (4 x 4 -> 8 x 8 squares, %d -> %d triangles, above the bed): KE %.17g (own %.17g), "
          "%lld contacts (own %lld)\n", ma.meshes[0].n_tri, mb.meshes[0].n_tri, b.kinetic_energy,
          a.kinetic_energy, (long long)b.contacts, (long long)a.contacts);
@@ -253,9 +257,7 @@ int main(void) {
   const int n = m.n_grains, nodes = FOOT_NODES;
   run(&m, &a, 0, N);
   double *xa = malloc(sizeof(double) * 9 * n);
-  dem_gather(&a, a.x, 3, xa);
-  dem_gather(&a, a.v, 3, xa + 3 * n);
-  dem_gather(&a, a.omega, 3, xa + 6 * n);
+  gather_xvw(&a, xa);
 
   /* half, export (deep copy), a fresh state imports it, the other half */
   dem_state b;
@@ -290,9 +292,7 @@ int main(void) {
     CHECK(dem_state_import(&mc, &c, &cp, &err) == 0, "import: %s", err.msg);
     run(&mc, &c, H, N);
     double *xc = malloc(sizeof(double) * 9 * n);
-    dem_gather(&c, c.x, 3, xc);
-    dem_gather(&c, c.v, 3, xc + 3 * n);
-    dem_gather(&c, c.omega, 3, xc + 6 * n);
+    gather_xvw(&c, xc);
     printf("%d thread(s) after import: KE %.17g (straight %.17g), step %lld, t %.17g\n", threads,
            c.kinetic_energy, a.kinetic_energy, (long long)c.step, c.t);
     CHECK(memcmp(xa, xc, sizeof(double) * 9 * n) == 0, "x, v, ω differ after export/import (%d threads)", threads);
@@ -318,9 +318,7 @@ int main(void) {
           (long long)ss.sleeping, ss.work->n_active, n);
     run(&ms, &ss, H, N);
     double *xs = malloc(sizeof(double) * 9 * n);
-    dem_gather(&ss, ss.x, 3, xs);
-    dem_gather(&ss, ss.v, 3, xs + 3 * n);
-    dem_gather(&ss, ss.omega, 3, xs + 6 * n);
+    gather_xvw(&ss, xs);
     printf("sleep off -> on: KE %.17g (straight %.17g), %lld asleep at the end\n", ss.kinetic_energy,
            a.kinetic_energy, (long long)ss.sleeping);
     CHECK(ss.sleeping == 0, "a grain fell asleep at velocity 1e-12 m/s");
