@@ -43,6 +43,13 @@ static const char *const FREE_KEYS[] = {
     "coupling.hello_timeout", "coupling.heartbeat_timeout", "coupling.handshake_timeout",
     "coupling.step_timeout", "coupling.attach_endpoint", NULL};
 
+/* Scene keys a branch (--branch) may change besides: the coupling scheme.
+ * The scheme's own coupler state (the implicit scheme's carried defect, its
+ * accelerator's history) is then not taken from the checkpoint: it starts as
+ * at step 0. The participants' states do not depend on the scheme. */
+static const char *const BRANCH_KEYS[] = {"coupling.scheme", "coupling.implicit", NULL};
+static const char *const SCHEME_VALS[] = {"implicit.", "accel.", NULL};
+
 typedef struct ckpt_array {
   proto_array a;
   void *data;
@@ -58,6 +65,8 @@ typedef struct ckpt_part {
 struct cpl_ckpt {
   char path[CPL_PATH_LEN];
   int64_t step;
+  int branch;       /* --branch: a new run from this state (its own results.h5) */
+  int other_scheme; /* a branch under another scheme (BRANCH_KEYS differ) */
   cJSON *config;
   int nparts;
   ckpt_part parts[CPL_MAX_PROCS];
@@ -266,6 +275,8 @@ void cpl_checkpoint_free(cpl_ckpt *c) {
   free(c);
 }
 
+int cpl_checkpoint_other_scheme(const cpl_ckpt *c) { return c->other_scheme; }
+
 int64_t cpl_checkpoint_step(const cpl_ckpt *c) { return c->step; }
 
 typedef struct read_ctx {
@@ -398,29 +409,46 @@ static void drop_launchers(cJSON *root) {
   }
 }
 
+/* The scene with the keys that may change left out. */
+static cJSON *comparable(const cJSON *scene, const char *const *keys, int branch) {
+  cJSON *c = cJSON_Duplicate(scene, 1);
+  for (int i = 0; keys[i]; i++) drop_key(c, keys[i]);
+  for (int i = 0; branch && BRANCH_KEYS[i]; i++) drop_key(c, BRANCH_KEYS[i]);
+  drop_launchers(c);
+  return c;
+}
+
 /* The scene must continue the checkpointed one: equal in every key that
- * decides the results. */
-static int same_scene(const cpl_ckpt *c, const cpl_scene *s, proto_err *err) {
-  cJSON *was = cJSON_Duplicate(c->config, 1), *now = cJSON_Duplicate(s->root, 1);
-  for (int i = 0; FREE_KEYS[i]; i++) {
-    drop_key(was, FREE_KEYS[i]);
-    drop_key(now, FREE_KEYS[i]);
-  }
-  drop_launchers(was);
-  drop_launchers(now);
+ * decides the results (a branch: but the scheme). */
+static int same_scene(cpl_ckpt *c, const cpl_scene *s, int branch, proto_err *err) {
+  cJSON *was = comparable(c->config, FREE_KEYS, branch),
+        *now = comparable(s->root, FREE_KEYS, branch);
   char path[CPL_PATH_LEN] = "";
   int differ = !was || !now || json_diff(was, now, path, sizeof path);
   cJSON_Delete(was);
   cJSON_Delete(now);
   if (differ)
-    return proto_fail(err, "--restart %s: the scene differs from the checkpointed one "
-                      "at '%s'; a restart continues the same scene (it may change "
+    return proto_fail(err, "--%s %s: the scene differs from the checkpointed one "
+                      "at '%s'; a %s continues the same scene (it may change "
                       "time.end, output, bus, checkpoint, security, the "
                       "coupling deadlines and the launcher in front of a "
-                      "participant's exec, e.g. mpirun -np N)", c->path, path[0] ? path : "(root)");
+                      "participant's exec, e.g. mpirun -np N%s)", branch ? "branch" : "restart",
+                      c->path, path[0] ? path : "(root)", branch ? "branch" : "restart",
+                      branch ? "; a branch also coupling.scheme and coupling.implicit" : "");
   if (c->nparts != s->nprocs)
-    return proto_fail(err, "--restart %s: the checkpoint holds %d participants, the "
-                      "scene has %d processes", c->path, c->nparts, s->nprocs);
+    return proto_fail(err, "--%s %s: the checkpoint holds %d participants, the "
+                      "scene has %d processes", branch ? "branch" : "restart", c->path,
+                      c->nparts, s->nprocs);
+  if (branch) {
+    cJSON *was_c = cJSON_GetObjectItemCaseSensitive(c->config, "coupling"),
+          *now_c = cJSON_GetObjectItemCaseSensitive(s->root, "coupling");
+    for (int i = 0; BRANCH_KEYS[i]; i++) {
+      const char *key = strchr(BRANCH_KEYS[i], '.') + 1;
+      const cJSON *a = cJSON_GetObjectItemCaseSensitive(was_c, key),
+                  *b = cJSON_GetObjectItemCaseSensitive(now_c, key);
+      if ((a || b) && !(a && b && cJSON_Compare(a, b, 1))) c->other_scheme = 1;
+    }
+  }
   return 0;
 }
 
@@ -460,7 +488,8 @@ static int read_step(cpl_ckpt *c, proto_err *err) {
   return 0;
 }
 
-cpl_ckpt *cpl_checkpoint_read(const char *path, const cpl_scene *s, proto_err *err) {
+cpl_ckpt *cpl_checkpoint_read(const char *path, const cpl_scene *s, int branch,
+                               proto_err *err) {
   cpl_ckpt *c = calloc(1, sizeof *c);
   if (!c) {
     proto_fail(err, "out of memory");
@@ -474,7 +503,8 @@ cpl_ckpt *cpl_checkpoint_read(const char *path, const cpl_scene *s, proto_err *e
   if (rc == 0) rc = proto_h5in_list(f, G_COUPLER, read_val, &x, err);
   if (rc == 0) rc = proto_h5in_list(f, G_PARTS, read_part, &x, err);
   if (rc == 0) rc = read_step(c, err);
-  if (rc == 0) rc = same_scene(c, s, err);
+  c->branch = branch;
+  if (rc == 0) rc = same_scene(c, s, branch, err);
   proto_h5in_close(f);
   if (rc < 0) {
     cpl_checkpoint_free(c);
@@ -529,6 +559,12 @@ static int restore_participants(cpl_runner *r) {
   return rc;
 }
 
+static int scheme_value(const char *name) {
+  for (int i = 0; SCHEME_VALS[i]; i++)
+    if (strncmp(name, SCHEME_VALS[i], strlen(SCHEME_VALS[i])) == 0) return 1;
+  return 0;
+}
+
 /* The coupler's state from the checkpoint: every piece this run carries
  * must be there, of its type and size; apply: copied in. */
 static int coupler_values(cpl_runner *r, int apply) {
@@ -538,16 +574,17 @@ static int coupler_values(cpl_runner *r, int apply) {
   cpl_stateval v[MAX_VALS];
   int nv = coupler_state(r, &step, &wall, &unconv, v);
   for (int i = 0; i < nv; i++) {
+    if (c->other_scheme && scheme_value(v[i].name)) continue; /* starts as at step 0 */
     const ckpt_array *a = find_val(c, v[i].name);
     size_t want = (size_t)v[i].count * proto_dtype_size(v[i].dtype);
     if (!a || a->a.dtype != v[i].dtype || a->a.nbytes != want)
-      return proto_fail(&r->err, "--restart %s:%s/%s: %s there, %s of %zu bytes here "
-                        "(another scene, surface or scheme?)", c->path, G_COUPLER,
+      return proto_fail(&r->err, "--%s %s:%s/%s: %s there, %s of %zu bytes here "
+                        "(another scene, surface or scheme?)", c->branch ? "branch" : "restart", c->path, G_COUPLER,
                         v[i].name, a ? "different" : "missing",
                         proto_dtype_name(v[i].dtype), want);
     if (apply && want) memcpy(v[i].data, a->data, want);
   }
-  if (apply) {
+  if (apply && !c->branch) { /* a branch is a new run: its counters start at 0 */
     r->data.steps_unconverged = unconv;
     r->wall_start = proto_now() - wall;
   }

@@ -116,6 +116,7 @@ typedef struct cpl_run_opts {
   int quiet;            /* no schedule, no timing table */
   int overwrite;        /* replace an earlier run's results.h5 */
   const char *restart;  /* checkpoint file, or "latest" (NULL: none) */
+  int branch;           /* restart is a --branch: a new run from its state */
 } cpl_run_opts;
 
 /* ---- outdir.c: output.dir — the lock, the kept-results rule, a reserve */

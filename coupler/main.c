@@ -10,6 +10,7 @@ static void usage(FILE *f) {
   fprintf(f,
           "usage: cosim run CONFIG [--set KEY.PATH=VALUE]... [--attach] [--quiet]\n"
           "                        [--overwrite] [--restart CHECKPOINT|latest]\n"
+          "                        [--branch CHECKPOINT]\n"
           "       cosim check CONFIG [--set KEY.PATH=VALUE]...\n"
           "       cosim monitor ENDPOINT|OUTPUT_DIR [--topic PREFIX]... [--count N] [--timeout S]\n"
           "       cosim roles [--json]\n"
@@ -26,6 +27,9 @@ static void usage(FILE *f) {
           "         An earlier run's results.h5 is kept: --overwrite replaces it.\n"
           "         --restart continues a run from a checkpoint (scene key\n"
           "         checkpoint.every); latest: the newest one in output.dir.\n"
+          "         --branch starts a new run (its own output.dir) from a\n"
+          "         checkpoint's state; the scene may change the coupling\n"
+          "         scheme (coupling.scheme, coupling.implicit) besides.\n"
           "check    validates the scene (core keys here, each process section by\n"
           "         its own executable) without running it.\n"
           "monitor  prints what is published on a run's monitor bus (the endpoint,\n"
@@ -44,7 +48,7 @@ typedef struct cli {
   const char *config;
   int nset;
   char **sets;
-  int attach, quiet, overwrite;
+  int attach, quiet, overwrite, branch;
   const char *restart;
 } cli;
 
@@ -62,7 +66,14 @@ static int parse(int argc, char **argv, cli *c) {
       c->quiet = 1;
     } else if (strcmp(argv[i], "--overwrite") == 0) {
       c->overwrite = 1;
-    } else if (strcmp(argv[i], "--restart") == 0 && i + 1 < argc) {
+    } else if ((strcmp(argv[i], "--restart") == 0 || strcmp(argv[i], "--branch") == 0) &&
+               i + 1 < argc) {
+      int branch = strcmp(argv[i], "--branch") == 0;
+      if (c->restart) {
+        fprintf(stderr, "cosim: give one of --restart and --branch, once\n");
+        return -1;
+      }
+      c->branch = branch;
       c->restart = argv[++i];
     } else if (argv[i][0] != '-' && !c->config) {
       c->config = argv[i];
@@ -106,7 +117,7 @@ static int cmd_run(const cli *c) {
   }
   cpl_run_opts opts = {.attach = c->attach, .quiet = c->quiet,
                        .progress = !c->quiet && isatty(2), .overwrite = c->overwrite,
-                       .restart = c->restart};
+                       .restart = c->restart, .branch = c->branch};
   int rc = cpl_run(&s, &opts);
   cpl_scene_free(&s);
   return rc;

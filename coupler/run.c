@@ -395,8 +395,9 @@ static int check_rollback(cpl_runner *r) {
  * it on a full disk. */
 static int open_output(cpl_runner *r) {
   cpl_scene *s = r->scene;
-  if (!r->ckpt && cpl_checkpoint_clear(s->output_dir, &r->err) < 0) return -1;
-  r->out = cpl_output_open(s, r->ckpt ? r->k0 : -1, &r->err);
+  const int continues = r->ckpt && !r->opts->branch; /* a branch starts new results */
+  if (!continues && cpl_checkpoint_clear(s->output_dir, &r->err) < 0) return -1;
+  r->out = cpl_output_open(s, continues ? r->k0 : -1, &r->err);
   int rc = r->out ? 0 : -1;
   for (int i = 0; i < r->n && rc == 0; i++)
     if (cpl_output_participant(r->out, r->peers[i].proc->name, &r->peers[i].reply,
@@ -508,6 +509,26 @@ static void install_signals(void) {
   signal(SIGPIPE, SIG_IGN);
 }
 
+/* A branch writes a new run: not into the directory of the checkpoint it
+ * starts from, whose run (and checkpoints) it would replace. */
+static int branch_target(const char *ckpt, const char *output_dir, proto_err *err) {
+  if (strcmp(ckpt, "latest") == 0)
+    return proto_fail(err, "--branch latest: a branch needs the checkpoint's file "
+                      "(latest is in output.dir, which the branch writes anew)");
+  char dir[CPL_PATH_LEN];
+  snprintf(dir, sizeof dir, "%s", ckpt);
+  char *slash = strrchr(dir, '/');
+  if (slash) *slash = 0;
+  else snprintf(dir, sizeof dir, ".");
+  struct stat a, b;
+  if (stat(dir[0] ? dir : "/", &a) == 0 && stat(output_dir, &b) == 0 && a.st_dev == b.st_dev &&
+      a.st_ino == b.st_ino)
+    return proto_fail(err, "--branch %s: output.dir '%s' is the checkpoint's own "
+                      "directory; a branch is a new run: give it another output.dir",
+                      ckpt, output_dir);
+  return 0;
+}
+
 /* Before anything in output.dir is touched: its lock, the kept-results
  * rule, the checkpoint to continue from (a bad one: exit 1, nothing
  * started). */
@@ -515,8 +536,10 @@ static int claim_output_dir(cpl_runner *r) {
   cpl_scene *s = r->scene;
   r->lock_fd = cpl_outdir_lock(s->output_dir, &r->err);
   if (r->lock_fd < 0) return -1;
+  if (r->opts->branch && branch_target(r->opts->restart, s->output_dir, &r->err) < 0)
+    return -1;
   if (r->opts->restart) {
-    r->ckpt = cpl_checkpoint_read(r->opts->restart, s, &r->err);
+    r->ckpt = cpl_checkpoint_read(r->opts->restart, s, r->opts->branch, &r->err);
     if (!r->ckpt) return -1;
     r->k0 = cpl_checkpoint_step(r->ckpt);
     if (r->k0 >= s->n_steps)
@@ -524,7 +547,8 @@ static int claim_output_dir(cpl_runner *r) {
                         "scene ends at step %lld (time.end = %g s)", (long long)r->k0,
                         (long long)s->n_steps, s->t_end);
   }
-  return cpl_outdir_results(s->output_dir, r->ckpt != NULL, r->opts->overwrite, &r->err);
+  return cpl_outdir_results(s->output_dir, r->ckpt && !r->opts->branch, r->opts->overwrite,
+                            &r->err);
 }
 
 static int prepare(cpl_runner *r) {

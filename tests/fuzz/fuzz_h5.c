@@ -252,7 +252,7 @@ static void run(int reader, const char *path, const grid *g) {
     if (loaded) bed_continue(path, &err); /* its saved state: /state (dem_bed_continue) */
   } else if (reader == R_CHECKPOINT) {
     const cpl_scene *sc = checkpoint_scene();
-    cpl_ckpt *c = sc ? cpl_checkpoint_read(path, sc, &err) : NULL;
+    cpl_ckpt *c = sc ? cpl_checkpoint_read(path, sc, 0, &err) : NULL;
     if (c && cpl_checkpoint_step(c) < 1) __builtin_trap(); /* the reader refuses it */
     cpl_checkpoint_free(c);
   }
