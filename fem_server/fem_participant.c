@@ -28,7 +28,11 @@ static const char *const MESH_SURF_NODE = "surface_node", *const MESH_SURF_TRI =
 enum { N_ROAD_COLS = 2, N_REACTION_COLS = 3, MAX_SERIES = FEM_N_SERIES + N_ROAD_COLS + N_REACTION_COLS };
 /* state arrays (state.<name>) */
 static const char *const ST_U = "u", *const ST_V = "v", *const ST_V_HALF = "v_half",
-                  *const ST_FINT = "fint", *const ST_SCALARS = "scalars";
+                  *const ST_FINT = "fint", *const ST_SCALARS = "scalars",
+                  *const ST_RIM_PREV = "rim_prev";
+/* rim_prev: the rim's w[3], v[3] of the last step and whether there was one
+ * (fem_frame_from_rim: the frame's acceleration is their difference) */
+enum { N_RIM_PREV = 7 };
 
 typedef struct server {
   fem_config cfg;
@@ -48,6 +52,7 @@ typedef struct server {
   double series[MAX_SERIES];
   int n_series;         /* FEM_N_SERIES, + the road's, + the reaction's columns */
   double scalars[8];    /* state_save: the scalar part of fem_state */
+  double rim_prev[N_RIM_PREV]; /* state_save: the rim of the last step */
   /* snapshots */
   int32_t *cells;       /* [n_elems*npe] VTK order */
   double *mesh_x0, *snap_x, *snap_v, *strain, *stress, *voigt;
@@ -375,8 +380,11 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
 /* ----------------------------------------------------------------- state */
 
 /* The whole changing state (rollback of the implicit scheme, checkpoints):
- * u, v, v_half, K u and the scalars of fem_state. st.b is rebuilt by every
- * step from its request; quasi-static mode changes only u and v. */
+ * u, v, v_half, K u, the scalars of fem_state and the rim's w, v of the last
+ * step (the frame's acceleration over the next is the difference: without
+ * them a restart, and every iteration after an implicit step's first, saw
+ * none). st.b is rebuilt by every step from its request; quasi-static mode
+ * changes only u and v. */
 static int state_save(void *user, proto_msg *state, proto_err *err) {
   server *s = user;
   const fem_state *st = &s->st;
@@ -384,11 +392,16 @@ static int state_save(void *user, proto_msg *state, proto_err *err) {
   const double sc[8] = {st->t, st->energy, st->work_ext, st->work_abs, st->kinetic,
                         st->strain, st->dt_sub, (double)st->n_sub};
   memcpy(s->scalars, sc, sizeof sc);
+  memcpy(s->rim_prev, st->rim_w_prev, sizeof st->rim_w_prev);
+  memcpy(s->rim_prev + 3, st->rim_v_prev, sizeof st->rim_v_prev);
+  s->rim_prev[6] = st->rim_has_prev;
   if (proto_msg_add_prefixed(state, PROTO_P_STATE, ST_U, PROTO_F8, nd, 0, st->u) ||
       proto_msg_add_prefixed(state, PROTO_P_STATE, ST_V, PROTO_F8, nd, 0, st->v) ||
       proto_msg_add_prefixed(state, PROTO_P_STATE, ST_V_HALF, PROTO_F8, nd, 0, st->v_half) ||
       proto_msg_add_prefixed(state, PROTO_P_STATE, ST_FINT, PROTO_F8, nd, 0, st->fint) ||
-      proto_msg_add_prefixed(state, PROTO_P_STATE, ST_SCALARS, PROTO_F8, 8, 0, s->scalars))
+      proto_msg_add_prefixed(state, PROTO_P_STATE, ST_SCALARS, PROTO_F8, 8, 0, s->scalars) ||
+      proto_msg_add_prefixed(state, PROTO_P_STATE, ST_RIM_PREV, PROTO_F8, N_RIM_PREV, 0,
+                             s->rim_prev))
     return proto_fail(err, "state message full");
   return 0;
 }
@@ -412,6 +425,16 @@ static int state_load(void *user, const proto_msg *state, proto_err *err) {
   st->strain = sc[5];
   st->dt_sub = sc[6];
   st->n_sub = (int64_t)sc[7];
+  /* a checkpoint written before rim_prev was saved: no last step, as then */
+  char full[PROTO_NAME_LEN];
+  snprintf(full, sizeof full, "%s%s", PROTO_P_STATE, ST_RIM_PREV);
+  double rp[N_RIM_PREV] = {0};
+  if (proto_msg_find(state, full) &&
+      proto_state_get(state, ST_RIM_PREV, PROTO_F8, N_RIM_PREV, rp, err))
+    return -1;
+  memcpy(st->rim_w_prev, rp, sizeof st->rim_w_prev);
+  memcpy(st->rim_v_prev, rp + 3, sizeof st->rim_v_prev);
+  st->rim_has_prev = rp[6] != 0;
   return 0;
 }
 
