@@ -15,8 +15,17 @@
 # DRY=1 only writes and prints OUT/<stage>[_<scheme>].cmds. SETS adds --set
 # arguments to each branch (as shell words), TAG a suffix to <scheme> in its
 # directory: SETS="--set coupling.implicit.tolerance=1e-3" TAG=_tol1e-3.
-# Stop 56: beds 1-3 of the headline (bench/results/sand_calibration.md
-# "Convergence: serial vs implicit").
+# Stop 56 (bench/results/sand_calibration.md "Convergence: serial vs implicit"):
+# the serial stage on the headline's beds 1-3 (OUT/beds of run_sand_dbp.sh; bit
+# for bit the headline's runs), then
+#   SETS="--set coupling.implicit.tolerance=1e-3" TAG=_tol1e-3 JOBS=3 \
+#     bash bench/tire_soil/run_sand_branch.sh branch BUILD OUT implicit \
+#     1:24000 2:28000 3:32000 1:56000 2:60000 3:52000
+#   JOBS=3 bash bench/tire_soil/run_sand_branch.sh branch BUILD OUT serial (the same)
+#   PYTHONPATH=python /usr/bin/python3 bench/tire_soil/compare_branch.py OUT \
+#     --b implicit_tol1e-3 --group "5%:1:24000,2:28000,3:32000;20%:1:56000,2:60000,3:52000"
+# (the implicit stage 2 087 s, the serial 259 s; the stop's serial stage ran
+# from an equivalent command with checkpoint keep 20).
 set -euo pipefail
 STAGE=${1:?usage: run_sand_branch.sh serial|branch BUILD OUT ...}
 BUILD=${2:?BUILD}
