@@ -275,8 +275,6 @@ void cpl_checkpoint_free(cpl_ckpt *c) {
   free(c);
 }
 
-int cpl_checkpoint_other_scheme(const cpl_ckpt *c) { return c->other_scheme; }
-
 int64_t cpl_checkpoint_step(const cpl_ckpt *c) { return c->step; }
 
 typedef struct read_ctx {
@@ -579,8 +577,8 @@ static int coupler_values(cpl_runner *r, int apply) {
     size_t want = (size_t)v[i].count * proto_dtype_size(v[i].dtype);
     if (!a || a->a.dtype != v[i].dtype || a->a.nbytes != want)
       return proto_fail(&r->err, "--%s %s:%s/%s: %s there, %s of %zu bytes here "
-                        "(another scene, surface or scheme?)", c->branch ? "branch" : "restart", c->path, G_COUPLER,
-                        v[i].name, a ? "different" : "missing",
+                        "(another scene, surface or scheme?)", c->branch ? "branch" : "restart",
+                        c->path, G_COUPLER, v[i].name, a ? "different" : "missing",
                         proto_dtype_name(v[i].dtype), want);
     if (apply && want) memcpy(v[i].data, a->data, want);
   }

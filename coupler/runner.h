@@ -313,8 +313,6 @@ int cpl_checkpoint_write(cpl_runner *r, int64_t k);
 cpl_ckpt *cpl_checkpoint_read(const char *path, const cpl_scene *s, int branch,
                                proto_err *err);
 int64_t cpl_checkpoint_step(const cpl_ckpt *c);
-/* 1 for a branch whose scheme differs from the checkpoint's. */
-int cpl_checkpoint_other_scheme(const cpl_ckpt *c);
 /* Restores the coupler and every participant from r->ckpt (after the
  * handshake and the scheme's set-up, before results.h5 is opened): the
  * coupler's state is checked against this run first (every piece there, of
