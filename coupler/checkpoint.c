@@ -408,45 +408,43 @@ static void drop_launchers(cJSON *root) {
 }
 
 /* The scene with the keys that may change left out. */
-static cJSON *comparable(const cJSON *scene, const char *const *keys, int branch) {
+static cJSON *comparable(const cJSON *scene) {
   cJSON *c = cJSON_Duplicate(scene, 1);
-  for (int i = 0; keys[i]; i++) drop_key(c, keys[i]);
-  for (int i = 0; branch && BRANCH_KEYS[i]; i++) drop_key(c, BRANCH_KEYS[i]);
+  for (int i = 0; FREE_KEYS[i]; i++) drop_key(c, FREE_KEYS[i]);
   drop_launchers(c);
   return c;
 }
 
 /* The scene must continue the checkpointed one: equal in every key that
- * decides the results (a branch: but the scheme). */
+ * decides the results (a branch: but the scheme, and then other_scheme
+ * says whether the scheme differs). */
 static int same_scene(cpl_ckpt *c, const cpl_scene *s, int branch, proto_err *err) {
-  cJSON *was = comparable(c->config, FREE_KEYS, branch),
-        *now = comparable(s->root, FREE_KEYS, branch);
+  cJSON *was = comparable(c->config), *now = comparable(s->root);
   char path[CPL_PATH_LEN] = "";
   int differ = !was || !now || json_diff(was, now, path, sizeof path);
+  if (differ && branch && was && now) {
+    for (int i = 0; BRANCH_KEYS[i]; i++) {
+      drop_key(was, BRANCH_KEYS[i]);
+      drop_key(now, BRANCH_KEYS[i]);
+    }
+    path[0] = 0;
+    c->other_scheme = 1;
+    differ = json_diff(was, now, path, sizeof path);
+  }
   cJSON_Delete(was);
   cJSON_Delete(now);
+  const char *what = branch ? "branch" : "restart";
   if (differ)
     return proto_fail(err, "--%s %s: the scene differs from the checkpointed one "
                       "at '%s'; a %s continues the same scene (it may change "
                       "time.end, output, bus, checkpoint, security, the "
                       "coupling deadlines and the launcher in front of a "
-                      "participant's exec, e.g. mpirun -np N%s)", branch ? "branch" : "restart",
-                      c->path, path[0] ? path : "(root)", branch ? "branch" : "restart",
+                      "participant's exec, e.g. mpirun -np N%s)", what, c->path,
+                      path[0] ? path : "(root)", what,
                       branch ? "; a branch also coupling.scheme and coupling.implicit" : "");
   if (c->nparts != s->nprocs)
     return proto_fail(err, "--%s %s: the checkpoint holds %d participants, the "
-                      "scene has %d processes", branch ? "branch" : "restart", c->path,
-                      c->nparts, s->nprocs);
-  if (branch) {
-    cJSON *was_c = cJSON_GetObjectItemCaseSensitive(c->config, "coupling"),
-          *now_c = cJSON_GetObjectItemCaseSensitive(s->root, "coupling");
-    for (int i = 0; BRANCH_KEYS[i]; i++) {
-      const char *key = strchr(BRANCH_KEYS[i], '.') + 1;
-      const cJSON *a = cJSON_GetObjectItemCaseSensitive(was_c, key),
-                  *b = cJSON_GetObjectItemCaseSensitive(now_c, key);
-      if ((a || b) && !(a && b && cJSON_Compare(a, b, 1))) c->other_scheme = 1;
-    }
-  }
+                      "scene has %d processes", what, c->path, c->nparts, s->nprocs);
   return 0;
 }
 

@@ -28,8 +28,8 @@ static const char *const MESH_SURF_NODE = "surface_node", *const MESH_SURF_TRI =
 enum { N_ROAD_COLS = 2, N_REACTION_COLS = 3, MAX_SERIES = FEM_N_SERIES + N_ROAD_COLS + N_REACTION_COLS };
 /* state arrays (state.<name>) */
 static const char *const ST_U = "u", *const ST_V = "v", *const ST_V_HALF = "v_half",
-                  *const ST_FINT = "fint", *const ST_SCALARS = "scalars",
-                  *const ST_RIM_PREV = "rim_prev";
+                  *const ST_FINT = "fint", *const ST_SCALARS = "scalars";
+#define ST_RIM_PREV "rim_prev" /* a literal: optional, found by its full name */
 /* rim_prev: the rim's w[3], v[3] of the last step and whether there was one
  * (fem_frame_from_rim: the frame's acceleration is their difference) */
 enum { N_RIM_PREV = 7 };
@@ -426,10 +426,8 @@ static int state_load(void *user, const proto_msg *state, proto_err *err) {
   st->dt_sub = sc[6];
   st->n_sub = (int64_t)sc[7];
   /* a checkpoint written before rim_prev was saved: no last step, as then */
-  char full[PROTO_NAME_LEN];
-  snprintf(full, sizeof full, "%s%s", PROTO_P_STATE, ST_RIM_PREV);
   double rp[N_RIM_PREV] = {0};
-  if (proto_msg_find(state, full) &&
+  if (proto_msg_find(state, PROTO_P_STATE ST_RIM_PREV) &&
       proto_state_get(state, ST_RIM_PREV, PROTO_F8, N_RIM_PREV, rp, err))
     return -1;
   memcpy(st->rim_w_prev, rp, sizeof st->rim_w_prev);
