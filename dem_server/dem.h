@@ -337,6 +337,9 @@ int dem_state_import(const dem_model *m, dem_state *s, const proto_msg *in, prot
 typedef struct dem_bed_layer {
   double diameter, spread; /* uniform in diameter ± spread */
   int64_t count;
+  int substrate; /* 1 (dem_bed_substrate): its lattice centred in the footprint (no strip at the walls wider
+                    than half the remainder) and its random draws from a stream of its own (the layers above
+                    are the bed they are without it); 0: from x = y = 0, the bed's one stream */
 } dem_bed_layer;
 
 typedef struct dem_bed_spec {
@@ -350,6 +353,20 @@ typedef struct dem_bed_spec {
 
 /* The paper's bed (seed 000 table 2) scaled: counts × scale, footprint × sqrt(scale). */
 void dem_bed_paper(dem_bed_spec *b, double scale);
+/* A substrate under b's layers (inserted as the bottom layer): grains of
+ * diameter ± spread on full lattice levels of the footprint, as many levels
+ * as fit in depth (m; each level one lattice pitch, diameter + spread + gap).
+ * Coarser grains of the same material meant to stand in for more of the bed
+ * below the layers the tyre reaches, at a fraction of their count (dem_server
+ * README "Config": what the plate measured of it). The grains above must
+ * not fall into it: a lattice window (pitch √2 - diameter + spread) and the
+ * strips at the walls (half the footprint's remainder) narrower than the
+ * smallest grain of the layer above (dem_bed_place does not check it; the
+ * paper's bottom layer is 15.6 mm: a 26 mm substrate leaves 11.5 mm windows).
+ * Fails if b has no room for a layer or depth holds no level; the error
+ * names `what`'s keys. */
+int dem_bed_substrate(dem_bed_spec *b, double diameter, double spread, double depth, const char *what,
+                      proto_err *err);
 /* Places grains without overlap on jittered lattices in the model's grain
  * arrays (replaces any). Does not settle. */
 int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err);

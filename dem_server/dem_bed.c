@@ -38,6 +38,28 @@ void dem_bed_paper(dem_bed_spec *b, double scale) {
   b->seed = 1;
 }
 
+int dem_bed_substrate(dem_bed_spec *b, double diameter, double spread, double depth, const char *what,
+                      proto_err *err) {
+  const int cap = (int)(sizeof b->layers / sizeof *b->layers);
+  if (b->n_layers >= cap)
+    return proto_fail(err, "%s: the bed has %d layers already (at most %d)", what, b->n_layers, cap);
+  const double a = diameter + spread + b->gap; /* dem_bed_place's lattice pitch */
+  const double nx = floor(b->size[0] / a), ny = floor(b->size[1] / a), levels = floor(depth / a);
+  if (!(nx >= 1 && ny >= 1))
+    return proto_fail(err, "%s.diameter: %g m grains do not fit the %g x %g m footprint", what, diameter, b->size[0],
+                      b->size[1]);
+  if (!(levels >= 1))
+    return proto_fail(err, "%s.depth: %g m holds no level of %g m grains (lattice pitch %g m)", what, depth,
+                      diameter, a);
+  if (nx * ny * levels > (double)DEM_MAX_GRAINS)
+    return proto_fail(err, "%s: %.0f grains (at most %lld)", what, nx * ny * levels, (long long)DEM_MAX_GRAINS);
+  memmove(&b->layers[1], &b->layers[0], sizeof *b->layers * (size_t)b->n_layers);
+  b->layers[0] = (dem_bed_layer){
+      .diameter = diameter, .spread = spread, .count = (int64_t)(nx * ny * levels), .substrate = 1};
+  b->n_layers++;
+  return 0;
+}
+
 /* splitmix64: reproducible placement from the seed */
 static double uniform(uint64_t *st) {
   uint64_t z = (*st += 0x9E3779B97F4A7C15ull);
@@ -53,11 +75,12 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err) {
   if (total <= 0 || total > DEM_MAX_GRAINS)
     return proto_fail(err, "bed: %lld grains (1 to %lld)", (long long)total, (long long)DEM_MAX_GRAINS);
   if (dem_model_alloc_grains(m, (int)total, err)) return -1;
-  uint64_t st = b->seed;
+  uint64_t shared = b->seed, own = b->seed ^ 0xD1B54A32D192ED03ull;
   double z = 0;
   int i = 0;
   for (int k = 0; k < b->n_layers; k++) {
     const dem_bed_layer *L = &b->layers[k];
+    uint64_t *stp = L->substrate ? &own : &shared;
     const double dmax = L->diameter + L->spread, a = dmax + b->gap; /* lattice pitch */
     /* lattice cells per row; more than DEM_MAX_GRAINS would stay empty (and
      * a footprint of 1e30 m must not overflow the int) */
@@ -66,13 +89,15 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err) {
     if (nx < 1 || ny < 1)
       return proto_fail(err, "bed: footprint %g x %g m smaller than one grain of layer %d",
                         b->size[0], b->size[1], k);
+    const double ox = L->substrate ? 0.5 * (b->size[0] - nx * a) : 0, /* a substrate's lattice centred */
+        oy = L->substrate ? 0.5 * (b->size[1] - ny * a) : 0;
     for (int64_t c = 0; c < L->count; c++, i++) {
       const int64_t cell = c % ((int64_t)nx * ny), level = c / ((int64_t)nx * ny);
       const int ix = (int)(cell % nx), iy = (int)(cell / nx);
-      const double d = L->diameter + L->spread * (2 * uniform(&st) - 1);
+      const double d = L->diameter + L->spread * (2 * uniform(stp) - 1);
       const double jit = 0.45 * (a - d); /* stays inside its lattice cell: no overlap */
-      m->x0[3 * i] = (ix + 0.5) * a + jit * (2 * uniform(&st) - 1);
-      m->x0[3 * i + 1] = (iy + 0.5) * a + jit * (2 * uniform(&st) - 1);
+      m->x0[3 * i] = ox + (ix + 0.5) * a + jit * (2 * uniform(stp) - 1);
+      m->x0[3 * i + 1] = oy + (iy + 0.5) * a + jit * (2 * uniform(stp) - 1);
       m->x0[3 * i + 2] = z + (level + 0.5) * a;
       m->radius[i] = 0.5 * d;
       m->material[i] = b->material;

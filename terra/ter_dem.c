@@ -326,6 +326,16 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
   cJSON_AddItemToObject(parts, "size", cJSON_CreateDoubleArray((const double[2]){L, L}, 2));
   cJSON_AddNumberToObject(parts, "material", soil->grain_material);
   cJSON_AddNumberToObject(parts, "seed", (double)sp->seed);
+  /* the scene's substrate under the layers, as its bed has it (dem_bed_substrate) */
+  const cJSON *sub = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(soil->section, "particles"),
+                                                      "substrate");
+  if (sub) cJSON_AddItemToObject(parts, "substrate", cJSON_Duplicate(sub, 1));
+  char sub_text[256] = "";
+  if (sub) {
+    char *t = cJSON_PrintUnformatted(sub);
+    snprintf(sub_text, sizeof sub_text, "%s", t ? t : "");
+    cJSON_free(t);
+  }
   cJSON *walls = cJSON_GetObjectItemCaseSensitive(sec, "walls");
   add_container(walls, soil->wall_material, L, L);
   const double skirt = sp->z_max + TER_SKIRT_EXTRA;
@@ -361,6 +371,7 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
   ter_series_meta(out, "width_m", "%.6g", b);
   ter_series_meta(out, "container_m", "%.6g", L);
   ter_series_meta(out, "depth_factor", "%.6g", sp->depth_factor);
+  if (sub_text[0]) ter_series_meta(out, "substrate", "%s", sub_text);
   ter_series_meta(out, "grains", "%d", s.n);
   ter_series_meta(out, "speed_m_s", "%.6g", sp->speed);
   ter_series_meta(out, "seed", "%llu", (unsigned long long)sp->seed);

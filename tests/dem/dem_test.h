@@ -21,6 +21,26 @@ static inline void scene(const char *json, dem_model *m, dem_state *s) {
   cJSON_Delete(j);
 }
 
+/* A scene that must be refused (by the model or the state's init), with an
+ * error containing want; prints what it said. */
+static inline void expect_error(const char *name, const char *json, const char *want) {
+  dem_model m;
+  dem_state s;
+  proto_err err = {{0}};
+  cJSON *j = cJSON_Parse(json);
+  if (!j) { fprintf(stderr, "bad JSON in %s\n", name); exit(2); }
+  int rc = dem_model_from_json(&m, j, "processes.dem", &err);
+  if (rc == 0) {
+    rc = dem_state_init(&m, &s, 0, &err);
+    if (rc == 0) dem_state_free(&s);
+    dem_model_free(&m);
+  }
+  cJSON_Delete(j);
+  printf("%-28s -> %s\n", name, rc ? err.msg : "(accepted)");
+  CHECK(rc != 0, "%s: accepted", name);
+  CHECK(rc == 0 || strstr(err.msg, want), "%s: message lacks '%s'", name, want);
+}
+
 /* Every array of a's and b's state export (dem_state_export) equal, bit for
  * bit (names, shapes, bytes); what names the first that is not, or the count. */
 static inline int dem_test_same_state(const dem_model *ma, const dem_state *a, const dem_model *mb,

@@ -11,24 +11,6 @@
 #define BOX "\"walls\":[{\"type\":\"box\",\"lo\":[0,0,0],\"hi\":[0.1,0.1,0.1]}]"
 #define P(x, y, z, r) "{\"x\":[" #x "," #y "," #z "],\"r\":" #r "}"
 
-static void expect_error(const char *name, const char *json, const char *want) {
-  dem_model m;
-  dem_state s;
-  proto_err err = {{0}};
-  cJSON *j = cJSON_Parse(json);
-  if (!j) { fprintf(stderr, "bad JSON in %s\n", name); exit(2); }
-  int rc = dem_model_from_json(&m, j, "processes.dem", &err);
-  if (rc == 0) {
-    rc = dem_state_init(&m, &s, 0, &err);
-    if (rc == 0) dem_state_free(&s);
-    dem_model_free(&m);
-  }
-  cJSON_Delete(j);
-  printf("%-28s -> %s\n", name, rc ? err.msg : "(accepted)");
-  CHECK(rc != 0, "%s: accepted", name);
-  CHECK(rc == 0 || strstr(err.msg, want), "%s: message lacks '%s'", name, want);
-}
-
 /* The step is the state's: without a coupling step dt_fraction × T_R (T_R of
  * docs/dem-bench.md §2 computed here), with one the fewest equal sub-steps not longer than
  * that; a coupling step may change it; a step above the limit is refused,
