@@ -4,7 +4,8 @@ the tyre's contact pressure must not change when the bed is made deeper).
 Each group is LABEL=FILE,FILE,... (plate records of `cosim_terra plate`, one per bed seed). Per run: the sinkage at
 which each pressure of --pressures is first reached (3-row running mean of the 1 mm rows) and the pressure at each
 sinkage of --sinkages; per group the mean over its runs and the Student-t 95 % half-width; each group against the
-first (the reference) by the difference of the means and its Welch 95 % half-width (the beds differ, so unpaired).
+first (the reference) by the difference of the means and its Welch 95 % half-width (the beds differ, so unpaired;
+a sinkage read from rows of dz carries dz^2/12 of rounding variance besides the spread).
 Writes OUT.csv (every run and group) and OUT.png (each group's mean curve with its min-max band).
 
     /usr/bin/python3 bench/terra/plate_depth.py OUT LABEL=F1,F2,F3 LABEL=... [--pressures 25,50,75,100]
@@ -49,12 +50,15 @@ def mean_hw(v):
     return v.mean(), stats.t.ppf(0.975, v.size - 1) * v.std(ddof=1) / math.sqrt(v.size), v.size
 
 
-def welch(a, b):
+def welch(a, b, quantum=0.0):
+    """b's mean minus a's and its Welch 95 % half-width; quantum: the values' rounding step (a sinkage read
+    from 1 mm rows), whose variance quantum^2 / 12 each sample carries besides the spread."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     a, b = a[np.isfinite(a)], b[np.isfinite(b)]
     if a.size < 2 or b.size < 2:
         return math.nan, math.nan
-    va, vb = a.var(ddof=1) / a.size, b.var(ddof=1) / b.size
+    q2 = quantum ** 2 / 12
+    va, vb = (a.var(ddof=1) + q2) / a.size, (b.var(ddof=1) + q2) / b.size
     dof = (va + vb) ** 2 / (va ** 2 / (a.size - 1) + vb ** 2 / (b.size - 1)) if va + vb > 0 else a.size + b.size - 2
     return b.mean() - a.mean(), stats.t.ppf(0.975, dof) * math.sqrt(va + vb)
 
@@ -70,9 +74,15 @@ def main():
     sinkages = [float(x) for x in a.sinkages.split(",")]
     names = [f"z_mm_at_{q:g}kPa" for q in pressures] + [f"p_kPa_at_{s:g}mm" for s in sinkages]
     groups = []
+
+    def quantum(k):  # the sinkage columns are read from the records' rows (--dz, 1 mm by default)
+        return dz_mm if k < len(pressures) else 0.0
+
     for g in a.groups:
         label, _, files = g.partition("=")
         groups.append((label, [run_values(f, pressures, sinkages) + (f,) for f in files.split(",")]))
+    zrow = groups[0][1][0][1]
+    dz_mm = float(zrow[1] - zrow[0]) * 1e3 if len(zrow) > 1 else 0.0
     fig, ax = plt.subplots(figsize=(7, 4.5))
     with open(a.out + ".csv", "w") as f:
         f.write("group,run,bed_m,grains," + ",".join(names) + "\n")
@@ -85,7 +95,7 @@ def main():
             f.write(f"{label},ci95,,," + ",".join(f"{h:.2f}" for _, h, _ in stat) + "\n")
         ref_label, ref = groups[0]
         for label, runs in groups[1:]:
-            diffs = [welch([r[3][k] for r in ref], [r[3][k] for r in runs]) for k in range(len(names))]
+            diffs = [welch([r[3][k] for r in ref], [r[3][k] for r in runs], quantum(k)) for k in range(len(names))]
             f.write(f"{label} - {ref_label},difference,,," + ",".join(f"{d:.2f}" for d, _ in diffs) + "\n")
             f.write(f"{label} - {ref_label},welch95,,," + ",".join(f"{h:.2f}" for _, h in diffs) + "\n")
     print("| group | runs | bed (m) | " + " | ".join(names) + " |")
@@ -101,7 +111,7 @@ def main():
         ax.fill_between(zgrid * 1e3, curves.min(axis=0), curves.max(axis=0), color=line.get_color(), alpha=0.15)
     ref_label, ref = groups[0]
     for label, runs in groups[1:]:
-        diffs = [welch([r[3][k] for r in ref], [r[3][k] for r in runs]) for k in range(len(names))]
+        diffs = [welch([r[3][k] for r in ref], [r[3][k] for r in runs], quantum(k)) for k in range(len(names))]
         print(f"| {label} − {ref_label} | | | " + " | ".join(
             f"{d:+.1f} ± {h:.1f}{' (outside)' if abs(d) > h else ''}" for d, h in diffs) + " |")
     ax.set_xlabel("plate sinkage z (mm)")
