@@ -38,24 +38,35 @@ void dem_bed_paper(dem_bed_spec *b, double scale) {
   b->seed = 1;
 }
 
+/* A layer's lattice: its pitch (the largest grain plus the gap) and the
+ * whole cells across the footprint in x and y (capped at DEM_MAX_GRAINS: a
+ * footprint of 1e30 m must not overflow an int; more would stay empty). */
+static double lattice(const dem_bed_spec *b, double diameter, double spread, int *nx, int *ny) {
+  const double a = diameter + spread + b->gap;
+  *nx = (int)fmin(b->size[0] / a, (double)DEM_MAX_GRAINS);
+  *ny = (int)fmin(b->size[1] / a, (double)DEM_MAX_GRAINS);
+  return a;
+}
+
 int dem_bed_substrate(dem_bed_spec *b, double diameter, double spread, double depth, const char *what,
                       proto_err *err) {
   const int cap = (int)(sizeof b->layers / sizeof *b->layers);
   if (b->n_layers >= cap)
     return proto_fail(err, "%s: the bed has %d layers already (at most %d)", what, b->n_layers, cap);
-  const double a = diameter + spread + b->gap; /* dem_bed_place's lattice pitch */
-  const double nx = floor(b->size[0] / a), ny = floor(b->size[1] / a), levels = floor(depth / a);
+  int nx, ny;
+  const double a = lattice(b, diameter, spread, &nx, &ny), levels = floor(depth / a);
   if (!(nx >= 1 && ny >= 1))
     return proto_fail(err, "%s.diameter: %g m grains do not fit the %g x %g m footprint", what, diameter, b->size[0],
                       b->size[1]);
   if (!(levels >= 1))
     return proto_fail(err, "%s.depth: %g m holds no level of %g m grains (lattice pitch %g m)", what, depth,
                       diameter, a);
-  if (nx * ny * levels > (double)DEM_MAX_GRAINS)
-    return proto_fail(err, "%s: %.0f grains (at most %lld)", what, nx * ny * levels, (long long)DEM_MAX_GRAINS);
+  const double count = (double)nx * ny * levels;
+  if (count > (double)DEM_MAX_GRAINS)
+    return proto_fail(err, "%s: %.0f grains (at most %lld)", what, count, (long long)DEM_MAX_GRAINS);
   memmove(&b->layers[1], &b->layers[0], sizeof *b->layers * (size_t)b->n_layers);
   b->layers[0] = (dem_bed_layer){
-      .diameter = diameter, .spread = spread, .count = (int64_t)(nx * ny * levels), .substrate = 1};
+      .diameter = diameter, .spread = spread, .count = (int64_t)count, .substrate = 1};
   b->n_layers++;
   return 0;
 }
@@ -81,11 +92,8 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err) {
   for (int k = 0; k < b->n_layers; k++) {
     const dem_bed_layer *L = &b->layers[k];
     uint64_t *stp = L->substrate ? &own : &shared;
-    const double dmax = L->diameter + L->spread, a = dmax + b->gap; /* lattice pitch */
-    /* lattice cells per row; more than DEM_MAX_GRAINS would stay empty (and
-     * a footprint of 1e30 m must not overflow the int) */
-    const int nx = (int)fmin(b->size[0] / a, (double)DEM_MAX_GRAINS),
-              ny = (int)fmin(b->size[1] / a, (double)DEM_MAX_GRAINS);
+    int nx, ny;
+    const double a = lattice(b, L->diameter, L->spread, &nx, &ny);
     if (nx < 1 || ny < 1)
       return proto_fail(err, "bed: footprint %g x %g m smaller than one grain of layer %d",
                         b->size[0], b->size[1], k);
