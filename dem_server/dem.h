@@ -142,6 +142,8 @@ typedef struct dem_model_config {
   char bed_file[512];  /* "particles.file": the bed read ("" = none) */
   int bed_positions;   /* "particles.state": "positions": ignore the bed's saved state */
   dem_prep prep;       /* generated beds: "particles.prepare" (the laws while settling) */
+  int substrate_grains; /* generated beds: grains of the substrate, the model's first (dem_bed_place) */
+  int64_t substrate_steps; /* its steps settling alone (dem_bed_presettle), 0 = none */
 } dem_model_config;
 
 typedef struct dem_model {
@@ -368,8 +370,20 @@ void dem_bed_paper(dem_bed_spec *b, double scale);
 int dem_bed_substrate(dem_bed_spec *b, double diameter, double spread, double depth, const char *what,
                       proto_err *err);
 /* Places grains without overlap on jittered lattices in the model's grain
- * arrays (replaces any). Does not settle. */
+ * arrays (replaces any) and counts a substrate's in m->cfg.substrate_grains.
+ * Does not settle. */
 int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err);
+/* A placed bed's substrate settled alone, then the layers above lowered onto
+ * it (dem_model_from_json calls it for a generated bed with a substrate and
+ * settle_max_steps > 0; dem_bed.c says why). The substrate's grains take the
+ * settled positions in m->x0 (at rest), every other grain moves down by the
+ * same height, the clearance the substrate left above it. With the
+ * preparation's laws if m->cfg.prep is on, at the substrate's own step
+ * (dt_fraction of its Rayleigh time), at least DEM_SETTLE_MIN_TIME, then
+ * until its kinetic energy per kilogram is below settle_ke_per_grain per the
+ * mean mass of the other grains (the same rms speed the bed's test stands
+ * for), at most settle_max_steps. The substrate-less bed passes unchanged. */
+int dem_bed_presettle(dem_model *m, proto_err *err);
 /* Progress of a long call: the fraction done in [0, 1] and what is being
  * done. The library only calls it (a participant passes it on as its
  * heartbeats' progress, proto_peer_progress); it may be NULL. */

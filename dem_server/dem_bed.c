@@ -86,6 +86,7 @@ int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err) {
   if (total <= 0 || total > DEM_MAX_GRAINS)
     return proto_fail(err, "bed: %lld grains (1 to %lld)", (long long)total, (long long)DEM_MAX_GRAINS);
   if (dem_model_alloc_grains(m, (int)total, err)) return -1;
+  m->cfg.substrate_grains = b->n_layers > 0 && b->layers[0].substrate ? (int)b->layers[0].count : 0;
   uint64_t shared = b->seed, own = b->seed ^ 0xD1B54A32D192ED03ull;
   double z = 0;
   int i = 0;

@@ -467,7 +467,8 @@ int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, pr
   m->rayleigh_time = dem_model_rayleigh(m);
   m->skin = ex->skin >= 0 ? ex->skin : 0.5 * rmin;
   double dt;
-  if (dem_model_dt(m, 0.0, &dt, err) == 0) return 0;
+  /* a substrate settles alone before the layers land on it (dem_bed_presettle) */
+  if (dem_model_dt(m, 0.0, &dt, err) == 0 && dem_bed_presettle(m, err) == 0) return 0;
 fail:
   dem_model_free(m);
   return -1;

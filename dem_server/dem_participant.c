@@ -168,6 +168,9 @@ static int init(void *user, const proto_msg *welcome, proto_msg *ready, proto_er
     if (m->cfg.prep.on)
       fprintf(stderr, " (prepared: friction %g, rolling friction %g, then the scene's laws)",
               m->cfg.prep.friction, m->cfg.prep.rolling);
+    if (m->cfg.substrate_steps > 0)
+      fprintf(stderr, " (its substrate of %d grains settled alone first, in %lld steps of its own)",
+              m->cfg.substrate_grains, (long long)m->cfg.substrate_steps);
     fprintf(stderr, "\n");
   }
   if (m->cfg.save_bed[0] && a->restart_step == 0 &&

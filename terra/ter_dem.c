@@ -217,6 +217,27 @@ static void prep_apply(dem_model *m, const ter_prep *p, prep_saved *sv) {
 
 static void prep_restore(dem_model *m, const prep_saved *sv) { memcpy(m->law, sv->law, sizeof m->law); }
 
+/* A generated bed's particles settle as the test does: its preparation
+ * (when on) and its settling limits in the section, so that a substrate
+ * settles alone first with those laws (dem_bed_presettle, in the reader). */
+static void put_settling(cJSON *parts, const ter_prep *p, double ke, int64_t max_steps) {
+  static const char *const keys[] = {"prepare", "settle_ke_per_grain", "settle_max_steps"};
+  if (p->on) {
+    cJSON_DeleteItemFromObjectCaseSensitive(parts, keys[0]);
+    cJSON *j = cJSON_AddObjectToObject(parts, keys[0]);
+    cJSON_AddNumberToObject(j, "friction", p->friction);
+    cJSON_AddNumberToObject(j, "rolling_friction", p->rolling);
+  }
+  if (ke > 0) {
+    cJSON_DeleteItemFromObjectCaseSensitive(parts, keys[1]);
+    cJSON_AddNumberToObject(parts, keys[1], ke);
+  }
+  if (max_steps > 0) {
+    cJSON_DeleteItemFromObjectCaseSensitive(parts, keys[2]);
+    cJSON_AddNumberToObject(parts, keys[2], (double)max_steps);
+  }
+}
+
 static void prep_meta(ter_series *out, const ter_prep *p) {
   if (p->on)
     ter_series_meta(out, "preparation", "settled with friction %.6g, rolling friction %.6g, then the scene's laws",
@@ -330,6 +351,7 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
   const cJSON *sub = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(soil->section, "particles"),
                                                       "substrate");
   if (sub) cJSON_AddItemToObject(parts, "substrate", cJSON_Duplicate(sub, 1));
+  put_settling(parts, &sp->prep, sp->settle_ke, sp->settle_max_steps);
   char sub_text[256] = "";
   if (sub) {
     char *t = cJSON_PrintUnformatted(sub);
@@ -372,6 +394,9 @@ int ter_plate_test(const ter_dem_soil *soil, const ter_plate_spec *sp, FILE *log
   ter_series_meta(out, "container_m", "%.6g", L);
   ter_series_meta(out, "depth_factor", "%.6g", sp->depth_factor);
   if (sub_text[0]) ter_series_meta(out, "substrate", "%s", sub_text);
+  if (m.cfg.substrate_steps > 0)
+    ter_series_meta(out, "substrate_settled_alone", "%lld steps of its own (dem_bed_presettle)",
+                    (long long)m.cfg.substrate_steps);
   ter_series_meta(out, "grains", "%d", s.n);
   ter_series_meta(out, "speed_m_s", "%.6g", sp->speed);
   ter_series_meta(out, "seed", "%llu", (unsigned long long)sp->seed);
@@ -729,6 +754,7 @@ int ter_prepare_bed(const ter_dem_soil *soil, const ter_bed_spec *sp, const char
     cJSON_DeleteItemFromObjectCaseSensitive(p, "seed");
     cJSON_AddNumberToObject(p, "seed", (double)sp->seed);
   }
+  put_settling(p, &sp->prep, 0, sp->settle_max_steps);
   dem_model m;
   dem_state s;
   int rc = build(sec, soil->path, &m, &s, err);
