@@ -71,8 +71,9 @@ static int check_initial(const dem_model *m, const dem_state *s, proto_err *err)
   const double tol = fmax(m->overlap_tolerance, m->bed_max_overlap);
   char why[200];
   snprintf(why, sizeof why, "overlap_tolerance %.3g%s", m->overlap_tolerance,
-           m->bed_max_overlap > 0 ? "; the settled bed (its file, or a substrate settled alone) has a largest "
-                                    "overlap of " : "");
+           m->bed_max_overlap <= 0       ? ""
+           : m->cfg.substrate_steps > 0 ? "; the substrate settled alone has a largest overlap of "
+                                        : "; the bed file records a largest overlap of ");
   if (m->bed_max_overlap > 0) snprintf(why + strlen(why), sizeof why - strlen(why), "%.6g", m->bed_max_overlap);
   for (int i = 0; i < s->n; i++) {
     for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++) {
