@@ -143,6 +143,7 @@ typedef struct dem_model_config {
   int bed_positions;   /* "particles.state": "positions": ignore the bed's saved state */
   dem_prep prep;       /* generated beds: "particles.prepare" (the laws while settling) */
   int substrate_grains; /* generated beds: grains of the substrate, the model's first (dem_bed_place) */
+  int substrate_first;  /* "particles.substrate.settle_first": settle it alone first (dem_bed_presettle) */
   int64_t substrate_steps; /* its steps settling alone (dem_bed_presettle), 0 = none */
 } dem_model_config;
 
@@ -374,8 +375,9 @@ int dem_bed_substrate(dem_bed_spec *b, double diameter, double spread, double de
  * Does not settle. */
 int dem_bed_place(dem_model *m, const dem_bed_spec *b, proto_err *err);
 /* A placed bed's substrate settled alone, then the layers above lowered onto
- * it (dem_model_from_json calls it for a generated bed with a substrate and
- * settle_max_steps > 0; dem_bed.c says why). The substrate's grains take the
+ * it (dem_model_from_json calls it for a generated bed with a substrate,
+ * settle_first on and settle_max_steps > 0; dem_bed_presettle.c says why and
+ * what it changes). The substrate's grains take the
  * settled positions in m->x0 (at rest), every other grain moves down by the
  * same height, the clearance the substrate left above it. With the
  * preparation's laws if m->cfg.prep is on, at the substrate's own step

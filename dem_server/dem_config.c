@@ -140,20 +140,24 @@ static int read_prepare(dem_model *m, proto_cfg *c, dem_prep *p) {
   return dem_prep_check(m, p, path, c->err);
 }
 
-/* "substrate": {"diameter": D, "depth": H, "spread": S (default 0)}: coarser
- * grains under the paper's layers (dem_bed_substrate). */
-static int read_substrate(proto_cfg *c, dem_bed_spec *b) {
+/* "substrate": {"diameter": D, "depth": H, "spread": S (default 0),
+ * "settle_first": B (default false)}: coarser grains under the paper's layers
+ * (dem_bed_substrate), settled alone before the layers when B
+ * (dem_bed_presettle). */
+static int read_substrate(proto_cfg *c, dem_bed_spec *b, int *first) {
   const cJSON *j = proto_cfg_raw(c, "substrate", PROTO_OPTIONAL);
   if (!j) return 0;
   char path[320];
   proto_cfg_subpath(c, "substrate", -1, path, sizeof path);
   if (!cJSON_IsObject(j))
-    return proto_fail(c->err, "%s: expected an object {\"diameter\": D, \"depth\": H, \"spread\": S}", path);
+    return proto_fail(c->err, "%s: expected an object {\"diameter\": D, \"depth\": H, \"spread\": S, "
+                      "\"settle_first\": B}", path);
   proto_cfg sc;
   double d = 0, h = 0, spread = 0;
   if (proto_cfg_open(&sc, j, path, c->err) || proto_cfg_num(&sc, "diameter", PROTO_REQUIRED, 1e-5, 10.0, &d) ||
       proto_cfg_num(&sc, "depth", PROTO_REQUIRED, 0.0, 100.0, &h) ||
-      proto_cfg_num(&sc, "spread", PROTO_OPTIONAL, 0.0, 10.0, &spread) || proto_cfg_end(&sc))
+      proto_cfg_num(&sc, "spread", PROTO_OPTIONAL, 0.0, 10.0, &spread) ||
+      proto_cfg_bool(&sc, "settle_first", PROTO_OPTIONAL, first) || proto_cfg_end(&sc))
     return -1;
   if (!(spread < 0.5 * d))
     return proto_fail(c->err, "%s.spread: %g m must be below half the diameter (%g m)", path, spread, 0.5 * d);
@@ -177,7 +181,8 @@ static int read_bed(dem_model *m, proto_cfg *c, dem_model_config *ex) {
     return -1;
   if (b.size[0] <= 0 || b.size[1] <= 0)
     return proto_fail(c->err, "%s.size: must be positive", c->path);
-  if (read_substrate(c, &b)) return -1;
+  int first = 0;
+  if (read_substrate(c, &b, &first)) return -1;
   if (ex->prep.on && !(ex->settle_steps > 0))
     return proto_fail(c->err, "%s.prepare: needs settle_max_steps > 0 (the preparation's laws act while the "
                       "bed settles)", c->path);
@@ -188,7 +193,9 @@ static int read_bed(dem_model *m, proto_cfg *c, dem_model_config *ex) {
   if (strcmp(gen, "bed") != 0)
     return proto_fail(c->err, "%s.generate: unknown generator '%s' (expected \"bed\")", c->path, gen);
   if (proto_cfg_end(c)) return -1;
-  return dem_bed_place(m, &b, c->err);
+  if (dem_bed_place(m, &b, c->err)) return -1;
+  ex->substrate_first = first;
+  return 0;
 }
 
 static int read_particles(dem_model *m, proto_cfg *top, dem_model_config *ex, proto_err *err) {

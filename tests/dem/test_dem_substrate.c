@@ -5,8 +5,8 @@
  * layer on it (the 15.6 mm grains, wider than its lattice windows) is still
  * above it. (The 6.9 and 7.8 mm grains are not checked: they pass the 15.6 mm
  * layer's own lattice windows and wall strip in a box this small, with or
- * without a substrate.) A bed that settles (settle_max_steps) has its
- * substrate settled alone first (dem_bed_presettle): the substrate then
+ * without a substrate.) A bed that settles (settle_max_steps) with
+ * settle_first has its substrate settled alone first (dem_bed_presettle): the substrate then
  * stands at rest on the floor (the floor carries its weight: static
  * equilibrium, not the routine's own test), lower than its lattice, and the
  * layers are the placed ones moved straight down by one drop onto its
@@ -28,13 +28,14 @@
 #define SMOOTH_BED(SUB) \
   "{" MAT_SMOOTH_WALLS "," SMOOTH_BOX ",\"dt\":5e-5,\"particles\":{\"generate\":\"bed\",\"scale\":0.02,\"seed\":3" SUB "}}"
 #define SUB26 ",\"substrate\":{\"diameter\":0.026,\"depth\":0.1}"
+#define SUB26_FIRST ",\"substrate\":{\"diameter\":0.026,\"depth\":0.1,\"settle_first\":true}"
 #define SETTLES ",\"settle_ke_per_grain\":1e-7,\"settle_max_steps\":40000"
 
 /* The substrate settled alone (dem_bed_presettle) against the placed bed p. */
 static void presettled(const dem_model *p, int n_sub) {
   dem_model m;
   dem_state s;
-  scene(SMOOTH_BED(SUB26 SETTLES), &m, &s);
+  scene(SMOOTH_BED(SUB26_FIRST SETTLES), &m, &s);
   CHECK(m.n_grains == p->n_grains && m.cfg.substrate_grains == n_sub, "%d grains (%d of the substrate)", m.n_grains,
         m.cfg.substrate_grains);
   CHECK(m.cfg.substrate_steps >= (int64_t)(DEM_SETTLE_MIN_TIME / 5e-5) && m.cfg.substrate_steps < 40000,
@@ -112,6 +113,23 @@ int main(void) {
   CHECK(sub_top <= fine_low, "substrate top %.4f above the layers' bottom %.4f", sub_top, fine_low);
   CHECK(m.cfg.substrate_grains == n_sub && m.cfg.substrate_steps == 0, "a bed that does not settle: %d, %lld",
         m.cfg.substrate_grains, (long long)m.cfg.substrate_steps);
+  {
+    /* settle_first off (the default), or a bed that does not settle: the substrate stays as placed */
+    dem_model mk;
+    dem_state sk;
+    scene(BED(SUB26 SETTLES), &mk, &sk);
+    int same = mk.n_grains == m.n_grains && mk.cfg.substrate_steps == 0;
+    for (int i = 0; same && i < 3 * m.n_grains; i++) same = mk.x0[i] == m.x0[i];
+    CHECK(same, "a settling bed without settle_first is not the placed bed");
+    dem_state_free(&sk);
+    dem_model_free(&mk);
+    scene(BED(SUB26_FIRST), &mk, &sk);
+    same = mk.cfg.substrate_steps == 0;
+    for (int i = 0; same && i < 3 * m.n_grains; i++) same = mk.x0[i] == m.x0[i];
+    CHECK(same, "a bed that does not settle had its substrate settled");
+    dem_state_free(&sk);
+    dem_model_free(&mk);
+  }
   presettled(&m, n_sub);
   CHECK(dem_settle_placed(&m, &s, 1e-9, 8000, NULL, NULL, &err) == 0, "settling: %s", err.msg);
   double sub_mean = 0, fine_min = INFINITY;
@@ -136,5 +154,7 @@ int main(void) {
                "processes.dem.particles.substrate.spread");
   expect_error("unknown key", BED(",\"substrate\":{\"diameter\":0.03,\"depth\":0.1,\"levels\":2}"), "levels");
   expect_error("not an object", BED(",\"substrate\":0.03"), "processes.dem.particles.substrate: expected an object");
+  expect_error("settle_first not a boolean", BED(",\"substrate\":{\"diameter\":0.026,\"depth\":0.1,\"settle_first\":2}"),
+               "processes.dem.particles.substrate.settle_first");
   return cosim_test_done("test_dem_substrate");
 }
