@@ -53,22 +53,15 @@ static int settle_alone(const dem_model *m, int ns, double ke_per_kg, double *x,
   s.work->settling = 1; /* all awake, as dem_bed_settle */
   double mass = 0;
   for (int i = 0; i < ns; i++) mass += grain_mass(m, i);
-  const int64_t n_min = (int64_t)ceil(DEM_SETTLE_MIN_TIME / s.dt), n_max = (int64_t)m->cfg.settle_steps;
-  int rc = 0;
-  int64_t k = 0;
-  for (; k < n_max; k++) {
-    if (dem_step(&sub, &s, err)) {
-      rc = -1;
-      break;
-    }
-    if (k >= n_min && s.kinetic_energy < ke_per_kg * mass) break;
-  }
+  /* dem_settle_placed's rules (DEM_SETTLE_MIN_TIME, then the KE test per
+   * grain): the test per kilogram times the substrate's mean grain mass */
+  const int rc = dem_settle_placed(&sub, &s, ke_per_kg * mass / ns, (int64_t)m->cfg.settle_steps, NULL, NULL, err);
   for (int j = 0; j < s.n && rc == 0; j++)
     for (int c = 0; c < 3; c++) x[3 * s.id[j] + c] = s.x[3 * j + c];
   /* a settled substrate is pressed by its weight: the state built from the
    * model accepts its overlaps, as it accepts a saved bed's */
   if (rc == 0) *worst = dem_worst_overlap(&sub, &s);
-  *steps = k;
+  *steps = s.step;
   dem_state_free(&s);
   return rc;
 }
