@@ -25,6 +25,13 @@
  * is screened DEM_ROW_BLOCK pairs at a time straight into the batch. */
 #define DEM_BATCH 64
 #define DEM_ROW_BLOCK 32
+/* Rows run in descending slot order and each row's pairs ascending, which
+ * the hardware prefetcher does not follow: the springs of the row this many
+ * rows on are fetched while a row is screened (their loads were the sweep's
+ * hottest cache misses on the sand scene: 14 % of its samples, 2 % after).
+ * Fetching the partners' positions and velocities too was slower (stop 59,
+ * bench/results/dem.md "The pair sweep's cache misses"). */
+#define DEM_ROW_AHEAD 4
 
 typedef struct pair_batch {
   int n, i[DEM_BATCH], j[DEM_BATCH], k[DEM_BATCH];
@@ -51,6 +58,17 @@ static void law_set(pair_batch *b, int q, const dem_pair_law *l) {
   b->mu[q] = l->mu; b->mu_roll[q] = l->mu_roll;
 }
 
+/* Pair k opened: its spring is deleted, and a share it stored for a partner
+ * in a later chunk is zeroed (the partner's sweep sums its slot whether the
+ * pair touches or not; x − 0 is x). */
+static void pair_opened(struct dem_work *w, int k) {
+  memset(&w->nl_shear[3 * k], 0, 3 * sizeof(double));
+  const int q = w->rev_of[k];
+  if (q < 0) return;
+  memset(&w->rev_ft[6 * q], 0, 6 * sizeof(double));
+  if (w->rev_roll) memset(&w->rev_roll[3 * q], 0, 3 * sizeof(double));
+}
+
 /* Appends the touching pairs among k0..k1 of row i (list order; every pair
  * is written, the count advances only when it touches: no branch); open
  * pairs lose their spring (history deleted, as in LIGGGHTS 3.8
@@ -60,7 +78,6 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
   const double *restrict x = s->x, *restrict rad = s->radius;
   const int *restrict nl_j = w->nl_j;
   uint8_t *restrict touched = w->pair_touch;
-  double *restrict shear = w->nl_shear;
   const double xi0 = x[3 * i], xi1 = x[3 * i + 1], xi2 = x[3 * i + 2], ri = rad[i];
   int q = b->n;
   for (int k = k0; k < k1; k++) {
@@ -68,7 +85,7 @@ static void screen_block(const dem_state *s, struct dem_work *w, int i, int k0, 
     const double d0 = xi0 - x[3 * j], d1 = xi1 - x[3 * j + 1], d2 = xi2 - x[3 * j + 2];
     const double rj = rad[j], rsum = ri + rj, dd = d0 * d0 + d1 * d1 + d2 * d2;
     const int touch = dd < rsum * rsum;
-    if ((touch ^ 1) & touched[k]) memset(&shear[3 * k], 0, 3 * sizeof(double)); /* rare: opened */
+    if ((touch ^ 1) & touched[k]) pair_opened(w, k); /* rare */
     touched[k] = (uint8_t)touch;
     b->j[q] = j; b->k[q] = k;
     b->d[0][q] = d0; b->d[1][q] = d1; b->d[2][q] = d2;
@@ -237,10 +254,11 @@ static void batch_flush(const dem_model *m, dem_state *s, pair_batch *b, row_sum
       fj[0] -= F0; fj[1] -= F1; fj[2] -= F2;
       tj[0] -= b->cj[0][q]; tj[1] -= b->cj[1][q]; tj[2] -= b->cj[2][q];
       if (rolls) { tj[0] -= roll[0]; tj[1] -= roll[1]; tj[2] -= roll[2]; }
-    } else {
-      double *p = &pft[6 * k];
+    } else { /* an awake partner's share in its reverse slot, an asleep one's by pair (dem_sleep_push.c) */
+      const int rq = w->rev_of[k];
+      double *p = rq >= 0 ? &w->rev_ft[6 * rq] : &pft[6 * k];
       p[0] = F0; p[1] = F1; p[2] = F2; p[3] = b->cj[0][q]; p[4] = b->cj[1][q]; p[5] = b->cj[2][q];
-      if (rolling) memcpy(&w->pair_roll[3 * k], roll, sizeof roll);
+      if (rolling) memcpy(rq >= 0 ? &w->rev_roll[3 * rq] : &w->pair_roll[3 * k], roll, sizeof roll);
     }
     u += b->up[q];
     cnt++;
@@ -259,14 +277,21 @@ static void pair_rows(const dem_model *m, dem_state *s, int lo, int hi, dem_chun
   struct dem_work *w = s->work;
   pair_batch b;
   row_sum r = {.i = -1};
-  const int one_law = m->n_materials == 1; /* then the law entries are set once */
+  /* one material for every grain (the meshes' may differ): the law entries are set once */
+  const int gl = m->n_materials == 1 ? 0 : w->grain_law, one_law = gl >= 0;
   b.n = 0;
   if (one_law)
-    for (int q = 0; q < DEM_BATCH; q++) law_set(&b, q, &m->law[0][0]);
+    for (int q = 0; q < DEM_BATCH; q++) law_set(&b, q, &m->law[gl][gl]);
   const int na = w->n_active; /* rows of awake grains only; their asleep partners end each row */
   if (hi > na) hi = na;
   for (int i = hi - 1; i >= lo; i--) {
     const int kbeg = w->nl_start[i], kend = w->nl_start[i + 1];
+    if (i - DEM_ROW_AHEAD >= lo) { /* the row DEM_ROW_AHEAD on: its pairs' springs and flags */
+      const int ka = w->nl_start[i - DEM_ROW_AHEAD], kb = w->nl_start[i - DEM_ROW_AHEAD + 1];
+      __builtin_prefetch(&w->nl_j[ka]);
+      __builtin_prefetch(&w->pair_touch[ka], 1);
+      for (int k = ka; k < kb; k += 2) __builtin_prefetch(&w->nl_shear[3 * k], 1);
+    }
     const int kas = dem_row_asleep(w, i, na);
     int found = 0;
     for (int k0 = kbeg; k0 < kend;) {
@@ -417,8 +442,6 @@ static double kick_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
 static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, double *part, int kick,
                          dem_chunk_sum *sum) {
   struct dem_work *w = s->work;
-  const double *pft = w->pair_ft;
-  const uint8_t *touch = w->pair_touch;
   wall_batch b;
   b.n = 0;
   if (m->n_materials == 1) /* one law for every contact */
@@ -427,19 +450,18 @@ static void gather_chunk(const dem_model *m, dem_state *s, int lo, int hi, doubl
   const int meshes = m->n_meshes > 0 && w->chunk_mesh[lo / DEM_CHUNK]; /* else no candidates, no contacts */
   for (int i = lo; i < hi; i++) {
     /* shares of pairs (i', i) from earlier chunks, descending i' (reverse
-     * index order); open pairs add nothing and are skipped */
+     * index order, their slots in sequence); an open pair's slot holds
+     * zeros, and subtracting +0 leaves every value as it was */
     const int q0 = w->rev_start[i], q1 = w->rev_start[i + 1];
     if (q0 < q1) {
       double fx = s->force[3 * i], fy = s->force[3 * i + 1], fz = s->force[3 * i + 2];
       double tx = s->torque[3 * i], ty = s->torque[3 * i + 1], tz = s->torque[3 * i + 2];
       for (int q = q0; q < q1; q++) {
-        const int k = w->rev_k[q];
-        if (!touch[k]) continue;
-        const double *p = &pft[6 * k];
+        const double *p = &w->rev_ft[6 * q];
         fx -= p[0]; fy -= p[1]; fz -= p[2]; /* Newton's third law */
         tx -= p[3]; ty -= p[4]; tz -= p[5]; /* −(r_j − δ/2) n × F_t */
         if (m->has_rolling) {
-          const double *roll = &w->pair_roll[3 * k];
+          const double *roll = &w->rev_roll[3 * q];
           tx -= roll[0]; ty -= roll[1]; tz -= roll[2];
         }
       }

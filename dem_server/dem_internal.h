@@ -64,6 +64,13 @@ struct dem_work {
   size_t old_cap;
   int have_old;
   int *rev_start, *rev_k, *rev_fill; /* pairs from earlier chunks in which a slot is j */
+  /* The shares of those pairs, stored in reverse-index order (rev_ft[6 q],
+   * rev_roll[3 q] for rev_k[q]; zero while the pair is open) so that the
+   * partner's sweep reads them in sequence; rev_of[k] = q, or −1 for a pair
+   * that is not in the reverse index (dem_neigh_reverse). */
+  int *rev_of;
+  double *rev_ft, *rev_roll;
+  int grain_law; /* the one material of every grain (then every pair has law[grain_law][grain_law]), or −1 */
   int *old_of;                       /* new slot -> old slot during a rebuild */
   double *x_ref;                     /* positions at the last rebuild */
   void *perm_tmp[DEM_MAX_THREADS];   /* per-thread scratch of the re-sorting */
@@ -351,6 +358,7 @@ void dem_push_set(const dem_model *m, dem_state *s, int i, int asleep);
  * reach are ~8 000; a bed much larger than its reach gets coarser cells
  * (the test stays conservative, only less local). */
 #define DEM_REGION_OCC_CELLS (1 << 18)
+#define DEM_OCC_BLOCK 64 /* grains per block of the occupancy's cell arithmetic (dem_sleep.c) */
 /* w->compact: grains woke (the asleep block keeps its order), or fell asleep (full rebuild) */
 /* An awake grain wakes its listed asleep neighbours when faster than this
  * many times the sleep velocity: a hysteresis, so that grains at the edge of

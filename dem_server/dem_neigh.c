@@ -58,6 +58,7 @@ void dem_neigh_free(struct dem_work *w) {
   free(w->cbuf); free(w->cbuf_cap);
   free(w->nl_j); free(w->rev_k); free(w->nl_shear); free(w->pair_ft); free(w->pair_touch);
   free(w->pair_roll); free(w->old_j); free(w->old_shear);
+  free(w->rev_of); free(w->rev_ft); free(w->rev_roll);
   for (int t = 0; t < DEM_MAX_THREADS; t++) free(w->perm_tmp[t]);
 }
 
@@ -71,8 +72,10 @@ int dem_neigh_reserve(const dem_model *m, dem_state *s, int need, proto_err *err
   }
   if ((size_t)need > w->pair_cap) {
     if (grow((void **)&w->rev_k, sizeof(int) * cap) || grow((void **)&w->pair_ft, 6 * sizeof(double) * cap) ||
-        grow((void **)&w->pair_touch, cap) ||
-        (m->has_rolling && grow((void **)&w->pair_roll, 3 * sizeof(double) * cap)))
+        grow((void **)&w->pair_touch, cap) || grow((void **)&w->rev_of, sizeof(int) * cap) ||
+        grow((void **)&w->rev_ft, 6 * sizeof(double) * cap) ||
+        (m->has_rolling && (grow((void **)&w->pair_roll, 3 * sizeof(double) * cap) ||
+                            grow((void **)&w->rev_roll, 3 * sizeof(double) * cap))))
       return proto_fail(err, "out of memory for %d neighbour pairs", need);
     w->pair_cap = cap;
   }
@@ -493,10 +496,15 @@ void dem_rebuild_kinds(const dem_state *s, int64_t *full, int64_t *wake) {
 }
 
 /* The pairs (i', j) whose row i' lies in an earlier chunk than j: for each
- * j in descending i' (the order dem_force.c adds their shares in). */
+ * j in descending i' (the order dem_force.c adds their shares in), with
+ * their shares' slots (rev_of, rev_ft and rev_roll zeroed: every pair is open
+ * until its row is screened), and whether all grains have one material. */
 void dem_neigh_reverse(dem_state *s) {
   struct dem_work *w = s->work;
   int n = s->n;
+  w->grain_law = n > 0 ? s->material[0] : -1;
+  for (int i = 1; i < n && w->grain_law >= 0; i++)
+    if (s->material[i] != w->grain_law) w->grain_law = -1;
   if (w->asleep) { /* the awake grains come first (found again after a state import) */
     int na = 0;
     while (na < n && !w->asleep[na]) na++;
@@ -515,6 +523,11 @@ void dem_neigh_reverse(dem_state *s) {
     for (int k = w->nl_start[i]; k < w->nl_start[i + 1]; k++)
       if (w->nl_j[k] >= end && w->nl_j[k] < n) w->rev_k[w->rev_fill[w->nl_j[k]]++] = k;
   }
+  const int nk = w->nl_start[s->n], nrev = w->rev_start[n];
+  if (nk > 0) memset(w->rev_of, 0xff, sizeof(int) * (size_t)nk); /* −1 */
+  for (int q = 0; q < nrev; q++) w->rev_of[w->rev_k[q]] = q;
+  if (nrev > 0) memset(w->rev_ft, 0, 6 * sizeof(double) * (size_t)nrev);
+  if (nrev > 0 && w->rev_roll) memset(w->rev_roll, 0, 3 * sizeof(double) * (size_t)nrev);
 }
 
 int dem_neigh_asleep_cells(const dem_model *m, dem_state *s, proto_err *err) {

@@ -285,6 +285,21 @@ static size_t occ_cell(const struct dem_work *w, int x, int y, int z) {
   return ((size_t)z * w->occ_dim[1] + y) * w->occ_dim[0] + x;
 }
 
+/* The cells (as doubles: floor of the offset over the side) where the
+ * sphere boxes of nb grains start and end along axis k: occ_range's
+ * arithmetic, the same IEEE operations, in a loop the compiler vectorises
+ * (the divisions were 4 % of a sand-scene step, one grain at a time). */
+__attribute__((target_clones("avx2", "default")))
+static void occ_cells_axis(const double *restrict x, const double *restrict rad, int nb, double o, double h,
+                           double *restrict lo, double *restrict hi) {
+  double c[DEM_OCC_BLOCK];
+  for (int q = 0; q < nb; q++) c[q] = x[3 * q]; /* the axis in sequence */
+  for (int q = 0; q < nb; q++) {
+    lo[q] = floor((c[q] - rad[q] - o) / h);
+    hi[q] = floor((c[q] + rad[q] - o) / h);
+  }
+}
+
 /* The grains' occupancy (w->occ): a grid of cells of side at least `reach`
  * over the box of the grains' spheres (centres glo..ghi, radii up to rmax),
  * a cell marked where some grain's sphere box meets it; every grain slower
@@ -313,15 +328,24 @@ static void occupancy_build(const dem_state *s, const double *glo, const double 
   for (int k = 0; k < 3; k++) w->occ_dim[k] = (int)floor(ext[k] / h) + 1;
   memset(w->occ, 0, occ_cell(w, 0, 0, w->occ_dim[2]));
   const double vf2 = vfast * vfast;
-  for (int i = 0; i < s->n; i++) {
-    const double *x = &s->x[3 * i], r = s->radius[i];
-    if (i < w->n_active && dem_dot(&s->v[3 * i], &s->v[3 * i]) > vf2) continue; /* asleep: v = 0, not read */
-    const double lo[3] = {x[0] - r, x[1] - r, x[2] - r}, hi[3] = {x[0] + r, x[1] + r, x[2] + r};
-    int a[3], b[3];
-    if (!occ_range(w, lo, hi, a, b)) continue;
-    for (int z = a[2]; z <= b[2]; z++)
-      for (int y = a[1]; y <= b[1]; y++)
-        for (int c = a[0]; c <= b[0]; c++) w->occ[occ_cell(w, c, y, z)] = 1;
+  double fa[3][DEM_OCC_BLOCK], fb[3][DEM_OCC_BLOCK];
+  for (int i0 = 0; i0 < s->n; i0 += DEM_OCC_BLOCK) {
+    const int nb = s->n - i0 < DEM_OCC_BLOCK ? s->n - i0 : DEM_OCC_BLOCK;
+    for (int k = 0; k < 3; k++) occ_cells_axis(&s->x[3 * i0 + k], &s->radius[i0], nb, w->occ_lo[k], h, fa[k], fb[k]);
+    for (int q = 0; q < nb; q++) {
+      const int i = i0 + q;
+      if (i < w->n_active && dem_dot(&s->v[3 * i], &s->v[3 * i]) > vf2) continue; /* asleep: v = 0, not read */
+      int a[3], b[3], out = 0;
+      for (int k = 0; k < 3 && !out; k++) { /* as occ_range */
+        if ((out = fb[k][q] < 0 || fa[k][q] >= w->occ_dim[k])) break;
+        a[k] = fa[k][q] < 0 ? 0 : (int)fa[k][q];
+        b[k] = fb[k][q] >= w->occ_dim[k] ? w->occ_dim[k] - 1 : (int)fb[k][q];
+      }
+      if (out) continue;
+      for (int z = a[2]; z <= b[2]; z++)
+        for (int y = a[1]; y <= b[1]; y++)
+          for (int c = a[0]; c <= b[0]; c++) w->occ[occ_cell(w, c, y, z)] = 1;
+    }
   }
 }
 
