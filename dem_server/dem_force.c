@@ -30,7 +30,7 @@
  * rows on are fetched while a row is screened (their loads were the sweep's
  * hottest cache misses on the sand scene: 14 % of its samples, 2 % after).
  * Fetching the partners' positions and velocities too was slower (stop 59,
- * bench/results/dem.md "The pair sweep's cache misses"). */
+ * bench/results/tire_soil.md "The pair sweep's cache misses"). */
 #define DEM_ROW_AHEAD 4
 
 typedef struct pair_batch {
