@@ -288,9 +288,11 @@ static void pair_rows(const dem_model *m, dem_state *s, int lo, int hi, dem_chun
     const int kbeg = w->nl_start[i], kend = w->nl_start[i + 1];
     if (i - DEM_ROW_AHEAD >= lo) { /* the row DEM_ROW_AHEAD on: its pairs' springs and flags */
       const int ka = w->nl_start[i - DEM_ROW_AHEAD], kb = w->nl_start[i - DEM_ROW_AHEAD + 1];
-      __builtin_prefetch(&w->nl_j[ka]);
-      __builtin_prefetch(&w->pair_touch[ka], 1);
-      for (int k = ka; k < kb; k += 2) __builtin_prefetch(&w->nl_shear[3 * k], 1);
+      if (ka < kb) { /* (no pairs at all: the arrays may not exist) */
+        __builtin_prefetch(&w->nl_j[ka]);
+        __builtin_prefetch(&w->pair_touch[ka], 1);
+        for (int k = ka; k < kb; k += 2) __builtin_prefetch(&w->nl_shear[3 * k], 1);
+      }
     }
     const int kas = dem_row_asleep(w, i, na);
     int found = 0;
