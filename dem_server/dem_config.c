@@ -181,8 +181,7 @@ static int read_bed(dem_model *m, proto_cfg *c, dem_model_config *ex) {
     return -1;
   if (b.size[0] <= 0 || b.size[1] <= 0)
     return proto_fail(c->err, "%s.size: must be positive", c->path);
-  int first = 0;
-  if (read_substrate(c, &b, &first)) return -1;
+  if (read_substrate(c, &b, &ex->substrate_first)) return -1;
   if (ex->prep.on && !(ex->settle_steps > 0))
     return proto_fail(c->err, "%s.prepare: needs settle_max_steps > 0 (the preparation's laws act while the "
                       "bed settles)", c->path);
@@ -193,9 +192,7 @@ static int read_bed(dem_model *m, proto_cfg *c, dem_model_config *ex) {
   if (strcmp(gen, "bed") != 0)
     return proto_fail(c->err, "%s.generate: unknown generator '%s' (expected \"bed\")", c->path, gen);
   if (proto_cfg_end(c)) return -1;
-  if (dem_bed_place(m, &b, c->err)) return -1;
-  ex->substrate_first = first;
-  return 0;
+  return dem_bed_place(m, &b, c->err);
 }
 
 static int read_particles(dem_model *m, proto_cfg *top, dem_model_config *ex, proto_err *err) {

@@ -70,7 +70,7 @@ struct dem_work {
    * that is not in the reverse index (dem_neigh_reverse). */
   int *rev_of;
   double *rev_ft, *rev_roll;
-  int grain_law; /* the one material of every grain (then every pair has law[grain_law][grain_law]), or −1 */
+  int grain_law; /* the one material of every grain (then every pair has law[grain_law][grain_law]), or −1 (dem_state_init) */
   int *old_of;                       /* new slot -> old slot during a rebuild */
   double *x_ref;                     /* positions at the last rebuild */
   void *perm_tmp[DEM_MAX_THREADS];   /* per-thread scratch of the re-sorting */

@@ -498,13 +498,10 @@ void dem_rebuild_kinds(const dem_state *s, int64_t *full, int64_t *wake) {
 /* The pairs (i', j) whose row i' lies in an earlier chunk than j: for each
  * j in descending i' (the order dem_force.c adds their shares in), with
  * their shares' slots (rev_of, rev_ft and rev_roll zeroed: every pair is open
- * until its row is screened), and whether all grains have one material. */
+ * until its row is screened). */
 void dem_neigh_reverse(dem_state *s) {
   struct dem_work *w = s->work;
   int n = s->n;
-  w->grain_law = n > 0 ? s->material[0] : -1;
-  for (int i = 1; i < n && w->grain_law >= 0; i++)
-    if (s->material[i] != w->grain_law) w->grain_law = -1;
   if (w->asleep) { /* the awake grains come first (found again after a state import) */
     int na = 0;
     while (na < n && !w->asleep[na]) na++;

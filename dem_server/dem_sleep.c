@@ -269,16 +269,27 @@ static void grains_box(const dem_state *s, double *lo, double *hi) {
     }
 }
 
+/* The cells [a, b] (per axis) of the occupancy grid from the floors fa, fb
+ * of a box's ends over the cell side, clamped to the grid; 0 if the box lies
+ * outside it. */
+static int occ_clamp(const struct dem_work *w, const double *fa, const double *fb, int *a, int *b) {
+  for (int k = 0; k < 3; k++) {
+    if (fb[k] < 0 || fa[k] >= w->occ_dim[k]) return 0;
+    a[k] = fa[k] < 0 ? 0 : (int)fa[k];
+    b[k] = fb[k] >= w->occ_dim[k] ? w->occ_dim[k] - 1 : (int)fb[k];
+  }
+  return 1;
+}
+
 /* The cells [a, b] (per axis) of the occupancy grid that the box lo..hi
  * meets, clamped to the grid; 0 if the box lies outside it. */
 static int occ_range(const struct dem_work *w, const double *lo, const double *hi, int *a, int *b) {
+  double fa[3], fb[3];
   for (int k = 0; k < 3; k++) {
-    const double fa = floor((lo[k] - w->occ_lo[k]) / w->occ_h), fb = floor((hi[k] - w->occ_lo[k]) / w->occ_h);
-    if (fb < 0 || fa >= w->occ_dim[k]) return 0;
-    a[k] = fa < 0 ? 0 : (int)fa;
-    b[k] = fb >= w->occ_dim[k] ? w->occ_dim[k] - 1 : (int)fb;
+    fa[k] = floor((lo[k] - w->occ_lo[k]) / w->occ_h);
+    fb[k] = floor((hi[k] - w->occ_lo[k]) / w->occ_h);
   }
-  return 1;
+  return occ_clamp(w, fa, fb, a, b);
 }
 
 static size_t occ_cell(const struct dem_work *w, int x, int y, int z) {
@@ -287,7 +298,7 @@ static size_t occ_cell(const struct dem_work *w, int x, int y, int z) {
 
 /* The cells (as doubles: floor of the offset over the side) where the
  * sphere boxes of nb grains start and end along axis k: occ_range's
- * arithmetic, the same IEEE operations, in a loop the compiler vectorises
+ * arithmetic (occ_clamp then clamps them), the same IEEE operations, in a loop the compiler vectorises
  * (the divisions were 4 % of a sand-scene step, one grain at a time). */
 __attribute__((target_clones("avx2", "default")))
 static void occ_cells_axis(const double *restrict x, const double *restrict rad, int nb, double o, double h,
@@ -335,13 +346,9 @@ static void occupancy_build(const dem_state *s, const double *glo, const double 
     for (int q = 0; q < nb; q++) {
       const int i = i0 + q;
       if (i < w->n_active && dem_dot(&s->v[3 * i], &s->v[3 * i]) > vf2) continue; /* asleep: v = 0, not read */
-      int a[3], b[3], out = 0;
-      for (int k = 0; k < 3 && !out; k++) { /* as occ_range */
-        if ((out = fb[k][q] < 0 || fa[k][q] >= w->occ_dim[k])) break;
-        a[k] = fa[k][q] < 0 ? 0 : (int)fa[k][q];
-        b[k] = fb[k][q] >= w->occ_dim[k] ? w->occ_dim[k] - 1 : (int)fb[k][q];
-      }
-      if (out) continue;
+      const double lo[3] = {fa[0][q], fa[1][q], fa[2][q]}, hi[3] = {fb[0][q], fb[1][q], fb[2][q]};
+      int a[3], b[3];
+      if (!occ_clamp(w, lo, hi, a, b)) continue;
       for (int z = a[2]; z <= b[2]; z++)
         for (int y = a[1]; y <= b[1]; y++)
           for (int c = a[0]; c <= b[0]; c++) w->occ[occ_cell(w, c, y, z)] = 1;

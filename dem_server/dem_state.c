@@ -136,6 +136,11 @@ int dem_state_init(const dem_model *m, dem_state *s, double coupling_dt, proto_e
     dem_grain_constants(m, s, i, i);
     if (m->fix_rotation[i]) memset(&s->omega[3 * i], 0, 3 * sizeof(double));
   }
+  /* the model's grains keep their materials (a state import checks the
+   * model's fingerprint): one for all, or −1 */
+  s->work->grain_law = s->n > 0 ? m->material[0] : -1;
+  for (int i = 1; i < s->n && s->work->grain_law >= 0; i++)
+    if (m->material[i] != s->work->grain_law) s->work->grain_law = -1;
   if (dem_neigh_alloc(m, s, err) || dem_mesh_alloc(m, s, err) || dem_sleep_alloc(m, s, err) || dem_push_alloc(m, s, err) ||
       dem_neigh_rebuild(m, s, err) ||
       check_initial(m, s, err))
