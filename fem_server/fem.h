@@ -206,6 +206,8 @@ typedef struct fem_work {
   double *elem_force; /* [n_elems*npe*3] element forces before the node gather;
                          ANP: V_e/4 theta_e per element first */
   double *node_theta; /* [n_nodes] ANP: nodal dilatation of the last u */
+  double *chunk_sum;  /* [3 * chunks of FEM_SUM_CHUNK nodes] the explicit step's
+                         energy sums per chunk (fem_explicit.c) */
 } fem_work;
 int fem_work_init(const fem_model *md, fem_work *w, proto_err *err);
 void fem_work_free(fem_work *w);

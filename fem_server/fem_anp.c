@@ -37,20 +37,24 @@ static double elem_dilatation(const fem_model *md, int32_t e, const double *u) {
   return th;
 }
 
-void fem_anp_prepare(const fem_model *md, fem_work *w, const double *u) {
+/* Inside a parallel region the team shares the two loops (orphaned omp
+ * for); outside one the calling thread runs them. */
+void fem_anp_prepare_team(const fem_model *md, fem_work *w, const double *u) {
   const int32_t nn = md->mesh.n_nodes, ne = md->mesh.n_elems;
   double *ew = w->elem_force; /* scratch: V_e/4 theta_e per element */
-#pragma omp parallel if (ne > FEM_OMP_MIN_ELEMS)
-  {
 #pragma omp for schedule(static)
-    for (int32_t e = 0; e < ne; e++) ew[e] = 0.25 * md->wdet[e] * elem_dilatation(md, e, u);
+  for (int32_t e = 0; e < ne; e++) ew[e] = 0.25 * md->wdet[e] * elem_dilatation(md, e, u);
 #pragma omp for schedule(static)
-    for (int32_t n = 0; n < nn; n++) {
-      double s = 0;
-      for (int32_t p = md->n2e_ptr[n]; p < md->n2e_ptr[n + 1]; p++) s += ew[md->n2e[p] / 4];
-      w->node_theta[n] = s / md->node_vol[n];
-    }
+  for (int32_t n = 0; n < nn; n++) {
+    double s = 0;
+    for (int32_t p = md->n2e_ptr[n]; p < md->n2e_ptr[n + 1]; p++) s += ew[md->n2e[p] / 4];
+    w->node_theta[n] = s / md->node_vol[n];
   }
+}
+
+void fem_anp_prepare(const fem_model *md, fem_work *w, const double *u) {
+#pragma omp parallel if (md->mesh.n_elems > FEM_OMP_MIN_ELEMS)
+  fem_anp_prepare_team(md, w, u);
 }
 
 static int cmp_i32(const void *a, const void *b) {

@@ -157,7 +157,8 @@ int fem_work_init(const fem_model *md, fem_work *w, proto_err *err) {
   memset(w, 0, sizeof *w);
   w->elem_force = malloc(sizeof *w->elem_force * (size_t)md->mesh.n_elems * md->mesh.nodes_per_elem * 3);
   w->node_theta = calloc((size_t)md->mesh.n_nodes, sizeof *w->node_theta);
-  if (!w->elem_force || !w->node_theta) {
+  w->chunk_sum = calloc(3 * (size_t)fem_sum_chunks(md->mesh.n_nodes), sizeof *w->chunk_sum);
+  if (!w->elem_force || !w->node_theta || !w->chunk_sum) {
     fem_work_free(w);
     return proto_fail(err, "out of memory (force kernel scratch, %d elements)", (int)md->mesh.n_elems);
   }
@@ -168,39 +169,45 @@ void fem_work_free(fem_work *w) {
   if (!w) return;
   free(w->elem_force);
   free(w->node_theta);
+  free(w->chunk_sum);
   memset(w, 0, sizeof *w);
 }
 
-void fem_internal_force(const fem_model *md, fem_work *w, const double *u, double *f) {
-  if (md->anp) fem_anp_prepare(md, w, u); /* nodal dilatation first */
+/* The team's share of f = K u inside a parallel region (orphaned omp for:
+ * the ANP dilatation, the element kernel, the node gather, each ending in the
+ * loop's barrier); outside one the calling thread does it all. */
+void fem_internal_force_team(const fem_model *md, fem_work *w, const double *u, double *f) {
+  if (md->anp) fem_anp_prepare_team(md, w, u); /* nodal dilatation first */
   const int npe = md->npe;
   const int32_t ne = md->mesh.n_elems, nn = md->mesh.n_nodes;
   double *fe = w->elem_force;
   const double *theta = w->node_theta;
-#pragma omp parallel if (ne > FEM_OMP_MIN_ELEMS)
-  {
-    if (npe == 4) {
+  if (npe == 4) {
 #pragma omp for schedule(static)
-      for (int32_t e = 0; e < ne; e++) elem_force_k(md, theta, e, u, fe + (size_t)e * 12, 4, 1);
-    } else {
+    for (int32_t e = 0; e < ne; e++) elem_force_k(md, theta, e, u, fe + (size_t)e * 12, 4, 1);
+  } else {
 #pragma omp for schedule(static)
-      for (int32_t e = 0; e < ne; e++) elem_force_k(md, theta, e, u, fe + (size_t)e * 30, 10, 4);
-    }
-    /* gather per node: no write conflicts, no colouring needed */
-#pragma omp for schedule(static)
-    for (int32_t n = 0; n < nn; n++) {
-      double s0 = 0, s1 = 0, s2 = 0;
-      for (int32_t p = md->n2e_ptr[n]; p < md->n2e_ptr[n + 1]; p++) {
-        const double *q = fe + 3 * (size_t)md->n2e[p];
-        s0 += q[0];
-        s1 += q[1];
-        s2 += q[2];
-      }
-      f[3 * (size_t)n] = s0;
-      f[3 * (size_t)n + 1] = s1;
-      f[3 * (size_t)n + 2] = s2;
-    }
+    for (int32_t e = 0; e < ne; e++) elem_force_k(md, theta, e, u, fe + (size_t)e * 30, 10, 4);
   }
+  /* gather per node: no write conflicts, no colouring needed */
+#pragma omp for schedule(static)
+  for (int32_t n = 0; n < nn; n++) {
+    double s0 = 0, s1 = 0, s2 = 0;
+    for (int32_t p = md->n2e_ptr[n]; p < md->n2e_ptr[n + 1]; p++) {
+      const double *q = fe + 3 * (size_t)md->n2e[p];
+      s0 += q[0];
+      s1 += q[1];
+      s2 += q[2];
+    }
+    f[3 * (size_t)n] = s0;
+    f[3 * (size_t)n + 1] = s1;
+    f[3 * (size_t)n + 2] = s2;
+  }
+}
+
+void fem_internal_force(const fem_model *md, fem_work *w, const double *u, double *f) {
+#pragma omp parallel if (md->mesh.n_elems > FEM_OMP_MIN_ELEMS)
+  fem_internal_force_team(md, w, u, f);
 }
 
 /* Element stiffness block K_ab^{ij} (seed 000 eq. 34 with the index typos

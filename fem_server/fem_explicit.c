@@ -196,60 +196,45 @@ static double node_step_rotating(const fem_model *md, fem_state *st, int32_t a, 
   return kin;
 }
 
-int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double safety,
-                         double dt_sub, proto_err *err) {
-  if (!(span > 0)) return proto_fail(err, "explicit advance: span %g must be > 0", span);
-  if (!(st->dt_crit > 0) && !(dt_sub > 0))
-    return proto_fail(err, "explicit advance: stable step not computed (fem_stable_dt)");
-  double target = dt_sub > 0 ? dt_sub : safety * st->dt_crit;
-  int64_t n = (int64_t)ceil(span / target - 1e-9);
-  if (n < 1) n = 1;
-  const double dt = span / n, alpha = md->mat.damping;
-  const double c1 = (1 - 0.5 * alpha * dt) / (1 + 0.5 * alpha * dt), c2 = dt / (1 + 0.5 * alpha * dt);
-  const int32_t nd = md->n_dof, nn = md->mesh.n_nodes;
-  const int rotating = fem_frame_rotating(&st->frame);
+/* One leapfrog step of the nodes of chunk c (FEM_SUM_CHUNK nodes), their
+ * kinetic energy, u_{n+1}.K u_n and work into sums[0..2]. */
+static void chunk_step(const fem_model *md, fem_state *st, int32_t c, double dt, double c1,
+                       double c2, const fem_road *road, double sums[3]) {
+  const int32_t nn = md->mesh.n_nodes, a1 = (c + 1) * FEM_SUM_CHUNK < nn ? (c + 1) * FEM_SUM_CHUNK : nn;
   const double *acc = st->frame.acc; /* a translating frame: uniform -m acc */
-  const double t0 = st->t;
-  fem_road *road = st->road.n ? &st->road : NULL; /* its force at u_n, like K u_n */
-  if (road) fem_road_force(md, road, st->u);
-  st->dt_sub = dt;
-  for (int64_t k = 1; k <= n; k++) {
-    double kin = 0, uKu = 0, dw = 0;
-    if (rotating) {
-#pragma omp parallel for reduction(+ : kin, uKu, dw) schedule(static) if (nn > 8 * FEM_OMP_MIN_ELEMS / 3)
-      for (int32_t a = 0; a < nn; a++) kin += node_step_rotating(md, st, a, dt, alpha, &uKu, &dw);
-    } else {
-#pragma omp parallel for reduction(+ : kin, uKu, dw) schedule(static) if (nd > 8 * FEM_OMP_MIN_ELEMS)
-      for (int32_t i = 0; i < nd; i++) {
-        if (md->fixed[i]) {
-          uKu += md->u_fixed[i] * st->fint[i];
-          continue;
-        }
-        double m = md->mass[i / 3];
-        double f = st->b[i] - m * acc[i % 3];
-        if (road) f += road->force[i];
-        double w_old = st->v_half[i];
-        double w = c1 * w_old + c2 * (f - st->fint[i]) / m;
-        st->v_half[i] = w;
-        st->u[i] += dt * w;
-        kin += 0.5 * m * w * w;
-        uKu += st->u[i] * st->fint[i]; /* u_{n+1} . K u_n */
-        dw += 0.5 * dt * f * (w + w_old);
+  double kin = 0, uKu = 0, dw = 0;
+  if (fem_frame_rotating(&st->frame))
+    for (int32_t a = c * FEM_SUM_CHUNK; a < a1; a++) kin += node_step_rotating(md, st, a, dt, md->mat.damping, &uKu, &dw);
+  else
+    for (int32_t i = 3 * c * FEM_SUM_CHUNK; i < 3 * a1; i++) {
+      if (md->fixed[i]) {
+        uKu += md->u_fixed[i] * st->fint[i];
+        continue;
       }
+      double m = md->mass[i / 3];
+      double f = st->b[i] - m * acc[i % 3];
+      if (road) f += road->force[i];
+      double w_old = st->v_half[i];
+      double w = c1 * w_old + c2 * (f - st->fint[i]) / m;
+      st->v_half[i] = w;
+      st->u[i] += dt * w;
+      kin += 0.5 * m * w * w;
+      uKu += st->u[i] * st->fint[i]; /* u_{n+1} . K u_n */
+      dw += 0.5 * dt * f * (w + w_old);
     }
-    st->energy = kin + 0.5 * uKu;
-    st->work_ext += dw;
-    st->work_abs += fabs(dw);
-    st->t = t0 + span * (double)k / (double)n;
-    st->n_sub++;
-    fem_internal_force(md, &st->work, st->u, st->fint);
-    if (road) fem_road_force(md, road, st->u);
-    if (!isfinite(st->energy) || fabs(st->energy) > 10 * (fabs(st->energy0) + st->work_abs))
-      return unstable(md, st, dt, k, n, err);
-  }
-  /* velocity and energies at the end of the span: v_n = v_{n-1/2} + dt/2 a_n */
+  sums[0] = kin;
+  sums[1] = uKu;
+  sums[2] = dw;
+}
+
+/* The span's end for the nodes of chunk c: v_n = v_{n-1/2} + dt/2 a_n, their
+ * kinetic and strain energy into sums[0..1]. */
+static void chunk_close(const fem_model *md, fem_state *st, int32_t c, double dt, const fem_road *road,
+                        double sums[2]) {
+  const int32_t nn = md->mesh.n_nodes, a1 = (c + 1) * FEM_SUM_CHUNK < nn ? (c + 1) * FEM_SUM_CHUNK : nn;
+  const double alpha = md->mat.damping;
   double kin = 0, se = 0;
-  for (int32_t a = 0; a < nn; a++) {
+  for (int32_t a = c * FEM_SUM_CHUNK; a < a1; a++) {
     const size_t i0 = 3 * (size_t)a;
     const double m = md->mass[a];
     double r[3], fa[3], cor[3];
@@ -268,6 +253,62 @@ int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double
       st->v[i] = st->v_half[i] + 0.5 * dt * acc_i;
       kin += 0.5 * m * st->v[i] * st->v[i];
     }
+  }
+  sums[0] = kin;
+  sums[1] = se;
+}
+
+int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double safety,
+                         double dt_sub, proto_err *err) {
+  if (!(span > 0)) return proto_fail(err, "explicit advance: span %g must be > 0", span);
+  if (!(st->dt_crit > 0) && !(dt_sub > 0))
+    return proto_fail(err, "explicit advance: stable step not computed (fem_stable_dt)");
+  double target = dt_sub > 0 ? dt_sub : safety * st->dt_crit;
+  int64_t n = (int64_t)ceil(span / target - 1e-9);
+  if (n < 1) n = 1;
+  const double dt = span / n, alpha = md->mat.damping;
+  const double c1 = (1 - 0.5 * alpha * dt) / (1 + 0.5 * alpha * dt), c2 = dt / (1 + 0.5 * alpha * dt);
+  const int32_t nn = md->mesh.n_nodes;
+  const double t0 = st->t;
+  fem_road *road = st->road.n ? &st->road : NULL; /* its force at u_n, like K u_n */
+  if (road) fem_road_force(md, road, st->u);
+  st->dt_sub = dt;
+  /* one team per sub-step for the node update and K u_{n+1} (the element
+   * kernel's threshold: the node update alone is too short to pay a fork);
+   * the energies are summed per chunk of nodes, then over the chunks in
+   * order: the same sums for any number of threads */
+  const int team = md->mesh.n_elems > FEM_OMP_MIN_ELEMS;
+  const int32_t nchunk = fem_sum_chunks(nn);
+  double *cs = st->work.chunk_sum;
+  for (int64_t k = 1; k <= n; k++) {
+#pragma omp parallel if (team)
+    {
+#pragma omp for schedule(static)
+      for (int32_t c = 0; c < nchunk; c++) chunk_step(md, st, c, dt, c1, c2, road, cs + 3 * c);
+      fem_internal_force_team(md, &st->work, st->u, st->fint); /* after the loop's barrier: u_{n+1} whole */
+    }
+    double kin = 0, uKu = 0, dw = 0;
+    for (int32_t c = 0; c < nchunk; c++) {
+      kin += cs[3 * c];
+      uKu += cs[3 * c + 1];
+      dw += cs[3 * c + 2];
+    }
+    st->energy = kin + 0.5 * uKu;
+    st->work_ext += dw;
+    st->work_abs += fabs(dw);
+    st->t = t0 + span * (double)k / (double)n;
+    st->n_sub++;
+    if (road) fem_road_force(md, road, st->u);
+    if (!isfinite(st->energy) || fabs(st->energy) > 10 * (fabs(st->energy0) + st->work_abs))
+      return unstable(md, st, dt, k, n, err);
+  }
+  /* velocity and energies at the end of the span: v_n = v_{n-1/2} + dt/2 a_n */
+#pragma omp parallel for schedule(static) if (team)
+  for (int32_t c = 0; c < nchunk; c++) chunk_close(md, st, c, dt, road, cs + 3 * c);
+  double kin = 0, se = 0;
+  for (int32_t c = 0; c < nchunk; c++) {
+    kin += cs[3 * c];
+    se += cs[3 * c + 1];
   }
   st->kinetic = kin;
   st->strain = se;

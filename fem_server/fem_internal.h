@@ -7,6 +7,13 @@
 /* Below this many elements the OpenMP fork/join costs more than it saves
  * (and spins on a shared machine). */
 #define FEM_OMP_MIN_ELEMS 20000
+/* Nodes per partial sum of the explicit step's energies (fem_explicit.c): the
+ * chunks' sums are added in chunk order, so the energies do not depend on the
+ * number of threads. 256 nodes: a chunk's work (~5 us) dwarfs its sum's. */
+#define FEM_SUM_CHUNK 256
+static inline int32_t fem_sum_chunks(int32_t n_nodes) {
+  return (n_nodes + FEM_SUM_CHUNK - 1) / FEM_SUM_CHUNK;
+}
 
 /* Index of the mid-edge node between local corners a and b (TET10). */
 int fem_edge_mid(int a, int b);
@@ -54,6 +61,10 @@ void fem_frame_point_acc(const fem_frame *fr, const double r[3], double a[3]);
 /* ANP (fem_anp.c): nodal dilatation of u into w->node_theta (w->elem_force
  * as scratch), which the element kernel then reads for the volumetric part. */
 void fem_anp_prepare(const fem_model *md, fem_work *w, const double *u);
+/* The same, and fem_internal_force, as a team's share inside an enclosing
+ * parallel region (orphaned omp for; outside one the caller does it all). */
+void fem_anp_prepare_team(const fem_model *md, fem_work *w, const double *u);
+void fem_internal_force_team(const fem_model *md, fem_work *w, const double *u, double *f);
 int fem_anp_assemble(fem_model *md, proto_err *err);
 /* 2-ring node neighbours for the ANP pattern: nb[ptr[n]..ptr[n+1]) sorted. */
 int fem_anp_neighbours(const fem_model *md, int32_t **ptr, int32_t **nb, proto_err *err);
