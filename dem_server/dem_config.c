@@ -388,20 +388,6 @@ static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
   return proto_cfg_end(&sc);
 }
 
-/* "threads": "auto" (or 0), or a count >= 1. */
-static int read_threads(proto_cfg *c, int64_t *out) {
-  const cJSON *t = proto_cfg_raw(c, "threads", PROTO_OPTIONAL);
-  if (!t) return 0;
-  if (cJSON_IsString(t) && !strcmp(t->valuestring, "auto")) return 0;
-  if (cJSON_IsNumber(t) && t->valuedouble >= 0 && t->valuedouble <= 1024 && t->valuedouble == floor(t->valuedouble)) {
-    *out = (int64_t)t->valuedouble;
-    return 0;
-  }
-  char p[320];
-  proto_cfg_subpath(c, "threads", -1, p, sizeof p);
-  return proto_fail(c->err, "%s: expected \"auto\" or a number of threads in [0, 1024] (0 = auto)", p);
-}
-
 int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, proto_err *err) {
   memset(m, 0, sizeof *m);
   snprintf(m->key_path, sizeof m->key_path, "%s", path);
@@ -449,7 +435,7 @@ int dem_model_from_json(dem_model *m, const cJSON *section, const char *path, pr
       proto_cfg_num(&c, "skin", PROTO_OPTIONAL, 0.0, 1.0, &ex->skin) ||
       proto_cfg_num(&c, "overlap_tolerance", PROTO_OPTIONAL, 0.0, 1.0, &m->overlap_tolerance) ||
       proto_cfg_num(&c, "max_overlap_ratio", PROTO_OPTIONAL, 1e-6, 1.0, &m->max_overlap_ratio) ||
-      read_threads(&c, &threads) || read_sleep(&c, &m->sleep) ||
+      proto_cfg_threads(&c, "threads", &threads) || read_sleep(&c, &m->sleep) ||
       proto_cfg_int(&c, "surface_material", PROTO_OPTIONAL, 0, m->n_materials - 1, &surf) ||
       proto_cfg_bool(&c, "unsafe_dt", PROTO_OPTIONAL, &unsafe) ||
       proto_cfg_bool(&c, "orientation", PROTO_OPTIONAL, &orientation))

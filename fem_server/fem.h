@@ -440,6 +440,7 @@ typedef struct fem_config {
   double road_z, road_k_area; /* world z of the plane (m), penalty per area (N/m^3) */
   int road_exact;             /* road.quadrature "exact": the penalty integrated (fem_road.c) */
   int reaction;              /* series: the load on the fixed DOFs (the rim) */
+  int threads;               /* OpenMP threads; 0 = OpenMP's default (OMP_NUM_THREADS or the cores) */
 } fem_config;
 
 void fem_config_defaults(fem_config *c);

@@ -206,7 +206,7 @@ int fem_config_read(const cJSON *section, const char *path, fem_config *c, proto
   static const char *const modes[] = {"explicit", "quasi_static", NULL};
   static const char *const solvers[] = {"cholmod", "pcg", NULL};
   int mode = 0, solver = 0;
-  int64_t piter = c->power_iterations;
+  int64_t piter = c->power_iterations, threads = 0;
   if (proto_cfg_enum(&s, "mode", PROTO_OPTIONAL, modes, &mode) ||
       proto_cfg_enum(&s, "solver", PROTO_OPTIONAL, solvers, &solver) ||
       proto_cfg_num(&s, "safety", PROTO_OPTIONAL, 0.01, 1.5, &c->safety) ||
@@ -215,8 +215,10 @@ int fem_config_read(const cJSON *section, const char *path, fem_config *c, proto
       proto_cfg_int(&s, "power_iterations", PROTO_OPTIONAL, 10, 100000, &piter) ||
       proto_cfg_bool(&s, "initial_static", PROTO_OPTIONAL, &c->initial_static) ||
       proto_cfg_str(&s, "surface", PROTO_OPTIONAL, c->surface_group, sizeof c->surface_group) ||
-      read_road(&s, c, err) || proto_cfg_bool(&s, "reaction", PROTO_OPTIONAL, &c->reaction))
+      read_road(&s, c, err) || proto_cfg_bool(&s, "reaction", PROTO_OPTIONAL, &c->reaction) ||
+      proto_cfg_threads(&s, "threads", &threads))
     return -1;
+  c->threads = (int)threads;
   c->mode = (fem_mode)mode;
   c->solver = (fem_solver_kind)solver;
   c->power_iterations = (int)piter;

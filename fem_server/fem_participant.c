@@ -13,6 +13,9 @@
 #include "fem_server/fem.h"
 
 #include <math.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -65,6 +68,11 @@ static int configure(void *user, const proto_run_info *info, const cJSON *sectio
                      proto_err *err) {
   server *s = user;
   if (fem_config_read(section, info->key_path, &s->cfg, err)) return -1;
+#ifdef _OPENMP
+  if (s->cfg.threads > 0) omp_set_num_threads(s->cfg.threads); /* results do not depend on it */
+  fprintf(stderr, "%s: %d OpenMP threads (threads %s)\n", info->key_path, omp_get_max_threads(),
+          s->cfg.threads > 0 ? "set" : "auto");
+#endif
   if (fem_config_build(&s->cfg, &s->md, err)) return -1;
   s->span = info->dt;
   if (s->cfg.dt_sub > 0 && info->dt > 0 && s->cfg.dt_sub > info->dt)

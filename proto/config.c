@@ -459,6 +459,22 @@ int proto_cfg_int(proto_cfg *c, const char *key, proto_need need, int64_t lo,
   return 0;
 }
 
+int proto_cfg_threads(proto_cfg *c, const char *key, int64_t *out) {
+  const cJSON *t = proto_cfg_raw(c, key, PROTO_OPTIONAL);
+  if (!t) return 0;
+  if (cJSON_IsString(t) && !strcmp(t->valuestring, "auto")) {
+    *out = 0;
+    return 0;
+  }
+  if (cJSON_IsNumber(t) && t->valuedouble >= 0 && t->valuedouble <= 1024 && t->valuedouble == floor(t->valuedouble)) {
+    *out = (int64_t)t->valuedouble;
+    return 0;
+  }
+  char p[320];
+  key_path(c, key, p, sizeof p);
+  return proto_fail(c->err, "%s: expected \"auto\" or a number of threads in [0, 1024] (0 = auto)", p);
+}
+
 int proto_cfg_bool(proto_cfg *c, const char *key, proto_need need, int *out) {
   int rc;
   const cJSON *node = lookup(c, key, need, &rc);

@@ -66,6 +66,9 @@ int proto_cfg_num_below(proto_cfg *c, const char *key, proto_need need,
 int proto_cfg_int(proto_cfg *c, const char *key, proto_need need, int64_t lo,
                   int64_t hi, int64_t *out);
 int proto_cfg_bool(proto_cfg *c, const char *key, proto_need need, int *out);
+/* An optional thread count: "auto" or 0 (*out = 0), or 1..1024; missing:
+ * *out unchanged. */
+int proto_cfg_threads(proto_cfg *c, const char *key, int64_t *out);
 /* Copies a string (cap bytes incl. NUL). */
 int proto_cfg_str(proto_cfg *c, const char *key, proto_need need, char *out,
                   size_t cap);

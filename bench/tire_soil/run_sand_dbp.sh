@@ -28,7 +28,9 @@
 # The beds run at once (JOBS, default N), each dem on one thread: on 2 vCPUs
 # three beds took 61.7 min so, against about 68 for one after the other with
 # two threads each (bench/results/sand_calibration.md "The DEM step on three
-# beds"); JOBS=1 runs them in turn, dem threads "auto".
+# beds"); JOBS=1 runs them in turn, dem threads "auto". With more than one job
+# the tread runs on one thread too (stop 60: its second thread cost 7 % of a
+# sand run's CPU in barrier waits, the whole run's wall time the same alone).
 set -euo pipefail
 BUILD=${1:?usage: run_sand_dbp.sh BUILD_DIR OUT_DIR [N [cosim sweep args...]]}
 OUT=${2:?usage: run_sand_dbp.sh BUILD_DIR OUT_DIR [N [cosim sweep args...]]}
@@ -37,7 +39,7 @@ shift $(( $# < 3 ? $# : 3 ))
 SCENE=${SCENE:-configs/tire_soil_sand.json}
 JOBS=${JOBS:-$N}
 THREADS=()
-if [ "$JOBS" -gt 1 ]; then THREADS=(--set processes.soil.threads=1); fi
+if [ "$JOBS" -gt 1 ]; then THREADS=(--set processes.soil.threads=1 --set processes.tyre.threads=1); fi
 bash "$(dirname "$0")/timed.sh" "$OUT" "$SCENE" \
   "$BUILD/bin/cosim" sweep "$SCENE" --values scenario.slip=0.0 \
   --set scenario.rig=dbp --set scenario.sinkage_velocity=0.2 \

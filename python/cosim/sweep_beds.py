@@ -70,7 +70,7 @@ def bed_scene(scene, names):
             del s["coupling"]
     for p in s.get("processes", {}).values():
         if isinstance(p, dict):
-            p.pop("threads", None)  # dem_server's results do not depend on it (dem_threads.c)
+            p.pop("threads", None)  # dem_server's and fem_server's results do not depend on it
     if "scenario" in s:
         s["scenario"] = {k: v for k, v in s["scenario"].items() if k in KEPT_SCENARIO}
     for n in names:

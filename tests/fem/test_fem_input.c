@@ -116,6 +116,10 @@ static void config_errors(void) {
      "processes.fem.reaction", "config reaction not a bool"},
     {"{\"mesh\":{\"generate\":\"tread\",\"phase_deg\":400},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000}}",
      "processes.fem.mesh.phase_deg", "config tread phase"},
+    {"{\"mesh\":{\"generate\":\"bar\"},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000},\"threads\":1.5}",
+     "processes.fem.threads: expected \"auto\"", "config threads not a count"},
+    {"{\"mesh\":{\"generate\":\"bar\"},\"material\":{\"E\":1e6,\"nu\":0.3,\"density\":1000},\"threads\":\"many\"}",
+     "processes.fem.threads: expected \"auto\"", "config threads word"},
   };
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
     proto_err err;
@@ -130,6 +134,10 @@ static void config_errors(void) {
                          "\"density\":1000},\"fixed\":[{\"group\":\"rim\"}]}");
   fem_config c;
   OK(fem_config_read(j, "processes.fem", &c, &err));
+  CHECK(c.threads == 0, "threads: default %d, want 0 (auto)", c.threads);
+  cJSON_AddNumberToObject(j, "threads", 1);
+  OK(fem_config_read(j, "processes.fem", &c, &err));
+  CHECK(c.threads == 1, "threads 1 read as %d", c.threads);
   fem_model md;
   expect_error(fem_config_build(&c, &md, &err), &err, "processes.fem.fixed[0].group: no surface group 'rim'", "config missing group");
   fem_model_free(&md);
