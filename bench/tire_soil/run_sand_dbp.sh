@@ -4,10 +4,11 @@
 # (N beds from the generator's seeds 1..N, each settled once into OUT/beds/,
 # then one dbp run per bed), timed under the shared benchmark lock.
 #   bash bench/tire_soil/run_sand_dbp.sh BUILD_DIR OUT_DIR [N [cosim sweep args...]]
-# N defaults to 5, the headline (stop 54: five beds at once in 55.9 min with the
-# settling, every 95 % half-width from 0 to 40 % slip <= 0.038 of the load, the
-# paper scene 252-258 s in that sitting; bench/results/sand_calibration.md
-# "The curve averaged over a lug passage").
+# N defaults to 5, the headline (stop 60: five beds at once on the scene's
+# substrate in 59.1 min with the settling, every 95 % half-width from 0 to 40 %
+# slip <= 0.039 of the load, the paper scene 222-242 s in that sitting;
+# bench/results/sand_calibration.md "The headline on the substrate in the hour";
+# stop 54, before the substrate: 55.9 min, <= 0.038).
 # writes OUT_DIR/ (the sweep: OUT_DIR/dbp/dbp_curve.csv and dbp.png are the
 # curve across the beds with 95 % intervals) and OUT_DIR.time (wall time, load
 # before and after, the arguments). The rig (stop 53): the tyre sinks at
