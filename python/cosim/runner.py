@@ -199,17 +199,30 @@ def grid_points(values):
     return [dict(zip(keys, combo)) for combo in itertools.product(*(values[k] for k in keys))]
 
 
-def concurrent_sets(sets, jobs):
+def concurrent_sets(sets, jobs, scene=None):
     """``sets`` for runs that share the machine (``jobs`` > 1): coupling.affinity
     "none" unless the caller set it. "handoff" binds a run's coupler and its
     participants' main threads to one core, the allowed core with the fewest
     threads bound to it alone when the run starts (coupler/affinity.c), which
     suits a run that has the machine; runs started at the same moment each
     read the bindings before the others have bound, so two may still share a
-    core while another idles."""
+    core while another idles. With the ``scene`` (a path or dict), each
+    fem_server process without a ``threads`` of its own (in the scene or in
+    ``sets``) gets ``threads`` 1: on shared cores its other threads only wait
+    at barriers (7-11 % of a sand-scene run's CPU, bench/results/tire_soil.md
+    stop 60), and its results do not depend on the count. dem_server's
+    "auto" already follows the load."""
     sets = dict(sets or {})
     if jobs > 1 and "coupling.affinity" not in sets:
         sets["coupling.affinity"] = "none"
+    data = scene if isinstance(scene, dict) else _scene_file(scene)[1] if scene is not None else None
+    procs = data.get("processes") if isinstance(data, dict) else None
+    if jobs > 1 and isinstance(procs, dict):
+        for name, p in procs.items():
+            key = f"processes.{name}.threads"
+            if isinstance(p, dict) and os.path.basename(str(p.get("exec", ""))) == "fem_server" \
+                    and "threads" not in p and key not in sets:
+                sets[key] = 1
     return sets
 
 
@@ -231,12 +244,13 @@ def sweep(scene, values, out, set=None, jobs=1, keep_going=False, beds=None, res
     run again (its Results are returned); the others run with --overwrite.
 
     With ``jobs`` > 1 the runs get ``coupling.affinity`` "none" unless
-    ``set`` gives it (:func:`concurrent_sets`).
+    ``set`` gives it, and fem_server ``threads`` 1 unless the scene or ``set``
+    gives it (:func:`concurrent_sets`).
 
     This loops over :func:`run`; ``cosim sweep`` (sweep_cli.py) adds the
     summary."""
     points = grid_points(values)
-    set = concurrent_sets(set, jobs)
+    set = concurrent_sets(set, jobs, scene)
     shared = None
     if beds:
         shared = Beds(scene, points, set, beds)

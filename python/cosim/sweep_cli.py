@@ -25,7 +25,9 @@ each run settles its own, as before); the realisations are independent, and
 the same seed gives the same run bit for bit either way. ``--jobs N`` runs N
 at once, each with ``coupling.affinity`` "none" unless ``--set`` gives it
 (cosim.runner.concurrent_sets: "handoff" binds a run to one core, which
-runs that share the machine must not). ``--resume`` skips
+runs that share the machine must not), and each fem_server with
+``threads`` 1 unless the scene or ``--set`` gives it (its other threads
+would only wait at barriers on shared cores). ``--resume`` skips
 the points whose results.h5 already reaches time.end and reruns the others;
 beds already in ``DIR/beds/`` are never settled again. summary.csv then
 gives per value the mean of the run means and its interval from their
@@ -70,7 +72,7 @@ from .traction import QUANTITIES, is_dbp, summarise_run, travel_window  # noqa: 
 from .terra_ref import draw_reference, read_reference
 from . import fig_dbp
 from .roles import cosim_executable
-from .runner import _dir_name, grid_points, sweep as run_sweep
+from .runner import _dir_name, concurrent_sets, grid_points, sweep as run_sweep
 from .sweep_beds import BEDS_DIR
 
 STATS = ["mean", "ci95", "min", "max"]  # ci95: half-width of the mean's 95 % interval
@@ -373,9 +375,12 @@ def main(argv):
     if not args.summary_only:
         check_points(args.scene, sets, key, values, args.cosim)
         run_args = ["--overwrite"] if args.overwrite else []
-        if args.jobs > 1 and "coupling.affinity" not in sets:
-            print(f"cosim sweep: --jobs {args.jobs}: the runs get coupling.affinity \"none\" "
-                  "(they share the cores; --set coupling.affinity=... to choose)", flush=True)
+        if args.jobs > 1:
+            given = concurrent_sets(sets, args.jobs, args.scene)
+            added = ", ".join(f"{k} {json.dumps(v)}" for k, v in given.items() if k not in sets)
+            if added:
+                print(f"cosim sweep: --jobs {args.jobs}: the runs get {added} (they share the "
+                      "cores; --set to choose)", flush=True)
         beds = None if args.no_bed_reuse else os.path.join(args.out, BEDS_DIR)
         done = run_sweep(args.scene, grid, args.out, set=sets, jobs=args.jobs,
                          keep_going=args.keep_going, quiet=True, cosim=args.cosim,

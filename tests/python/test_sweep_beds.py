@@ -13,9 +13,11 @@ over it), cut to a few coupled steps; two slips x `--repeat 2` (seeds 1, 2):
    results.h5 but wall times);
 4. resumed (`--resume`, one value more, `--jobs 2`): no bed settled again
    (settle.log and the bed files unchanged: a bed's id leaves out
-   coupling.affinity, which runs at once get "none"), the finished runs not
+   coupling.affinity, which runs at once get "none", as fem_server gets
+   threads 1), the finished runs not
    rerun (their results.h5 untouched), the new value's runs load the
-   existing beds and ran with coupling.affinity "none";
+   existing beds and ran with coupling.affinity "none" and the tread on one
+   thread;
 5. a bed's id leaves out the scene's prose (`notes`: an edit of them gave
    every bed of the sand scene a new id) and keeps what settles it.
 """
@@ -138,10 +140,13 @@ for r in rows:
         with h5py.File(os.path.join(out, r["dir"], "results.h5"), "r") as f:
             used = json.loads(f.attrs["config"])["processes"]["dem"]["particles"]
             affinity = json.loads(f.attrs["config"]).get("coupling", {}).get("affinity")
+            fem_threads = json.loads(f.attrs["config"])["processes"]["fem"].get("threads")
         seed = json.loads(r[SEED_KEY])
         check(used == {"file": bed_of[seed]}, f"new value {r['dir']} loaded the bed of seed {seed}")
         check(affinity == "none", f"new value {r['dir']}: run with --jobs 2, coupling.affinity "
               f"'none' (got {affinity!r})")
+        check(fem_threads == 1, f"new value {r['dir']}: run with --jobs 2, the tread on one thread "
+              f"(processes.fem.threads {fem_threads!r})")
 
 # 5. the id: not the notes, but what the bed is settled with
 from cosim.sweep_beds import bed_id, settled_beds  # noqa: E402
