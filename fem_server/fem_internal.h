@@ -9,7 +9,7 @@
 #define FEM_OMP_MIN_ELEMS 20000
 /* Nodes per partial sum of the explicit step's energies (fem_explicit.c): the
  * chunks' sums are added in chunk order, so the energies do not depend on the
- * number of threads. 256 nodes: a chunk's work (~5 us) dwarfs its sum's. */
+ * number of threads. 256 nodes: a chunk's work (5-10 us) dwarfs its sum's. */
 #define FEM_SUM_CHUNK 256
 static inline int32_t fem_sum_chunks(int32_t n_nodes) {
   return (n_nodes + FEM_SUM_CHUNK - 1) / FEM_SUM_CHUNK;
