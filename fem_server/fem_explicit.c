@@ -200,7 +200,7 @@ static double node_step_rotating(const fem_model *md, fem_state *st, int32_t a, 
  * kinetic energy, u_{n+1}.K u_n and work into sums[0..2]. */
 static void chunk_step(const fem_model *md, fem_state *st, int32_t c, double dt, double c1,
                        double c2, const fem_road *road, double sums[3]) {
-  const int32_t nn = md->mesh.n_nodes, a1 = (c + 1) * FEM_SUM_CHUNK < nn ? (c + 1) * FEM_SUM_CHUNK : nn;
+  const int32_t a1 = fem_chunk_end(c, md->mesh.n_nodes);
   const double *acc = st->frame.acc; /* a translating frame: uniform -m acc */
   double kin = 0, uKu = 0, dw = 0;
   if (fem_frame_rotating(&st->frame))
@@ -228,10 +228,10 @@ static void chunk_step(const fem_model *md, fem_state *st, int32_t c, double dt,
 }
 
 /* The span's end for the nodes of chunk c: v_n = v_{n-1/2} + dt/2 a_n, their
- * kinetic and strain energy into sums[0..1]. */
+ * kinetic and strain energy into sums[0..1] (sums[2] = 0). */
 static void chunk_close(const fem_model *md, fem_state *st, int32_t c, double dt, const fem_road *road,
-                        double sums[2]) {
-  const int32_t nn = md->mesh.n_nodes, a1 = (c + 1) * FEM_SUM_CHUNK < nn ? (c + 1) * FEM_SUM_CHUNK : nn;
+                        double sums[3]) {
+  const int32_t a1 = fem_chunk_end(c, md->mesh.n_nodes);
   const double alpha = md->mat.damping;
   double kin = 0, se = 0;
   for (int32_t a = c * FEM_SUM_CHUNK; a < a1; a++) {
@@ -256,6 +256,14 @@ static void chunk_close(const fem_model *md, fem_state *st, int32_t c, double dt
   }
   sums[0] = kin;
   sums[1] = se;
+  sums[2] = 0;
+}
+
+/* The chunks' partial sums (three per chunk) added in chunk order. */
+static void chunk_sums(const double *cs, int32_t nchunk, double sum[3]) {
+  sum[0] = sum[1] = sum[2] = 0;
+  for (int32_t c = 0; c < nchunk; c++)
+    for (int k = 0; k < 3; k++) sum[k] += cs[3 * c + k];
 }
 
 int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double safety,
@@ -287,12 +295,9 @@ int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double
       for (int32_t c = 0; c < nchunk; c++) chunk_step(md, st, c, dt, c1, c2, road, cs + 3 * c);
       fem_internal_force_team(md, &st->work, st->u, st->fint); /* after the loop's barrier: u_{n+1} whole */
     }
-    double kin = 0, uKu = 0, dw = 0;
-    for (int32_t c = 0; c < nchunk; c++) {
-      kin += cs[3 * c];
-      uKu += cs[3 * c + 1];
-      dw += cs[3 * c + 2];
-    }
+    double sum[3];
+    chunk_sums(cs, nchunk, sum);
+    const double kin = sum[0], uKu = sum[1], dw = sum[2];
     st->energy = kin + 0.5 * uKu;
     st->work_ext += dw;
     st->work_abs += fabs(dw);
@@ -305,11 +310,9 @@ int fem_explicit_advance(const fem_model *md, fem_state *st, double span, double
   /* velocity and energies at the end of the span: v_n = v_{n-1/2} + dt/2 a_n */
 #pragma omp parallel for schedule(static) if (team)
   for (int32_t c = 0; c < nchunk; c++) chunk_close(md, st, c, dt, road, cs + 3 * c);
-  double kin = 0, se = 0;
-  for (int32_t c = 0; c < nchunk; c++) {
-    kin += cs[3 * c];
-    se += cs[3 * c + 1];
-  }
+  double sum[3];
+  chunk_sums(cs, nchunk, sum);
+  const double kin = sum[0], se = sum[1];
   st->kinetic = kin;
   st->strain = se;
   return 0;

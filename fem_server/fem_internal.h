@@ -14,6 +14,10 @@
 static inline int32_t fem_sum_chunks(int32_t n_nodes) {
   return (n_nodes + FEM_SUM_CHUNK - 1) / FEM_SUM_CHUNK;
 }
+/* One past the last node of chunk c. */
+static inline int32_t fem_chunk_end(int32_t c, int32_t n_nodes) {
+  return (c + 1) * FEM_SUM_CHUNK < n_nodes ? (c + 1) * FEM_SUM_CHUNK : n_nodes;
+}
 
 /* Index of the mid-edge node between local corners a and b (TET10). */
 int fem_edge_mid(int a, int b);

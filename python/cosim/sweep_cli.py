@@ -375,12 +375,12 @@ def main(argv):
     if not args.summary_only:
         check_points(args.scene, sets, key, values, args.cosim)
         run_args = ["--overwrite"] if args.overwrite else []
-        if args.jobs > 1:
-            given = concurrent_sets(sets, args.jobs, args.scene)
-            added = ", ".join(f"{k} {json.dumps(v)}" for k, v in given.items() if k not in sets)
-            if added:
-                print(f"cosim sweep: --jobs {args.jobs}: the runs get {added} (they share the "
-                      "cores; --set to choose)", flush=True)
+        shared = concurrent_sets(sets, args.jobs, args.scene)  # what sweep() would add itself
+        added = ", ".join(f"{k} {json.dumps(v)}" for k, v in shared.items() if k not in sets)
+        if added:
+            print(f"cosim sweep: --jobs {args.jobs}: the runs get {added} (they share the "
+                  "cores; --set to choose)", flush=True)
+        sets = shared
         beds = None if args.no_bed_reuse else os.path.join(args.out, BEDS_DIR)
         done = run_sweep(args.scene, grid, args.out, set=sets, jobs=args.jobs,
                          keep_going=args.keep_going, quiet=True, cosim=args.cosim,
