@@ -352,11 +352,10 @@ static int check_reply(cpl_runner *r, int i, int64_t k, int iteration) {
     const cpl_binding *bd = &r->plan->contract.b[b];
     if (bd->role != p->role || bd->msg != PROTO_MSG_DONE || !due(p, bd->spec)) continue;
     const proto_array *arr = proto_msg_find(m, bd->array);
-    const double *a = arr->data;
-    for (int64_t j = 0; j < (int64_t)(arr->nbytes / sizeof(double)); j++)
-      if (!isfinite(a[j]))
-        return proto_fail(&r->err, "participant '%s': %s[%lld] is not finite",
-                          p->proc->name, bd->array, (long long)j);
+    const int64_t j = proto_first_nonfinite(arr->data, (int64_t)(arr->nbytes / sizeof(double)));
+    if (j >= 0)
+      return proto_fail(&r->err, "participant '%s': %s[%lld] is not finite",
+                        p->proc->name, bd->array, (long long)j);
   }
   if (take_reach(r, p) < 0) return -1;
   r->failed_peer = -1;

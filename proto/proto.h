@@ -236,6 +236,9 @@ int64_t proto_sparse_rows(const double *f, int64_t n, int32_t *idx, double *rows
 int64_t proto_reach_nodes(const double *x, const double *v, double dt, const int32_t *tri,
                           int64_t n_tri, int64_t n, const double box[6], uint8_t *mark,
                           int32_t *index);
+/* The first of a [n] that is not finite (inf, nan), or -1: the arrays that
+ * cross every step are checked with it (a scan without a branch per value). */
+int64_t proto_first_nonfinite(const double *a, int64_t n);
 /* m: how far a node's end of step may lie from x + v dt by rounding (a dem
  * moves it by v dt/nsub per sub-step: < nsub * 2.2e-16 * |x|, below 1e-9 m for
  * |x| < 10 m and up to 10^5 sub-steps). */

@@ -450,13 +450,16 @@ enum { REACH_ALL_SIDES = 63, REACH_SENT = 64 };
 int64_t proto_reach_nodes(const double *x, const double *v, double dt, const int32_t *tri,
                           int64_t n_tri, int64_t n, const double box[6], uint8_t *mark,
                           int32_t *index) {
+  /* min(p, q) - r <= top iff p - r <= top or q - r <= top (rounding is
+   * monotone; finite: checked on arrival): no branch on the sign of v */
+  const double r = PROTO_REACH_ROUNDING;
   for (int64_t a = 0; a < n; a++) {
     unsigned bits = 0;
     for (int d = 0; d < 3; d++) {
       const double p = x[3 * a + d], q = p + v[3 * a + d] * dt;
-      const double l = p < q ? p : q, h = p < q ? q : p; /* finite: checked on arrival */
-      bits |= (l - PROTO_REACH_ROUNDING <= box[3 + d] ? 1u : 0u) << (2 * d);
-      bits |= (h + PROTO_REACH_ROUNDING >= box[d] ? 2u : 0u) << (2 * d);
+      const unsigned lo = (unsigned)(p - r <= box[3 + d]) | (unsigned)(q - r <= box[3 + d]);
+      const unsigned hi = (unsigned)(p + r >= box[d]) | (unsigned)(q + r >= box[d]);
+      bits |= (lo | hi << 1) << (2 * d);
     }
     mark[a] = (uint8_t)bits;
   }
@@ -471,6 +474,23 @@ int64_t proto_reach_nodes(const double *x, const double *v, double dt, const int
     if (mark[a]) index[k++] = (int32_t)a;
   }
   return k;
+}
+
+int64_t proto_first_nonfinite(const double *a, int64_t n) {
+  /* the exponent's eleven bits all ones (inf, nan) carry into bit 63 when
+   * one more unit of the exponent is added: one add, and, or per value,
+   * no branch (the loop vectorises); the index only when one is there */
+  const uint64_t exp = 0x7ff0000000000000u, one = 0x0010000000000000u;
+  uint64_t carry = 0;
+  for (int64_t j = 0; j < n; j++) {
+    uint64_t u;
+    memcpy(&u, &a[j], sizeof u);
+    carry |= (u & exp) + one;
+  }
+  if (!(carry >> 63)) return -1;
+  for (int64_t j = 0; j < n; j++)
+    if (!isfinite(a[j])) return j;
+  return -1;
 }
 
 const double *proto_msg_dense(const proto_msg *m, const char *name, int64_t n, int cols,

@@ -3,7 +3,9 @@
  * array has k rows; a bad index (order, range, dtype, length) or a row count
  * that disagrees is refused naming the array; proto_msg_dense expands it to
  * the dense rows with +0.0 elsewhere; proto_reach_nodes picks the nodes of
- * the triangles whose box over the step meets a box, and only those. */
+ * the triangles whose box over the step meets a box, and only those;
+ * proto_first_nonfinite finds the first inf or nan of an array. */
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -164,6 +166,27 @@ int main(void) {
     CHECK(!differ, "random mesh %d: the nodes sent are those of the triangles whose swept box meets "
           "the box (%lld sent, %lld by the contract)", trial, (long long)got, (long long)nwant);
   }
+  /* proto_first_nonfinite (the check of every array that crosses a step):
+   * the first inf or nan of either sign at any place, none in finite
+   * extremes (+-DBL_MAX, subnormals, -0.0), -1 for an empty array */
+  enum { FN = 203 };
+  double fv[FN];
+  const double edge[] = {DBL_MAX, -DBL_MAX, 4.9e-324, -4.9e-324, -0.0, DBL_MIN, 1.0};
+  for (int i = 0; i < FN; i++) fv[i] = edge[i % 7];
+  CHECK(proto_first_nonfinite(fv, FN) == -1, "finite extremes are finite");
+  CHECK(proto_first_nonfinite(fv, 0) == -1, "an empty array has none");
+  const double bad[] = {INFINITY, -INFINITY, NAN, -NAN};
+  for (int b = 0; b < 4; b++)
+    for (int at = 0; at < FN; at += 1 + at / 8) {
+      double keep = fv[at];
+      fv[at] = bad[b];
+      if (at + 5 < FN) fv[at + 5] = bad[(b + 1) % 4]; /* a later one does not hide it */
+      const int64_t got = proto_first_nonfinite(fv, FN);
+      CHECK(got == at, "non-finite value %d at %d: found at %lld", b, at, (long long)got);
+      CHECK(proto_first_nonfinite(fv, at) == -1, "before %d: none", at);
+      fv[at] = keep;
+      if (at + 5 < FN) fv[at + 5] = edge[(at + 5) % 7];
+    }
   proto_msg_free(&m);
   return cosim_test_done("sparse_form");
 }
