@@ -133,6 +133,8 @@ struct dem_work {
   uint8_t *occ;           /* [DEM_REGION_OCC_CELLS] the grains' occupancy at the last region update: cell
                            * occ_dim-indexed, 1 where some grain's sphere box meets it (region_update) */
   double occ_lo[3], occ_h; /* its grid: origin and cell side (at least the reach) */
+  int occ_threads_min;    /* grains from which the region's passes over all grains use the threads
+                           * (DEM_OCC_THREADS_MIN; tests lower it to run that path on small beds) */
   int occ_dim[3];
   double region_moved;    /* bound on any mesh node's move since the last region update (dem_sleep_guard) */
   double region_budget;   /* the margin's mesh term at that update: the region holds while moved <= it */
@@ -359,6 +361,11 @@ void dem_push_set(const dem_model *m, dem_state *s, int i, int asleep);
  * (the test stays conservative, only less local). */
 #define DEM_REGION_OCC_CELLS (1 << 18)
 #define DEM_OCC_BLOCK 64 /* grains per block of the occupancy's cell arithmetic (dem_sleep.c) */
+/* Grains from which the region update's passes over every grain (the
+ * occupancy, the near flags) are split over the threads: ~25 ns a grain
+ * (the deep bed's 87 248: 2.0-2.4 ms an update on one thread, 1.2 on two),
+ * so below this a fork (a few us) does not pay. */
+#define DEM_OCC_THREADS_MIN 8192
 /* w->compact: grains woke (the asleep block keeps its order), or fell asleep (full rebuild) */
 /* An awake grain wakes its listed asleep neighbours when faster than this
  * many times the sleep velocity: a hysteresis, so that grains at the edge of

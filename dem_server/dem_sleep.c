@@ -93,6 +93,7 @@ int dem_sleep_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->rest_x = calloc(3 * (size_t)s->n + 1, sizeof(double));
   w->wake_list = calloc((size_t)s->n + 1, sizeof(int));
   w->occ = calloc(DEM_REGION_OCC_CELLS, 1);
+  w->occ_threads_min = DEM_OCC_THREADS_MIN;
   int nodes = 1;
   for (int mi = 0; mi < m->n_meshes; mi++) nodes = m->meshes[mi].n_nodes > nodes ? m->meshes[mi].n_nodes : nodes;
   w->jump_pos = malloc(sizeof(int32_t) * (size_t)nodes);
@@ -339,8 +340,12 @@ static void occupancy_build(const dem_state *s, const double *glo, const double 
   for (int k = 0; k < 3; k++) w->occ_dim[k] = (int)floor(ext[k] / h) + 1;
   memset(w->occ, 0, occ_cell(w, 0, 0, w->occ_dim[2]));
   const double vf2 = vfast * vfast;
-  double fa[3][DEM_OCC_BLOCK], fb[3][DEM_OCC_BLOCK];
+  /* every grain, the asleep ones too: split over the threads (a cell is
+   * marked, never cleared, so the grid is the same for any split; relaxed
+   * atomic stores, as two threads may mark one cell) */
+#pragma omp parallel for schedule(static) num_threads(w->nthreads) if (s->n >= w->occ_threads_min)
   for (int i0 = 0; i0 < s->n; i0 += DEM_OCC_BLOCK) {
+    double fa[3][DEM_OCC_BLOCK], fb[3][DEM_OCC_BLOCK];
     const int nb = s->n - i0 < DEM_OCC_BLOCK ? s->n - i0 : DEM_OCC_BLOCK;
     for (int k = 0; k < 3; k++) occ_cells_axis(&s->x[3 * i0 + k], &s->radius[i0], nb, w->occ_lo[k], h, fa[k], fb[k]);
     for (int q = 0; q < nb; q++) {
@@ -351,7 +356,7 @@ static void occupancy_build(const dem_state *s, const double *glo, const double 
       if (!occ_clamp(w, lo, hi, a, b)) continue;
       for (int z = a[2]; z <= b[2]; z++)
         for (int y = a[1]; y <= b[1]; y++)
-          for (int c = a[0]; c <= b[0]; c++) w->occ[occ_cell(w, c, y, z)] = 1;
+          for (int c = a[0]; c <= b[0]; c++) __atomic_store_n(&w->occ[occ_cell(w, c, y, z)], 1, __ATOMIC_RELAXED);
     }
   }
 }
@@ -454,6 +459,7 @@ static void region_update(const dem_model *m, dem_state *s) {
     memset(w->near, 0, (size_t)na);
     return;
   }
+#pragma omp parallel for schedule(static) num_threads(w->nthreads) if (na >= w->occ_threads_min)
   for (int i = 0; i < na; i++) w->near[i] = (uint8_t)in_box(&s->x[3 * i], s->radius[i], w->region_lo, w->region_hi);
   for (int i = na; changed && i < s->n; i++)
     if (in_box(&s->x[3 * i], s->radius[i], w->region_lo, w->region_hi)) dem_wake(w, i);
