@@ -297,12 +297,14 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   double g[3];
   rot_t(R, s->cfg.gravity, g);
   double *b = s->cfg.mode == FEM_EXPLICIT ? s->st.b : s->b_qs;
+  const int64_t bad = proto_first_nonfinite(f, 3 * (int64_t)s->n_surf);
+  if (bad >= 0)
+    return proto_fail(err, "nodal_force[%d] (surface node %d) is not finite", (int)(bad / 3),
+                      (int)(bad / 3));
   memcpy(b, s->b_static, sizeof *b * (size_t)md->n_dof);
   fem_load_gravity(md, g, b);
   for (int32_t i = 0; i < s->n_surf; i++) {
     double fr[3];
-    if (!isfinite(f[3 * (size_t)i]) || !isfinite(f[3 * (size_t)i + 1]) || !isfinite(f[3 * (size_t)i + 2]))
-      return proto_fail(err, "nodal_force[%d] (surface node %d) is not finite", i, i);
     rot_t(R, f + 3 * (size_t)i, fr);
     for (int d = 0; d < 3; d++) b[3 * (size_t)s->surf_node[i] + d] += fr[d];
   }

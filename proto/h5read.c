@@ -174,13 +174,13 @@ static int read_any(proto_h5in *f, const char *obj, int rank, int64_t *dims,
               H5P_DEFAULT, buf) < 0)
     rc = proto_fail(err, "%s:%s: cannot read (damaged, or values out of range "
                     "of %s)", f->path, obj, integer ? "int32" : "double");
-  for (int64_t k = 0; rc == 0 && !integer && k < count; k++)
-    if (!isfinite(((const double *)buf)[k])) {
-      char at[96];
-      index_str(rank, dims, k, at, sizeof at);
-      rc = proto_fail(err, "%s:%s: element %s is %g (values must be finite)",
-                      f->path, obj, at, ((const double *)buf)[k]);
-    }
+  const int64_t k = rc == 0 && !integer ? proto_first_nonfinite(buf, count) : -1;
+  if (k >= 0) {
+    char at[96];
+    index_str(rank, dims, k, at, sizeof at);
+    rc = proto_fail(err, "%s:%s: element %s is %g (values must be finite)",
+                    f->path, obj, at, ((const double *)buf)[k]);
+  }
   H5Dclose(ds);
   if (rc < 0) {
     free(buf);

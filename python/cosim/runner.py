@@ -215,7 +215,7 @@ def concurrent_sets(sets, jobs, scene=None):
     sets = dict(sets or {})
     if jobs > 1 and "coupling.affinity" not in sets:
         sets["coupling.affinity"] = "none"
-    data = scene if isinstance(scene, dict) else _scene_file(scene)[1] if scene is not None else None
+    data = scene if scene is None or isinstance(scene, dict) else _scene_file(scene)[1]
     procs = data.get("processes") if isinstance(data, dict) else None
     if jobs > 1 and isinstance(procs, dict):
         for name, p in procs.items():
