@@ -46,6 +46,10 @@
 /* force rule off by default (dem_sleep_push.c): a scene that loads the bed
  * slowly through its asleep grains sets it (the deep tyre scene) */
 #define DEM_SLEEP_FORCE 0.0
+/* the woken grains' halo, in cells (dem_sleep.c wake_halo): a whole cell by
+ * default, so a disturbance spreading into the asleep block wakes it in
+ * batches, not one layer per wake rebuild */
+#define DEM_SLEEP_HALO 1.0
 
 typedef struct dem_material {
   double density, E, nu, G; /* G = E/(2(1+nu)) unless given */
@@ -112,6 +116,9 @@ typedef struct dem_sleep_config {
                            "wake_velocity", default DEM_WAKE_FACTOR x velocity) */
   double force;         /* wake when the awake neighbours' push changed by this x the grain's weight
                            (0: off; dem_sleep_push.c) */
+  double halo;          /* with a woken grain the asleep grains within halo x one cell of the last
+                           full rebuild (2 r_max + skin) wake too (0 to 1, default 1; 0: only those
+                           a rule or the region wakes) */
   int test_steps;       /* steps between the force rule's tests and the batches falling asleep
                            ("test_steps", a multiple of the region's update interval, by default
                            that interval: each test that wakes a grain costs a wake rebuild) */

@@ -351,13 +351,13 @@ static int read_distance(proto_cfg *c, double d[3]) {
 }
 
 /* "sleep": false | true (defaults) | {"velocity", "time", "distance", "overlap", "displacement",
- * "wake_velocity", "force", "test_steps"}. */
+ * "wake_velocity", "force", "halo", "test_steps"}. */
 static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
   const cJSON *j = proto_cfg_raw(c, "sleep", PROTO_OPTIONAL);
   *sl = (dem_sleep_config){0, DEM_SLEEP_VELOCITY, DEM_SLEEP_TIME, DEM_SLEEP_OVERLAP,
                            {DEM_SLEEP_DISTANCE, DEM_SLEEP_DISTANCE, DEM_SLEEP_DISTANCE},
                            DEM_SLEEP_DISPLACEMENT, DEM_WAKE_FACTOR * DEM_SLEEP_VELOCITY, DEM_SLEEP_FORCE,
-                           DEM_REGION_STEPS};
+                           DEM_SLEEP_HALO, DEM_REGION_STEPS};
   if (!j || cJSON_IsFalse(j)) return 0;
   sl->on = 1;
   if (cJSON_IsTrue(j)) return 0;
@@ -373,7 +373,8 @@ static int read_sleep(proto_cfg *c, dem_sleep_config *sl) {
       proto_cfg_num(&sc, "overlap", PROTO_OPTIONAL, 0.0, 1.0, &sl->overlap) ||
       proto_cfg_num(&sc, "displacement", PROTO_OPTIONAL, 0.0, 1e6, &sl->displacement) ||
       proto_cfg_num(&sc, "wake_velocity", PROTO_OPTIONAL, 1e-12, 1e3, &sl->wake_velocity) ||
-      proto_cfg_num(&sc, "force", PROTO_OPTIONAL, 0.0, 1e6, &sl->force))
+      proto_cfg_num(&sc, "force", PROTO_OPTIONAL, 0.0, 1e6, &sl->force) ||
+      proto_cfg_num(&sc, "halo", PROTO_OPTIONAL, 0.0, 1.0, &sl->halo)) /* one cell: dem_asleep_near's reach */
     return -1;
   int64_t every = sl->test_steps; /* the default: with every region update */
   if (proto_cfg_int(&sc, "test_steps", PROTO_OPTIONAL, DEM_REGION_STEPS, 1000000, &every)) return -1;

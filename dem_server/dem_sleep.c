@@ -508,8 +508,9 @@ static void fall_asleep(const dem_model *m, dem_state *s) {
     }
 }
 
-/* Waking in batches: with each grain woken, the asleep grains within one
- * cell (2 r_max + skin, the cells of the last full rebuild) of it wake too.
+/* Waking in batches: with each grain woken, the asleep grains within
+ * sleep.halo (default one) cells (2 r_max + skin, the cells of the last full
+ * rebuild) of it wake too; halo 0 wakes only what a rule or the region wakes.
  * A wake rebuild copies the whole asleep block (O(n), several steps of the
  * awake grains), and a disturbance that spreads into the asleep block wakes
  * one layer of grains after another: without the batch, one wake rebuild per
@@ -521,11 +522,12 @@ static void halo_one(dem_state *s, int j, void *ctx) {
   if (!s->work->wake[j]) dem_wake(s->work, j);
 }
 
-static void wake_halo(dem_state *s) {
+static void wake_halo(const dem_model *m, dem_state *s) {
   struct dem_work *w = s->work;
-  if (!w->grid_ok) return;
+  if (!w->grid_ok || m->sleep.halo <= 0) return;
   const int first = w->n_wake;
-  for (int q = 0; q < first; q++) dem_asleep_near(s, w->wake_list[q], w->cell_size, halo_one, NULL);
+  const double h = m->sleep.halo * w->cell_size;
+  for (int q = 0; q < first; q++) dem_asleep_near(s, w->wake_list[q], h, halo_one, NULL);
 }
 
 void dem_asleep_near(dem_state *s, int i, double h, void (*visit)(dem_state *s, int j, void *ctx), void *ctx) {
@@ -549,7 +551,7 @@ void dem_asleep_near(dem_state *s, int i, double h, void (*visit)(dem_state *s, 
 static int wake_woken(const dem_model *m, dem_state *s, proto_err *err) {
   struct dem_work *w = s->work;
   const double *g = m->gravity;
-  if (w->n_wake > 0) wake_halo(s);
+  if (w->n_wake > 0) wake_halo(m, s);
   if (w->n_wake > 0 || w->compact) dem_push_fold(m, s); /* before the flags change */
   for (int q = 0; q < w->n_wake; q++) {
     const int i = w->wake_list[q];

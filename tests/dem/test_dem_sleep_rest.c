@@ -6,8 +6,9 @@
  * one). Then the drifting grains' state goes through an export and import
  * half way (the rest anchors travel: the same steps at rest after it).
  * And the wake batch: an asleep cluster next to a fast grain wakes as one
- * (the grains within one cell of a woken grain wake with it), and with a
- * wake_velocity above the grain's speed only when it presses in. */
+ * (the grains within one cell of a woken grain wake with it; with halo 0
+ * only the grains the rule wakes), and with a wake_velocity above the
+ * grain's speed only when it presses in. */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 
@@ -128,8 +129,10 @@ static void wake_batch(const char *wake, int *first_out, double *gap_out) {
   printf("the cluster's first wake%s (step %d, %lld wake rebuilds, gap %.3g R): %d grains, %d within a cell of the "
          "4 struck ones left asleep\n", wake, first, (long long)(s.work->wake_rebuilds - wakes0), *gap_out / R,
          woke_first, missed);
-  /* the 4 struck, their 8 neighbours in the layer and the 4 behind them */
-  CHECK(first >= 0 && missed == 0 && woke_first == 16, "the first wake took %d grains, left %d", woke_first, missed);
+  if (strstr(wake, "\"halo\":0")) /* no halo: the 4 the lone grain is listed with, their neighbours asleep */
+    CHECK(first >= 0 && woke_first == 4 && missed > 0, "halo 0: the first wake took %d grains", woke_first);
+  else /* the 4 struck, their 8 neighbours in the layer and the 4 behind them */
+    CHECK(first >= 0 && missed == 0 && woke_first == 16, "the first wake took %d grains, left %d", woke_first, missed);
   *first_out = first;
   dem_state_free(&s);
   dem_model_free(&m);
@@ -175,6 +178,8 @@ int main(void) {
   bad_sleep("\"distance\":-1", "processes.dem.sleep.distance");
   bad_sleep("\"force\":-1", "processes.dem.sleep.force");
   bad_sleep("\"force\":\"strong\"", "processes.dem.sleep.force");
+  bad_sleep("\"halo\":1.5", "processes.dem.sleep.halo");
+  bad_sleep("\"halo\":-1", "processes.dem.sleep.halo");
   bad_sleep("\"test_steps\":7", "processes.dem.sleep.test_steps");
   bad_sleep("\"test_steps\":0", "processes.dem.sleep.test_steps");
   bad_sleep("\"test_steps\":2.5", "processes.dem.sleep.test_steps");
@@ -183,6 +188,11 @@ int main(void) {
   double gap_listed, gap_pressed;
   wake_batch("", &first_listed, &gap_listed);
   wake_batch(",\"wake_velocity\":2", &first_pressed, &gap_pressed); /* launched at 1 m/s */
+  int first_bare;
+  double gap_bare;
+  wake_batch(",\"halo\":0", &first_bare, &gap_bare); /* the same first wake, without its batch */
+  CHECK(first_bare == first_listed && gap_bare == gap_listed, "halo 0 moved the first wake: step %d gap %g R "
+        "against %d, %g R", first_bare, gap_bare / R, first_listed, gap_listed / R);
   CHECK(gap_listed > 0, "the default wake came at a gap of %g R, not before the contact", gap_listed / R);
   CHECK(gap_pressed <= -0.02 * R && first_pressed > first_listed,
         "with wake_velocity above the launch speed the first wake came at step %d (%d by default), gap %g R: "
