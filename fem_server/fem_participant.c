@@ -298,9 +298,10 @@ static int step(void *user, proto_peer *peer, const proto_step_info *info,
   rot_t(R, s->cfg.gravity, g);
   double *b = s->cfg.mode == FEM_EXPLICIT ? s->st.b : s->b_qs;
   const int64_t bad = proto_first_nonfinite(f, 3 * (int64_t)s->n_surf);
-  if (bad >= 0)
-    return proto_fail(err, "nodal_force[%d] (surface node %d) is not finite", (int)(bad / 3),
-                      (int)(bad / 3));
+  if (bad >= 0) {
+    const int node = (int)(bad / 3);
+    return proto_fail(err, "nodal_force[%d] (surface node %d) is not finite", node, node);
+  }
   memcpy(b, s->b_static, sizeof *b * (size_t)md->n_dof);
   fem_load_gravity(md, g, b);
   for (int32_t i = 0; i < s->n_surf; i++) {
