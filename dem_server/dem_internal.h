@@ -333,6 +333,15 @@ static inline int dem_row_asleep(const struct dem_work *w, int i, int na) {
  * the cells of the last full rebuild around i's (grid_ok; h at most one
  * cell): visit(s, j, ctx) for each, in slot order within each cell. */
 void dem_asleep_near(dem_state *s, int i, double h, void (*visit)(dem_state *s, int j, void *ctx), void *ctx);
+/* dem_sleep_occ.c: the grains' occupancy (w->occ) on a grid of side at
+ * least `reach` over the centre box glo..ghi grown by the largest radius:
+ * the cells within qlo..qhi (the candidate triangles' boxes grown by the
+ * reach) that some grain's sphere box meets, every grain slower than `vfast`
+ * (sleep.wake_velocity) and every asleep one; dem_occ_hit: whether the box
+ * lo..hi grown by `reach` (inside qlo..qhi) meets a marked cell. */
+void dem_occ_build(const dem_state *s, const double *glo, const double *ghi, double reach, double vfast,
+                   const double *qlo, const double *qhi);
+int dem_occ_hit(const struct dem_work *w, const double *lo, const double *hi, double reach);
 /* dem_sleep_push.c: the force rule (sleep.force) */
 /* a grain's record in push: base (or kept change) of force and torque,
  * the awake neighbours' force and torque at the last gather, state */

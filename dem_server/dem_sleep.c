@@ -270,108 +270,22 @@ static void grains_box(const dem_state *s, double *lo, double *hi) {
     }
 }
 
-/* The cells [a, b] (per axis) of the occupancy grid from the floors fa, fb
- * of a box's ends over the cell side, clamped to the grid; 0 if the box lies
- * outside it. */
-static int occ_clamp(const struct dem_work *w, const double *fa, const double *fb, int *a, int *b) {
+/* Triangle t of mesh mi (if sent: the sparse exchange's live ones,
+ * dem_sleep_reach): its box tlo..thi, and whether it meets glo..ghi. */
+static int tri_meets(const dem_model *m, const dem_state *s, int mi, int t, const double *glo, const double *ghi,
+                     double *tlo, double *thi) {
+  const uint8_t *live = s->mesh_live[mi];
+  if (live && !live[t]) return 0;
+  const int32_t *tn = &m->meshes[mi].tri[3 * t];
+  const double *x = s->mesh_x[mi];
+  int meets = 1;
   for (int k = 0; k < 3; k++) {
-    if (fb[k] < 0 || fa[k] >= w->occ_dim[k]) return 0;
-    a[k] = fa[k] < 0 ? 0 : (int)fa[k];
-    b[k] = fb[k] >= w->occ_dim[k] ? w->occ_dim[k] - 1 : (int)fb[k];
+    const double a = x[3 * tn[0] + k], b = x[3 * tn[1] + k], c = x[3 * tn[2] + k];
+    tlo[k] = dem_min(a, dem_min(b, c));
+    thi[k] = dem_max(a, dem_max(b, c));
+    meets &= thi[k] >= glo[k] && tlo[k] <= ghi[k];
   }
-  return 1;
-}
-
-/* The cells [a, b] (per axis) of the occupancy grid that the box lo..hi
- * meets, clamped to the grid; 0 if the box lies outside it. */
-static int occ_range(const struct dem_work *w, const double *lo, const double *hi, int *a, int *b) {
-  double fa[3], fb[3];
-  for (int k = 0; k < 3; k++) {
-    fa[k] = floor((lo[k] - w->occ_lo[k]) / w->occ_h);
-    fb[k] = floor((hi[k] - w->occ_lo[k]) / w->occ_h);
-  }
-  return occ_clamp(w, fa, fb, a, b);
-}
-
-static size_t occ_cell(const struct dem_work *w, int x, int y, int z) {
-  return ((size_t)z * w->occ_dim[1] + y) * w->occ_dim[0] + x;
-}
-
-/* The cells (as doubles: floor of the offset over the side) where the
- * sphere boxes of nb grains start and end along axis k: occ_range's
- * arithmetic (occ_clamp then clamps them), the same IEEE operations, in a loop the compiler vectorises
- * (the divisions were 4 % of a sand-scene step, one grain at a time). */
-__attribute__((target_clones("avx2", "default")))
-static void occ_cells_axis(const double *restrict x, const double *restrict rad, int nb, double o, double h,
-                           double *restrict lo, double *restrict hi) {
-  double c[DEM_OCC_BLOCK];
-  for (int q = 0; q < nb; q++) c[q] = x[3 * q]; /* the axis in sequence */
-  for (int q = 0; q < nb; q++) {
-    lo[q] = floor((c[q] - rad[q] - o) / h);
-    hi[q] = floor((c[q] + rad[q] - o) / h);
-  }
-}
-
-/* The grains' occupancy (w->occ): a grid of cells of side at least `reach`
- * over the box of the grains' spheres (centres glo..ghi, radii up to rmax),
- * a cell marked where some grain's sphere box meets it; every grain slower
- * than `vfast` (sleep.wake_velocity), the asleep ones included (they stand
- * where they fell asleep). A faster grain is awake whatever the region (too
- * fast to fall asleep) and wakes each asleep neighbour it approaches (the
- * wake rule): a triangle that only such grains are near needs no region
- * around it. On the sand scene these are the grains the tread carries up
- * behind the tyre, which drew the region's rear out to -0.28 m of the rim
- * instead of -0.20...-0.23 m (bench/results/sand_calibration.md). */
-static void occupancy_build(const dem_state *s, const double *glo, const double *ghi, double reach, double vfast) {
-  struct dem_work *w = s->work;
-  const double rmax = w->region_rmax;
-  double ext[3], h = reach;
-  for (int k = 0; k < 3; k++) {
-    w->occ_lo[k] = glo[k] - rmax;
-    ext[k] = ghi[k] + rmax - w->occ_lo[k];
-  }
-  for (;;) { /* cells of side h, fewer than the grid's cap */
-    double cells = 1;
-    for (int k = 0; k < 3; k++) cells *= floor(ext[k] / h) + 1;
-    if (cells <= DEM_REGION_OCC_CELLS) break;
-    h *= 1.25;
-  }
-  w->occ_h = h;
-  for (int k = 0; k < 3; k++) w->occ_dim[k] = (int)floor(ext[k] / h) + 1;
-  memset(w->occ, 0, occ_cell(w, 0, 0, w->occ_dim[2]));
-  const double vf2 = vfast * vfast;
-  /* every grain, the asleep ones too: split over the threads (a cell is
-   * marked, never cleared, so the grid is the same for any split; relaxed
-   * atomic stores, as two threads may mark one cell) */
-#pragma omp parallel for schedule(static) num_threads(w->nthreads) if (s->n >= w->occ_threads_min)
-  for (int i0 = 0; i0 < s->n; i0 += DEM_OCC_BLOCK) {
-    double fa[3][DEM_OCC_BLOCK], fb[3][DEM_OCC_BLOCK];
-    const int nb = s->n - i0 < DEM_OCC_BLOCK ? s->n - i0 : DEM_OCC_BLOCK;
-    for (int k = 0; k < 3; k++) occ_cells_axis(&s->x[3 * i0 + k], &s->radius[i0], nb, w->occ_lo[k], h, fa[k], fb[k]);
-    for (int q = 0; q < nb; q++) {
-      const int i = i0 + q;
-      if (i < w->n_active && dem_dot(&s->v[3 * i], &s->v[3 * i]) > vf2) continue; /* asleep: v = 0, not read */
-      const double lo[3] = {fa[0][q], fa[1][q], fa[2][q]}, hi[3] = {fb[0][q], fb[1][q], fb[2][q]};
-      int a[3], b[3];
-      if (!occ_clamp(w, lo, hi, a, b)) continue;
-      for (int z = a[2]; z <= b[2]; z++)
-        for (int y = a[1]; y <= b[1]; y++)
-          for (int c = a[0]; c <= b[0]; c++) __atomic_store_n(&w->occ[occ_cell(w, c, y, z)], 1, __ATOMIC_RELAXED);
-    }
-  }
-}
-
-/* Whether the box lo..hi grown by `reach` meets an occupied cell. */
-static int occupied(const struct dem_work *w, const double *lo, const double *hi, double reach) {
-  const double glo[3] = {lo[0] - reach, lo[1] - reach, lo[2] - reach};
-  const double ghi[3] = {hi[0] + reach, hi[1] + reach, hi[2] + reach};
-  int a[3], b[3];
-  if (!occ_range(w, glo, ghi, a, b)) return 0;
-  for (int z = a[2]; z <= b[2]; z++)
-    for (int y = a[1]; y <= b[1]; y++)
-      for (int c = a[0]; c <= b[0]; c++)
-        if (w->occ[occ_cell(w, c, y, z)]) return 1;
-  return 0;
+  return meets;
 }
 
 /* The region follows the moving meshes; awake grains in it are near, asleep
@@ -403,40 +317,35 @@ static void region_update(const dem_model *m, dem_state *s) {
   w->region_movers = 0;
   for (int mi = 0; mi < m->n_meshes; mi++) w->region_movers |= w->mesh_moving[mi] << mi;
   double cbox[6]; /* the grains' centre box, for the occupancy grid */
-  int occ_built = 0; /* built when a triangle first passes the box test: a far mesh costs no O(n) */
   if (moving) {
     grains_box(s, glo, ghi);
     memcpy(cbox, glo, sizeof glo);
     memcpy(cbox + 3, ghi, sizeof ghi);
     for (int k = 0; k < 3; k++) { glo[k] -= reach; ghi[k] += reach; }
   }
-  for (int mi = 0; mi < m->n_meshes && moving; mi++) {
-    if (!w->mesh_moving[mi]) continue;
-    const dem_mesh *me = &m->meshes[mi];
-    const double *x = s->mesh_x[mi];
-    const uint8_t *live = s->mesh_live[mi]; /* sparse exchange: the triangles sent (dem_sleep_reach) */
-    for (int t = 0; t < me->n_tri; t++) {
-      const int32_t *tn = &me->tri[3 * t];
+  /* the candidates: the triangles whose box meets the grains' box grown by
+   * the reach; the cells their queries read lie within qlo..qhi */
+  double qlo[3] = {INFINITY, INFINITY, INFINITY}, qhi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int mi = 0; mi < m->n_meshes && moving; mi++)
+    for (int t = 0; w->mesh_moving[mi] && t < m->meshes[mi].n_tri; t++) {
       double tlo[3], thi[3];
-      if (live && !live[t]) continue;
-      int meets = 1;
+      if (!tri_meets(m, s, mi, t, glo, ghi, tlo, thi)) continue;
       for (int k = 0; k < 3; k++) {
-        const double a = x[3 * tn[0] + k], b = x[3 * tn[1] + k], c = x[3 * tn[2] + k];
-        tlo[k] = dem_min(a, dem_min(b, c));
-        thi[k] = dem_max(a, dem_max(b, c));
-        meets &= thi[k] >= glo[k] && tlo[k] <= ghi[k];
+        qlo[k] = dem_min(qlo[k], tlo[k] - reach); /* as dem_occ_hit grows them */
+        qhi[k] = dem_max(qhi[k], thi[k] + reach);
       }
-      if (meets && !occ_built) {
-        occupancy_build(s, cbox, cbox + 3, reach, m->sleep.wake_velocity);
-        occ_built = 1;
-      }
-      if (meets) meets = occupied(w, tlo, thi, reach);
-      for (int k = 0; k < 3 && meets; k++) {
+    }
+  /* built when a triangle passes the box test: a far mesh costs no O(n) */
+  if (qlo[0] <= qhi[0]) dem_occ_build(s, cbox, cbox + 3, reach, m->sleep.wake_velocity, qlo, qhi);
+  for (int mi = 0; mi < m->n_meshes && moving; mi++)
+    for (int t = 0; w->mesh_moving[mi] && t < m->meshes[mi].n_tri; t++) {
+      double tlo[3], thi[3];
+      if (!tri_meets(m, s, mi, t, glo, ghi, tlo, thi) || !dem_occ_hit(w, tlo, thi, reach)) continue;
+      for (int k = 0; k < 3; k++) {
         lo[k] = dem_min(lo[k], tlo[k]);
         hi[k] = dem_max(hi[k], thi[k]);
       }
     }
-  }
   int changed = 0;
   if (moving && lo[0] <= hi[0]) { /* some triangle near the grains */
     int inside = w->region_on;

@@ -27,7 +27,15 @@
  *    region and wakes what it approaches, so the plate holds nothing awake
  *    for it: the bed falls asleep, the grain itself stays awake (counted, it
  *    held the bed under the plate awake: the sand scene's region reached
- *    back to the grains carried behind the tyre). */
+ *    back to the grains carried behind the tyre).
+ * 6. The occupancy marks only the cells the candidate triangles can read
+ *    (dem_sleep_occ.c), finding the asleep grains from the cells of the last
+ *    full rebuild: on 2's bed (the grains beyond the region asleep), cells of a
+ *    grain's radius, every cell of a
+ *    query box is marked exactly when some grain's sphere box (an asleep
+ *    grain's, or a slow awake one's) meets it, counted over every grain; for
+ *    a box around the plate (all awake), one over the far end (asleep) and
+ *    the whole grid. */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 #include <string.h>
@@ -90,6 +98,55 @@ static double to_plate(const dem_state *s, int i, int box) {
   return box ? fmax(dx, dy) : sqrt(dx * dx + dy * dy);
 }
 
+/* Part 6: cells within the query box qlo..qhi whose mark differs from a count
+ * over every grain; *by_asleep: cells that only asleep grains mark. */
+static int occ_mismatch(const dem_model *m, dem_state *s, const double *qlo, const double *qhi, int *marked,
+                        int *by_asleep) {
+  struct dem_work *w = s->work;
+  double glo[3] = {INFINITY, INFINITY, INFINITY}, ghi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int i = 0; i < s->n; i++)
+    for (int k = 0; k < 3; k++) {
+      glo[k] = fmin(glo[k], s->x[3 * i + k]);
+      ghi[k] = fmax(ghi[k], s->x[3 * i + k]);
+    }
+  dem_occ_build(s, glo, ghi, R, m->sleep.wake_velocity, qlo, qhi); /* cells of a radius: many, fine */
+  const int *d = w->occ_dim, ncell = d[0] * d[1] * d[2];
+  uint8_t *want = calloc((size_t)ncell, 1), *awake = calloc((size_t)ncell, 1);
+  const double h = w->occ_h, vw2 = m->sleep.wake_velocity * m->sleep.wake_velocity;
+  for (int i = 0; i < s->n; i++) {
+    const double *x = &s->x[3 * i], *v = &s->v[3 * i], r = s->radius[i];
+    if (!w->asleep[i] && v[0] * v[0] + v[1] * v[1] + v[2] * v[2] > vw2) continue;
+    int a[3], b[3];
+    for (int k = 0; k < 3; k++) {
+      a[k] = (int)fmax(0, floor((x[k] - r - w->occ_lo[k]) / h));
+      b[k] = (int)fmin(d[k] - 1, floor((x[k] + r - w->occ_lo[k]) / h));
+    }
+    for (int z = a[2]; z <= b[2]; z++)
+      for (int y = a[1]; y <= b[1]; y++)
+        for (int c = a[0]; c <= b[0]; c++) {
+          want[(z * d[1] + y) * d[0] + c] = 1;
+          awake[(z * d[1] + y) * d[0] + c] |= !w->asleep[i];
+        }
+  }
+  int q0[3], q1[3], bad = 0;
+  for (int k = 0; k < 3; k++) {
+    q0[k] = (int)fmax(0, floor((qlo[k] - w->occ_lo[k]) / h));
+    q1[k] = (int)fmin(d[k] - 1, floor((qhi[k] - w->occ_lo[k]) / h));
+  }
+  *marked = *by_asleep = 0;
+  for (int z = q0[2]; z <= q1[2]; z++)
+    for (int y = q0[1]; y <= q1[1]; y++)
+      for (int c = q0[0]; c <= q1[0]; c++) {
+        const int cell = (z * d[1] + y) * d[0] + c;
+        bad += w->occ[cell] != want[cell];
+        *marked += want[cell];
+        *by_asleep += want[cell] && !awake[cell];
+      }
+  free(want);
+  free(awake);
+  return bad;
+}
+
 int main(void) {
   dem_model m;
   dem_state s;
@@ -126,6 +183,23 @@ int main(void) {
   CHECK(inside > 20 && inside_asleep == 0, "%d of %d grains within distance of the plate sleep", inside_asleep, inside);
   CHECK(far > 20 && far_held == 0, "the region holds %d of %d grains beyond it awake", far_held, far);
   CHECK(s.wall_force[3] == 0 && s.wall_force[4] == 0 && s.wall_force[5] == 0, "the plate touched a grain");
+
+  /* 6. the occupancy where the queries read it, on this bed */
+  CHECK(s.work->grid_ok && s.sleeping > 20, "part 6 needs a grid of the asleep block (%lld of %d asleep)",
+        (long long)s.sleeping, s.n);
+  const double *p = s.mesh_x[0], rq = reach(&m, &s);
+  const double boxes[3][6] = {
+      {p[0] - rq, p[1] - rq, p[2] - 2 * rq, p[3] + rq, p[7] + rq, p[2] + rq}, /* around the plate */
+      {0.1, -1, -1, 1, 1, 1},                                                  /* the far end, asleep */
+      {-1, -1, -1, 1, 1, 1}};                                                  /* the whole grid */
+  for (int b = 0; b < 3; b++) {
+    int marked, by_asleep;
+    const int bad = occ_mismatch(&m, &s, boxes[b], boxes[b] + 3, &marked, &by_asleep);
+    printf("occupancy in query box %d: %d cells marked (%d by asleep grains alone), %d differ from every grain's\n", b,
+           marked, by_asleep, bad);
+    CHECK(bad == 0 && marked > 0 && (b == 0 || by_asleep > 0), "query box %d: %d cells differ (%d marked, %d by asleep grains)",
+          b, bad, marked, by_asleep);
+  }
   dem_state_free(&s);
   dem_model_free(&m);
 

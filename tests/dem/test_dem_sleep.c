@@ -101,7 +101,7 @@ static double run(void) {
     dem_state st;
     roundtrip(&mr, &ref, t, &mt, &st);
     /* the region's passes over every grain split over the threads even on
-     * this small bed (dem_sleep.c occupancy_build): the same bits as the
+     * this small bed (dem_sleep_occ.c dem_occ_build): the same bits as the
      * straight run's one pass */
     if (st.work->asleep) st.work->occ_threads_min = t > 1 ? 0 : DEM_OCC_THREADS_MIN;
     if (t == 2) {
