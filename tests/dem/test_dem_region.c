@@ -30,12 +30,11 @@
  *    back to the grains carried behind the tyre).
  * 6. The occupancy marks only the cells the candidate triangles can read
  *    (dem_sleep_occ.c), finding the asleep grains from the cells of the last
- *    full rebuild: on 2's bed (the grains beyond the region asleep), cells of a
- *    grain's radius, every cell of a
- *    query box is marked exactly when some grain's sphere box (an asleep
- *    grain's, or a slow awake one's) meets it, counted over every grain; for
- *    a box around the plate (all awake), one over the far end (asleep) and
- *    the whole grid. */
+ *    full rebuild: on 2's bed (the grains beyond the region asleep), with
+ *    cells of a grain's radius, every cell of a query box is marked exactly
+ *    when some grain's sphere box (an asleep grain's, or a slow awake one's)
+ *    meets it, counted over every grain; for a box around the plate (all
+ *    awake), one over the far end (asleep) and the whole grid. */
 #include "dem_test.h"
 #include "dem_server/dem_internal.h"
 #include <string.h>
@@ -112,6 +111,8 @@ static int occ_mismatch(const dem_model *m, dem_state *s, const double *qlo, con
   dem_occ_build(s, glo, ghi, R, m->sleep.wake_velocity, qlo, qhi); /* cells of a radius: many, fine */
   const int *d = w->occ_dim, ncell = d[0] * d[1] * d[2];
   uint8_t *want = calloc((size_t)ncell, 1), *awake = calloc((size_t)ncell, 1);
+  CHECK(want && awake, "out of memory for %d cells", ncell);
+  if (!want || !awake) exit(1);
   const double h = w->occ_h, vw2 = m->sleep.wake_velocity * m->sleep.wake_velocity;
   for (int i = 0; i < s->n; i++) {
     const double *x = &s->x[3 * i], *v = &s->v[3 * i], r = s->radius[i];
@@ -197,8 +198,8 @@ int main(void) {
     const int bad = occ_mismatch(&m, &s, boxes[b], boxes[b] + 3, &marked, &by_asleep);
     printf("occupancy in query box %d: %d cells marked (%d by asleep grains alone), %d differ from every grain's\n", b,
            marked, by_asleep, bad);
-    CHECK(bad == 0 && marked > 0 && (b == 0 || by_asleep > 0), "query box %d: %d cells differ (%d marked, %d by asleep grains)",
-          b, bad, marked, by_asleep);
+    CHECK(bad == 0 && marked > 0 && (b == 0 || by_asleep > 0),
+          "query box %d: %d cells differ (%d marked, %d by asleep grains)", b, bad, marked, by_asleep);
   }
   dem_state_free(&s);
   dem_model_free(&m);
