@@ -130,6 +130,7 @@ struct dem_work {
   int region_on;          /* a region is set (some mesh moved since the first update) */
   int64_t region_step;    /* step of the last region update */
   double region_rmax;     /* the largest grain radius */
+  double *cand_box;       /* [6 x the meshes' triangles] region_update's candidate triangles' boxes (lo, hi) */
   uint8_t *occ;           /* [DEM_REGION_OCC_CELLS] the grains' occupancy at the last region update: cell
                            * occ_dim-indexed, 1 where some grain's sphere box meets it (region_update) */
   double occ_lo[3], occ_h; /* its grid: origin and cell side (at least the reach) */

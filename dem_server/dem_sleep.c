@@ -95,11 +95,16 @@ int dem_sleep_alloc(const dem_model *m, dem_state *s, proto_err *err) {
   w->occ = calloc(DEM_REGION_OCC_CELLS, 1);
   w->occ_threads_min = DEM_OCC_THREADS_MIN;
   int nodes = 1;
-  for (int mi = 0; mi < m->n_meshes; mi++) nodes = m->meshes[mi].n_nodes > nodes ? m->meshes[mi].n_nodes : nodes;
+  size_t tris = 0;
+  for (int mi = 0; mi < m->n_meshes; mi++) {
+    nodes = m->meshes[mi].n_nodes > nodes ? m->meshes[mi].n_nodes : nodes;
+    tris += (size_t)m->meshes[mi].n_tri;
+  }
+  w->cand_box = malloc(6 * sizeof(double) * tris + 1);
   w->jump_pos = malloc(sizeof(int32_t) * (size_t)nodes);
   w->jump_mask = calloc((size_t)nodes, 1);
   if (!w->asleep || !w->wake || !w->rest || !w->near || !w->rest_x || !w->wake_list || !w->jump_pos ||
-      !w->jump_mask || !w->occ)
+      !w->jump_mask || !w->occ || !w->cand_box)
     return proto_fail(err, "out of memory for the sleep state of %d grains", s->n);
   return 0;
 }
@@ -109,6 +114,7 @@ void dem_sleep_free(struct dem_work *w) {
   free(w->jump_pos);
   free(w->jump_mask);
   free(w->occ);
+  free(w->cand_box);
 }
 
 void dem_sleep_chunk(const dem_model *m, dem_state *s, int lo, int hi) {
@@ -324,28 +330,30 @@ static void region_update(const dem_model *m, dem_state *s) {
     for (int k = 0; k < 3; k++) { glo[k] -= reach; ghi[k] += reach; }
   }
   /* the candidates: the triangles whose box meets the grains' box grown by
-   * the reach; the cells their queries read lie within qlo..qhi */
+   * the reach (their boxes kept in cand_box); the cells their queries read
+   * lie within qlo..qhi */
   double qlo[3] = {INFINITY, INFINITY, INFINITY}, qhi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  int nc = 0;
   for (int mi = 0; mi < m->n_meshes && moving; mi++)
     for (int t = 0; w->mesh_moving[mi] && t < m->meshes[mi].n_tri; t++) {
-      double tlo[3], thi[3];
-      if (!tri_meets(m, s, mi, t, glo, ghi, tlo, thi)) continue;
+      double *tb = &w->cand_box[6 * nc];
+      if (!tri_meets(m, s, mi, t, glo, ghi, tb, tb + 3)) continue;
+      nc++;
       for (int k = 0; k < 3; k++) {
-        qlo[k] = dem_min(qlo[k], tlo[k] - reach); /* as dem_occ_hit grows them */
-        qhi[k] = dem_max(qhi[k], thi[k] + reach);
+        qlo[k] = dem_min(qlo[k], tb[k] - reach); /* as dem_occ_hit grows them */
+        qhi[k] = dem_max(qhi[k], tb[3 + k] + reach);
       }
     }
   /* built when a triangle passes the box test: a far mesh costs no O(n) */
-  if (qlo[0] <= qhi[0]) dem_occ_build(s, cbox, cbox + 3, reach, m->sleep.wake_velocity, qlo, qhi);
-  for (int mi = 0; mi < m->n_meshes && moving; mi++)
-    for (int t = 0; w->mesh_moving[mi] && t < m->meshes[mi].n_tri; t++) {
-      double tlo[3], thi[3];
-      if (!tri_meets(m, s, mi, t, glo, ghi, tlo, thi) || !dem_occ_hit(w, tlo, thi, reach)) continue;
-      for (int k = 0; k < 3; k++) {
-        lo[k] = dem_min(lo[k], tlo[k]);
-        hi[k] = dem_max(hi[k], thi[k]);
-      }
+  if (nc > 0) dem_occ_build(s, cbox, cbox + 3, reach, m->sleep.wake_velocity, qlo, qhi);
+  for (int q = 0; q < nc; q++) {
+    const double *tb = &w->cand_box[6 * q];
+    if (!dem_occ_hit(w, tb, tb + 3, reach)) continue;
+    for (int k = 0; k < 3; k++) {
+      lo[k] = dem_min(lo[k], tb[k]);
+      hi[k] = dem_max(hi[k], tb[3 + k]);
     }
+  }
   int changed = 0;
   if (moving && lo[0] <= hi[0]) { /* some triangle near the grains */
     int inside = w->region_on;
